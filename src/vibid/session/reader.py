@@ -1,0 +1,137 @@
+"""Read a session file: the declared setup at once, the steps lazily, one at a time."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from typing import Iterator
+
+import h5py
+import numpy as np
+
+from vibid.errors import VibidError
+from vibid.session import format as fmt
+from vibid.session.validate import Problem, hdf5_problems, open_hdf5
+from vibid.setup_model import Setup, SetupError, parse_setup
+
+
+@dataclass(frozen=True)
+class Step:
+    """One frequency step as recorded: accelerations in m/s², sampled together."""
+
+    index: int
+    frequency_hz: float
+    sample_rate_hz: float
+    t0_utc: str
+    status: str
+    base: np.ndarray
+    response: np.ndarray
+
+    @property
+    def n_samples(self) -> int:
+        return self.base.shape[0]
+
+
+class SessionFileError(VibidError):
+    """A session file that breaks the format; ``problems`` lists every reason found."""
+
+    def __init__(self, path: str, problems: list[Problem]):
+        self.path = path
+        self.problems = problems
+        first = problems[0]
+        more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+        super().__init__(f"{path}: {first}{more}")
+
+
+class Session:
+    """An open session file. Use :func:`read_session`; close it (or use ``with``)."""
+
+    def __init__(self, path: str, f: h5py.File):
+        self.path = path
+        self._file = f
+        attrs = f.attrs
+        self.setup: Setup = parse_setup(fmt.text(attrs["setup"]))
+        self.session_id = fmt.text(attrs["session_id"])
+        self.created_utc = fmt.text(attrs["created_utc"])
+        self.software = fmt.text(attrs["software"])
+        self.run_status = fmt.text(attrs.get(fmt.RUN_STATUS_ATTR, "unknown"))
+        self._names = sorted(k for k in f[fmt.STEPS_GROUP] if fmt.is_step_name(k))
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def step(self, index: int) -> Step:
+        """Read step ``index``; raise :class:`SessionFileError` if its samples are not finite."""
+        name = self._names[index]
+        where = f"/{fmt.STEPS_GROUP}/{name}"
+        g = self._file[where]
+        a = g.attrs
+        base = np.asarray(g["base"][()], dtype=np.float64)
+        response = np.asarray(g["response"][()], dtype=np.float64)
+        for label, x in (("base", base), ("response", response)):
+            bad = np.count_nonzero(~np.isfinite(x))
+            if bad:
+                raise SessionFileError(self.path, [Problem(f"{where}/{label}", f"{bad} samples are NaN or infinite")])
+        return Step(index, float(a["frequency_hz"]), float(a["sample_rate_hz"]), fmt.text(a["t0_utc"]),
+                    fmt.text(a["status"]), base, response)
+
+    def steps(self) -> Iterator[Step]:
+        """Every step in the order acquired, read one at a time."""
+        for i in range(len(self)):
+            yield self.step(i)
+
+    def frequencies_hz(self) -> np.ndarray:
+        """The commanded frequency of every step, without reading any samples."""
+        grp = self._file[fmt.STEPS_GROUP]
+        return np.array([float(grp[n].attrs["frequency_hz"]) for n in self._names])
+
+    def statuses(self) -> list[str]:
+        grp = self._file[fmt.STEPS_GROUP]
+        return [fmt.text(grp[n].attrs["status"]) for n in self._names]
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def read_session(path: str | os.PathLike) -> Session:
+    """Open a session for reading after checking its structure (samples are checked as read).
+
+    Raises :class:`SessionFileError` (a :class:`~vibid.errors.VibidError`) naming the first
+    problem. Opens without a file lock so that a running acquisition is never blocked.
+    """
+    path = os.fspath(path)
+    opened = open_hdf5(path)
+    if isinstance(opened, Problem):
+        raise SessionFileError(path, [opened])
+    problems = list(hdf5_problems(opened, check_samples=False))
+    if problems:
+        opened.close()
+        raise SessionFileError(path, problems)
+    return Session(path, opened)
+
+
+def load_setup(path: str | os.PathLike) -> Setup:
+    """The declared setup from a setup JSON file or a session file."""
+    path = os.fspath(path)
+    if path.endswith((".h5", ".hdf5")):
+        with read_session(path) as s:
+            return s.setup
+    try:
+        with open(path) as fh:
+            doc = json.load(fh)
+    except OSError as exc:
+        raise VibidError(f"{path}: cannot read ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise VibidError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    try:
+        return parse_setup(doc)
+    except SetupError as exc:
+        raise VibidError(f"{path}: {exc.problems[0]}") from None
+

@@ -1,0 +1,254 @@
+"""Every rule of the session format, checked on an open HDF5 file.
+
+Problems are ``(location, message)`` pairs. A location is the path inside the file, with
+``@name`` for an attribute: ``/@format_version``, ``/steps/000003@status``,
+``/steps/000003/response``. :func:`file_problems` also covers files that are not HDF5 at all.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from typing import Iterator
+
+import h5py
+import numpy as np
+
+from vibid.session import format as fmt
+from vibid.setup_model import SetupError, parse_setup
+
+
+@dataclass(frozen=True)
+class Problem:
+    location: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.location}: {self.message}"
+
+
+def file_problems(path: str | os.PathLike, *, check_samples: bool = True) -> list[Problem]:
+    """Open ``path`` and list every way it breaks the format (empty list: valid)."""
+    opened = open_hdf5(path)
+    if isinstance(opened, Problem):
+        return [opened]
+    with opened as f:
+        return list(hdf5_problems(f, check_samples=check_samples))
+
+
+def open_hdf5(path: str | os.PathLike) -> h5py.File | Problem:
+    """Open read-only without taking a lock (a live writer must never be blocked), or say why not."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        return Problem("/", "no such file")
+    if os.path.isdir(path):
+        return Problem("/", "is a directory, not a session file")
+    size = os.path.getsize(path)
+    if size == 0:
+        return Problem("/", "empty file (0 bytes), not an HDF5 session")
+    try:
+        is_hdf5 = h5py.is_hdf5(path)
+    except OSError as exc:
+        return Problem("/", f"cannot be read ({exc.strerror or exc})")
+    if not is_hdf5:
+        return Problem("/", "not an HDF5 file (no HDF5 signature)")
+    try:
+        return h5py.File(path, "r", locking=False)
+    except OSError as exc:
+        reason = str(exc).split("(")[0].strip().rstrip(":") or "unreadable"
+        return Problem("/", f"HDF5 file is truncated or corrupted ({reason}, {size} bytes)")
+
+
+def hdf5_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Problem]:
+    """Rules of the root, the setup and every step; samples are read only if ``check_samples``."""
+    root_ok = True
+    for p in _root_problems(f):
+        root_ok = False
+        yield p
+    if not root_ok:
+        return  # without a readable header, step problems would only add noise
+    yield from steps_problems(f, check_samples=check_samples)
+
+
+def _root_problems(f: h5py.File) -> Iterator[Problem]:
+    attrs = f.attrs
+    for name in fmt.ROOT_ATTRIBUTES:
+        if name not in attrs:
+            yield Problem(f"/@{name}", "missing root attribute")
+    if "format" in attrs:
+        value = _as_str(attrs["format"])
+        if value is None:
+            yield Problem("/@format", f"must be a string, got {_describe(attrs['format'])}")
+        elif value != fmt.FORMAT:
+            yield Problem("/@format", f"is {value!r}, expected {fmt.FORMAT!r}")
+    if "format_version" in attrs:
+        version = _as_int(attrs["format_version"])
+        readable = ", ".join(str(v) for v in fmt.READABLE_VERSIONS)
+        if version is None:
+            yield Problem("/@format_version", f"must be an integer, got {_describe(attrs['format_version'])}")
+        elif version not in fmt.READABLE_VERSIONS:
+            yield Problem("/@format_version", f"version {version} is not supported; this vibid reads version {readable}")
+    for name in ("created_utc", "session_id", "software"):
+        if name in attrs:
+            value = _as_str(attrs[name])
+            if value is None:
+                yield Problem(f"/@{name}", f"must be a string, got {_describe(attrs[name])}")
+            elif not value.strip():
+                yield Problem(f"/@{name}", "is empty")
+            elif name == "created_utc" and not _is_iso_time(value):
+                yield Problem("/@created_utc", f"{value!r} is not an ISO 8601 time")
+    if "setup" in attrs:
+        yield from _setup_problems(attrs["setup"])
+
+
+def _setup_problems(raw) -> Iterator[Problem]:
+    text = _as_str(raw)
+    if text is None:
+        yield Problem("/@setup", f"must be a JSON string, got {_describe(raw)}")
+        return
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        yield Problem("/@setup", f"not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})")
+        return
+    try:
+        parse_setup(doc)
+    except SetupError as exc:
+        for problem in exc.problems:
+            yield Problem(f"/@{problem.split(': ', 1)[0]}", problem.split(": ", 1)[1])
+
+
+def steps_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Problem]:
+    if fmt.STEPS_GROUP not in f:
+        yield Problem(f"/{fmt.STEPS_GROUP}", "missing group")
+        return
+    steps = f[fmt.STEPS_GROUP]
+    if not isinstance(steps, h5py.Group):
+        yield Problem(f"/{fmt.STEPS_GROUP}", "must be a group, found a dataset")
+        return
+    names = sorted(steps.keys())
+    for name in names:
+        if not fmt.is_step_name(name):
+            yield Problem(f"/{fmt.STEPS_GROUP}/{name}", "step group name is not six digits")
+    for expected, name in enumerate(n for n in names if fmt.is_step_name(n)):
+        where = f"/{fmt.STEPS_GROUP}/{name}"
+        if name != fmt.step_name(expected):
+            yield Problem(where, f"step out of sequence: {fmt.step_name(expected)} is missing before it")
+            return  # every later name is off by the same gap; one line says it
+        step = steps[name]
+        if not isinstance(step, h5py.Group):
+            yield Problem(where, "must be a group, found a dataset")
+            continue
+        yield from step_problems(step, where, check_samples=check_samples)
+
+
+def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -> Iterator[Problem]:
+    attrs = step.attrs
+    for name in fmt.STEP_ATTRIBUTES:
+        if name not in attrs:
+            yield Problem(f"{where}@{name}", "missing step attribute")
+    rates = {}
+    for name in ("frequency_hz", "sample_rate_hz"):
+        if name in attrs:
+            value = _as_float(attrs[name])
+            if value is None:
+                yield Problem(f"{where}@{name}", f"must be a number, got {_describe(attrs[name])}")
+            elif not (np.isfinite(value) and value > 0):
+                yield Problem(f"{where}@{name}", f"must be a positive finite number, got {value!r}")
+            else:
+                rates[name] = value
+    if len(rates) == 2 and rates["frequency_hz"] >= rates["sample_rate_hz"] / 2:
+        yield Problem(
+            f"{where}@frequency_hz",
+            f"{rates['frequency_hz']!r} Hz is not below the Nyquist frequency "
+            f"{rates['sample_rate_hz'] / 2!r} Hz",
+        )
+    if "t0_utc" in attrs:
+        value = _as_str(attrs["t0_utc"])
+        if value is None:
+            yield Problem(f"{where}@t0_utc", f"must be a string, got {_describe(attrs['t0_utc'])}")
+        elif not _is_iso_time(value):
+            yield Problem(f"{where}@t0_utc", f"{value!r} is not an ISO 8601 time")
+    if "status" in attrs:
+        value = _as_str(attrs["status"])
+        if value is None:
+            yield Problem(f"{where}@status", f"must be a string, got {_describe(attrs['status'])}")
+        elif value not in fmt.STEP_STATUSES:
+            yield Problem(f"{where}@status", f"unknown status {value!r}, expected one of {', '.join(fmt.STEP_STATUSES)}")
+
+    lengths = {}
+    for name in fmt.STEP_DATASETS:
+        path = f"{where}/{name}"
+        if name not in step:
+            yield Problem(path, "missing dataset")
+            continue
+        ds = step[name]
+        if not isinstance(ds, h5py.Dataset):
+            yield Problem(path, "must be a dataset, found a group")
+        elif ds.ndim != 1:
+            yield Problem(path, f"must be 1-D, has shape {ds.shape}")
+        elif ds.dtype not in (np.float32, np.float64):
+            yield Problem(path, f"must be float32 or float64, is {ds.dtype}")
+        elif ds.shape[0] == 0:
+            yield Problem(path, "is empty")
+        else:
+            lengths[name] = ds.shape[0]
+            if check_samples:
+                bad = _count_non_finite(ds)
+                if bad:
+                    yield Problem(path, f"{bad} sample{'s are' if bad > 1 else ' is'} NaN or infinite")
+    if len(lengths) == 2 and lengths["response"] != lengths["base"]:
+        yield Problem(f"{where}/response", f"length {lengths['response']} differs from base {lengths['base']}")
+
+
+def _count_non_finite(ds: h5py.Dataset, chunk: int = 1 << 22) -> int:
+    return int(sum(np.count_nonzero(~np.isfinite(ds[i : i + chunk])) for i in range(0, ds.shape[0], chunk)))
+
+
+# -- attribute types -------------------------------------------------------------------
+def _as_str(value) -> str | None:
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (bytes, np.bytes_)):
+        try:
+            return bytes(value).decode("utf-8")
+        except UnicodeDecodeError:
+            return None
+    return None
+
+
+def _as_int(value) -> int | None:
+    if isinstance(value, (bool, np.bool_)):
+        return None
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    return None
+
+
+def _as_float(value) -> float | None:
+    if isinstance(value, (bool, np.bool_)):
+        return None
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return float(value)
+    return None
+
+
+def _describe(value) -> str:
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape} ({value.dtype})"
+    if isinstance(value, (str, bytes, np.bytes_)):
+        return f"the string {_as_str(value)!r}"
+    if isinstance(value, (bool, np.bool_)):
+        return f"the boolean {bool(value)}"
+    if isinstance(value, (np.integer, np.floating, int, float)):
+        return f"{value!r} ({type(value).__name__})"
+    return type(value).__name__
+
+
+def _is_iso_time(text: str) -> bool:
+    try:
+        fmt.parse_utc(text)
+    except ValueError:
+        return False
+    return True

@@ -1,0 +1,375 @@
+"""The declared setup of a session: specimen, sensors, DAQ, excitation, identification.
+
+This is the typed form of the ``setup`` JSON document of the session format
+(``shared/spec/session-format.md``). Everything is in SI units, as in the JSON.
+
+Reading is two-step, so that a bad document yields every problem at once:
+
+* :func:`Setup.from_dict` converts types and collects what it cannot read;
+* :func:`setup_problems` checks meaning (positive dimensions, the sensor disc
+  inside the specimen, ordered bounds, ...).
+
+:func:`parse_setup` does both and raises :class:`SetupError` listing the
+problems, each as ``"<json path>: <what is wrong>"``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from vibid.errors import VibidError
+
+#: Parameter names of each material model, in the order the identification uses.
+MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "isotropic": ("D", "nu", "beta"),
+    "orthotropic": ("D11", "D12", "D22", "D66", "beta"),
+    "monoclinic": ("D11", "D12", "D22", "D66", "D16", "D26", "beta"),
+}
+
+#: Parameters that must be strictly positive (their bounds too).
+POSITIVE_PARAMETERS = frozenset({"D", "D11", "D22", "D66"})
+
+
+class SetupError(VibidError, ValueError):
+    """A setup document that cannot be used; ``problems`` lists every reason."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = list(problems)
+        super().__init__("; ".join(self.problems))
+
+
+@dataclass(frozen=True)
+class Specimen:
+    """The plate: the rectangle [0, length_m] x [0, width_m], clamped along x = 0."""
+
+    name: str
+    length_m: float
+    width_m: float
+    thickness_m: float
+    density_kg_m3: float
+
+
+@dataclass(frozen=True)
+class BaseSensor:
+    """The accelerometer on the shaker table."""
+
+    sensitivity_mV_per_g: float
+
+
+@dataclass(frozen=True)
+class ResponseSensor:
+    """The accelerometer on the specimen: a disc of mass ``mass_kg`` and radius ``radius_m``
+    centred at (``x_m``, ``y_m``)."""
+
+    sensitivity_mV_per_g: float
+    x_m: float
+    y_m: float
+    mass_kg: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class Sensors:
+    base: BaseSensor
+    response: ResponseSensor
+
+
+@dataclass(frozen=True)
+class Daq:
+    sample_rate_hz: float
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """The stepped sine: frequencies in the order they are played, and the settle time."""
+
+    frequencies_hz: tuple[float, ...]
+    settle_s: float
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Which material model to identify and the prior box of each of its parameters."""
+
+    model: str
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return MODEL_PARAMETERS[self.model]
+
+
+@dataclass(frozen=True)
+class Setup:
+    specimen: Specimen
+    sensors: Sensors
+    daq: Daq
+    excitation: Excitation
+    identification: Identification
+
+    # -- conversion ---------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, doc: Any) -> "Setup":
+        """Build a setup from the parsed JSON; raise :class:`SetupError` on missing or
+        mistyped fields. Meaning is checked by :func:`setup_problems`."""
+        reader = _Reader()
+        setup = reader.setup(doc)
+        if reader.problems:
+            raise SetupError(reader.problems)
+        return setup
+
+    @classmethod
+    def from_json(cls, text: str) -> "Setup":
+        try:
+            doc = json.loads(text)
+        except (json.JSONDecodeError, TypeError) as exc:
+            raise SetupError([f"setup: not valid JSON ({exc})"]) from None
+        return cls.from_dict(doc)
+
+    def to_dict(self) -> dict[str, Any]:
+        doc = asdict(self)
+        doc["excitation"]["frequencies_hz"] = list(self.excitation.frequencies_hz)
+        doc["identification"]["bounds"] = {
+            k: [float(lo), float(hi)] for k, (lo, hi) in self.identification.bounds.items()
+        }
+        return doc
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return json.dumps(self.to_dict(), indent=indent)
+
+
+def parse_setup(text_or_doc: str | dict) -> Setup:
+    """Read and check a setup; raise :class:`SetupError` listing every problem."""
+    setup = (
+        Setup.from_json(text_or_doc)
+        if isinstance(text_or_doc, str)
+        else Setup.from_dict(text_or_doc)
+    )
+    problems = setup_problems(setup)
+    if problems:
+        raise SetupError(problems)
+    return setup
+
+
+# -- meaning ------------------------------------------------------------------------
+def setup_problems(s: Setup) -> list[str]:
+    """Every rule of the session format that ``s`` breaks, as ``"path: problem"`` lines."""
+    out: list[str] = []
+
+    def positive(path: str, value: float) -> None:
+        if not (math.isfinite(value) and value > 0):
+            out.append(f"setup.{path}: must be a positive number, got {value!r}")
+
+    sp = s.specimen
+    for name in ("length_m", "width_m", "thickness_m", "density_kg_m3"):
+        positive(f"specimen.{name}", getattr(sp, name))
+
+    positive("sensors.base.sensitivity_mV_per_g", s.sensors.base.sensitivity_mV_per_g)
+    r = s.sensors.response
+    positive("sensors.response.sensitivity_mV_per_g", r.sensitivity_mV_per_g)
+    positive("sensors.response.radius_m", r.radius_m)
+    if not (math.isfinite(r.mass_kg) and r.mass_kg >= 0):
+        out.append(f"setup.sensors.response.mass_kg: must be zero or positive, got {r.mass_kg!r}")
+    inside = (
+        r.x_m - r.radius_m >= 0
+        and r.x_m + r.radius_m <= sp.length_m
+        and r.y_m - r.radius_m >= 0
+        and r.y_m + r.radius_m <= sp.width_m
+    )
+    if not inside:
+        out.append(
+            "setup.sensors.response: the sensor disc (centre "
+            f"x={r.x_m!r} m, y={r.y_m!r} m, radius {r.radius_m!r} m) is not inside the "
+            f"specimen [0, {sp.length_m!r}] x [0, {sp.width_m!r}] m"
+        )
+
+    positive("daq.sample_rate_hz", s.daq.sample_rate_hz)
+    freqs = s.excitation.frequencies_hz
+    if not freqs:
+        out.append("setup.excitation.frequencies_hz: must list at least one frequency")
+    for i, f in enumerate(freqs):
+        if not (math.isfinite(f) and f > 0):
+            out.append(f"setup.excitation.frequencies_hz[{i}]: must be a positive number, got {f!r}")
+        elif math.isfinite(s.daq.sample_rate_hz) and f >= s.daq.sample_rate_hz / 2:
+            out.append(
+                f"setup.excitation.frequencies_hz[{i}]: {f!r} Hz is not below the Nyquist "
+                f"frequency {s.daq.sample_rate_hz / 2!r} Hz"
+            )
+    if not (math.isfinite(s.excitation.settle_s) and s.excitation.settle_s >= 0):
+        out.append(f"setup.excitation.settle_s: must be zero or positive, got {s.excitation.settle_s!r}")
+
+    out.extend(_identification_problems(s.identification))
+    return out
+
+
+def _identification_problems(ident: Identification) -> list[str]:
+    if ident.model not in MODEL_PARAMETERS:
+        return [
+            f"setup.identification.model: unknown model {ident.model!r}, "
+            f"expected one of {', '.join(MODEL_PARAMETERS)}"
+        ]
+    out = []
+    expected = set(MODEL_PARAMETERS[ident.model])
+    got = set(ident.bounds)
+    if missing := sorted(expected - got):
+        out.append(
+            f"setup.identification.bounds: model {ident.model!r} needs bounds for "
+            f"{', '.join(missing)}"
+        )
+    if extra := sorted(got - expected):
+        out.append(
+            f"setup.identification.bounds: {', '.join(extra)} "
+            f"{'is' if len(extra) == 1 else 'are'} not a parameter of model {ident.model!r} "
+            f"({', '.join(MODEL_PARAMETERS[ident.model])})"
+        )
+    for name in MODEL_PARAMETERS[ident.model]:
+        if name not in ident.bounds:
+            continue
+        lo, hi = ident.bounds[name]
+        path = f"setup.identification.bounds.{name}"
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            out.append(f"{path}: bounds must be finite, got [{lo!r}, {hi!r}]")
+        elif not lo < hi:
+            out.append(f"{path}: low {lo!r} must be below high {hi!r}")
+        elif name in POSITIVE_PARAMETERS and lo <= 0:
+            out.append(f"{path}: {name} is a stiffness and must be positive, low is {lo!r}")
+        elif name == "nu" and not (-1.0 < lo and hi <= 0.5):
+            out.append(f"{path}: Poisson's ratio bounds must lie in (-1, 0.5], got [{lo!r}, {hi!r}]")
+        elif name == "beta" and lo < 0:
+            out.append(f"{path}: the loss factor cannot be negative, low is {lo!r}")
+    return out
+
+
+# -- type conversion ------------------------------------------------------------------
+class _Reader:
+    """Turns parsed JSON into dataclasses, collecting a message per missing/mistyped field."""
+
+    def __init__(self) -> None:
+        self.problems: list[str] = []
+
+    def _obj(self, doc: Any, path: str) -> dict:
+        if not isinstance(doc, dict):
+            self.problems.append(f"{path}: expected a JSON object, got {_kind(doc)}")
+            return {}
+        return doc
+
+    def _num(self, doc: dict, key: str, path: str) -> float:
+        if key not in doc:
+            self.problems.append(f"{path}.{key}: missing")
+            return math.nan
+        v = doc[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.problems.append(f"{path}.{key}: expected a number, got {_kind(v)}")
+            return math.nan
+        return float(v)
+
+    def _str(self, doc: dict, key: str, path: str) -> str:
+        if key not in doc:
+            self.problems.append(f"{path}.{key}: missing")
+            return ""
+        if not isinstance(doc[key], str):
+            self.problems.append(f"{path}.{key}: expected a string, got {_kind(doc[key])}")
+            return ""
+        return doc[key]
+
+    def setup(self, doc: Any) -> Setup:
+        root = self._obj(doc, "setup")
+        sp = self._section(root, "specimen", "setup")
+        sen = self._section(root, "sensors", "setup")
+        base = self._section(sen, "base", "setup.sensors") if sen else {}
+        resp = self._section(sen, "response", "setup.sensors") if sen else {}
+        daq = self._section(root, "daq", "setup")
+        exc = self._section(root, "excitation", "setup")
+        ide = self._section(root, "identification", "setup")
+
+        p = "setup.specimen"
+        specimen = Specimen(
+            name=self._str(sp, "name", p) if sp else "",
+            length_m=self._num(sp, "length_m", p) if sp else math.nan,
+            width_m=self._num(sp, "width_m", p) if sp else math.nan,
+            thickness_m=self._num(sp, "thickness_m", p) if sp else math.nan,
+            density_kg_m3=self._num(sp, "density_kg_m3", p) if sp else math.nan,
+        )
+        p = "setup.sensors.response"
+        sensors = Sensors(
+            base=BaseSensor(self._num(base, "sensitivity_mV_per_g", "setup.sensors.base") if base else math.nan),
+            response=ResponseSensor(
+                *(self._num(resp, k, p) if resp else math.nan
+                  for k in ("sensitivity_mV_per_g", "x_m", "y_m", "mass_kg", "radius_m"))
+            ),
+        )
+        daq_ = Daq(self._num(daq, "sample_rate_hz", "setup.daq") if daq else math.nan)
+        excitation = Excitation(
+            frequencies_hz=self._frequencies(exc) if exc else (),
+            settle_s=self._num(exc, "settle_s", "setup.excitation") if exc else math.nan,
+        )
+        identification = Identification(
+            model=self._str(ide, "model", "setup.identification") if ide else "",
+            bounds=self._bounds(ide) if ide else {},
+        )
+        return Setup(specimen, sensors, daq_, excitation, identification)
+
+    def _section(self, parent: dict, key: str, path: str) -> dict:
+        """The sub-object ``parent[key]``, or {} with a problem recorded."""
+        if key not in parent:
+            if parent or path == "setup":
+                self.problems.append(f"{path}.{key}: missing")
+            return {}
+        return self._obj(parent[key], f"{path}.{key}")
+
+    def _frequencies(self, exc: dict) -> tuple[float, ...]:
+        path = "setup.excitation.frequencies_hz"
+        if "frequencies_hz" not in exc:
+            self.problems.append(f"{path}: missing")
+            return ()
+        v = exc["frequencies_hz"]
+        if not isinstance(v, list) or any(isinstance(f, bool) or not isinstance(f, (int, float)) for f in v):
+            self.problems.append(f"{path}: expected a list of numbers")
+            return ()
+        return tuple(float(f) for f in v)
+
+    def _bounds(self, ide: dict) -> dict[str, tuple[float, float]]:
+        path = "setup.identification.bounds"
+        if "bounds" not in ide:
+            self.problems.append(f"{path}: missing")
+            return {}
+        raw = ide["bounds"]
+        if not isinstance(raw, dict):
+            self.problems.append(f"{path}: expected a JSON object, got {_kind(raw)}")
+            return {}
+        out = {}
+        for name, pair in raw.items():
+            ok = (
+                isinstance(pair, list)
+                and len(pair) == 2
+                and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in pair)
+            )
+            if not ok:
+                self.problems.append(f"{path}.{name}: expected [low, high], got {json.dumps(pair)}")
+                continue
+            out[name] = (float(pair[0]), float(pair[1]))
+        return out
+
+
+def _kind(v: Any) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean",
+            type(None): "null", int: "a number", float: "a number"}.get(type(v), type(v).__name__)
+
+
+def example_setup() -> Setup:
+    """The paper's steel strip (Table 1) with its shifted 1 g sensor, 201 steps to 1500 Hz."""
+    return Setup(
+        specimen=Specimen("steel strip 100x20x1", 0.100, 0.020, 0.001, 7920.0),
+        sensors=Sensors(
+            base=BaseSensor(100.0),
+            response=ResponseSensor(100.0, x_m=0.090, y_m=0.015, mass_kg=0.001, radius_m=0.001),
+        ),
+        daq=Daq(25600.0),
+        excitation=Excitation(tuple(7.5 * k for k in range(1, 201)), settle_s=0.5),
+        identification=Identification(
+            "isotropic", {"D": (1.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
+        ),
+    )

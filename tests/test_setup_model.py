@@ -1,0 +1,48 @@
+"""The setup model: JSON round trip and checks of meaning."""
+
+import json
+
+import pytest
+
+from vibid.setup_model import MODEL_PARAMETERS, SetupError, example_setup, parse_setup
+
+
+def test_json_round_trip():
+    s = example_setup()
+    assert parse_setup(s.to_json()) == s
+    assert json.loads(s.to_json())["identification"]["bounds"]["D"] == [1.0, 100.0]
+
+
+def test_every_problem_is_listed_at_once():
+    doc = example_setup().to_dict()
+    doc["specimen"]["thickness_m"] = 0
+    doc["daq"]["sample_rate_hz"] = 2000.0  # 1500 Hz steps are then above Nyquist
+    doc["identification"]["bounds"]["beta"] = [-0.1, 0.1]
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    problems = err.value.problems
+    assert "setup.specimen.thickness_m: must be a positive number, got 0.0" in problems
+    assert "setup.identification.bounds.beta: the loss factor cannot be negative, low is -0.1" in problems
+    assert sum("Nyquist" in p for p in problems) == sum(f >= 1000.0 for f in example_setup().excitation.frequencies_hz)
+
+
+@pytest.mark.parametrize("model", list(MODEL_PARAMETERS))
+def test_each_model_needs_exactly_its_parameters(model):
+    doc = example_setup().to_dict()
+    doc["identification"] = {"model": model, "bounds": {n: [0.1, 0.4] for n in MODEL_PARAMETERS[model]}}
+    assert parse_setup(doc).identification.parameter_names == MODEL_PARAMETERS[model]
+    doc["identification"]["bounds"].popitem()
+    with pytest.raises(SetupError, match="needs bounds for"):
+        parse_setup(doc)
+
+
+def test_mistyped_fields_are_named():
+    doc = example_setup().to_dict()
+    doc["sensors"]["response"]["x_m"] = None
+    doc["excitation"]["frequencies_hz"] = "5..1500"
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    assert err.value.problems == [
+        "setup.sensors.response.x_m: expected a number, got null",
+        "setup.excitation.frequencies_hz: expected a list of numbers",
+    ]
