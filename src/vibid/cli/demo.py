@@ -1,0 +1,12 @@
+"""`vibid demo` (placeholder until its issue lands)."""
+
+from vibid.errors import VibidError
+
+
+def add_parser(sub):
+    p = sub.add_parser("demo", help="(not yet available)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    raise VibidError("'vibid demo' is not implemented yet")
