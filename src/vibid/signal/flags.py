@@ -1,0 +1,195 @@
+"""Quality flags of a step: why its AFC point should not be trusted.
+
+Every check is a pure function of the records or of the harmonic fit, vectorised over steps,
+and yields a boolean per step plus a one-line reason. The names are stable identifiers (they
+end up in reports):
+
+========== ==================================================================================
+name        fires when
+========== ==================================================================================
+overload    the step's status is ``overload``, or a channel has flat tops: more than
+            ``flat_top_fraction`` of its samples sit at its maximum (or minimum), as when an
+            input clips
+aborted     the step's status is ``aborted``
+unsettled   fitted on the first and on the second half of the record (frequency held at the
+            whole record's), a channel's fundamental amplitude, or H itself, differs beyond
+            noise: χ² above the two-sided ``unsettled_sigma`` Gaussian tail (5σ: χ² > 25 for
+            an amplitude, 1 dof; > 28.7 for H, 2 dof). H, not each channel's phase, is tested
+            for phase: the refined frequency absorbs any common phase slope, but cancels in H
+low_snr     a channel's fundamental stands less than ``min_snr_db`` above its own standard
+            uncertainty; below ~20 dB the linearised uncertainty of the ratio and the
+            frequency search stop being reliable
+distortion  a channel's total harmonic distortion (2nd and 3rd, noise power removed) exceeds
+            ``max_thd_db`` and its harmonics stand out of the noise (χ² of the harmonic
+            phasors above the ``unsettled_sigma`` tail), so that a noisy channel does not
+            fire it by chance
+clock       the refined frequency is further than ``max_clock_offset_ppm`` (+5σ) from the
+            commanded one: the generator and DAQ clocks disagree beyond their tolerance, or
+            the fit locked on something else
+few_cycles  the record holds fewer than ``min_cycles`` periods; drift and fundamental blur
+fit         the frequency search did not converge (the step is fitted at the commanded
+            frequency instead)
+invalid     the record cannot be fitted (non-finite samples, too short, unequal lengths)
+========== ==================================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vibid.signal.ratio import phasor_ratio
+
+__all__ = [
+    "FLAG_NAMES",
+    "Flag",
+    "FlagThresholds",
+    "flat_top_fraction",
+    "quality_flags",
+    "settling_chi2",
+    "unsettled_chi2_limit",
+]
+
+FLAG_NAMES = (
+    "overload", "aborted", "unsettled", "low_snr", "distortion", "clock", "few_cycles", "fit", "invalid",
+)
+CHANNELS = ("base", "response")
+
+
+@dataclass(frozen=True)
+class Flag:
+    """One reason to leave a step out: ``name`` from :data:`FLAG_NAMES`, ``reason`` one line."""
+
+    name: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class FlagThresholds:
+    """Limits of the quality checks (see the module table)."""
+
+    flat_top_fraction: float = 0.005
+    unsettled_sigma: float = 5.0
+    min_snr_db: float = 20.0
+    max_thd_db: float = -20.0
+    max_clock_offset_ppm: float = 200.0
+    min_cycles: float = 2.0
+
+
+def unsettled_chi2_limit(sigma: float, dof: int = 2) -> float:
+    """χ² with ``dof`` degrees of freedom and the tail probability of a two-sided ``sigma``
+    Gaussian deviation (``sigma²`` for 1 dof, ``-2 ln p`` for 2)."""
+    if dof == 1:
+        return sigma**2
+    if dof == 2:
+        return -2.0 * math.log(math.erfc(sigma / math.sqrt(2.0)))
+    from scipy.special import gammainccinv  # χ²_dof survival: Q(dof/2, x/2)
+
+    return float(2.0 * gammainccinv(dof / 2.0, math.erfc(sigma / math.sqrt(2.0))))
+
+
+def settling_chi2(half_phasors: np.ndarray, half_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Change between the record halves: amplitude χ² per channel (1 dof) and χ² of H (2 dof).
+
+    ``half_phasors`` (S, 2, 2): channel × (first, second half); ``half_cov`` (S, 2, 4, 4):
+    per half, the covariance of (Re X_b, Im X_b, Re X_r, Im X_r). The halves are independent.
+    """
+    x = half_phasors
+    amp = np.abs(x)
+    radial = np.stack([np.cos(np.angle(x)), np.sin(np.angle(x))], -1)  # (S, C, 2 halves, 2)
+    var = np.zeros(amp.shape)
+    for c in range(x.shape[1]):
+        blk = half_cov[:, :, 2 * c : 2 * c + 2, 2 * c : 2 * c + 2]  # (S, halves, 2, 2)
+        var[:, c] = np.einsum("shi,shij,shj->sh", radial[:, c], blk, radial[:, c])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        amp_chi2 = (amp[..., 1] - amp[..., 0]) ** 2 / var.sum(-1)
+    hs, covs = zip(*(phasor_ratio(x[:, 0, k], x[:, 1, k], half_cov[:, k]) for k in range(2)))
+    d = hs[1] - hs[0]
+    d = np.stack([d.real, d.imag], -1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h_chi2 = np.einsum("si,sij,sj->s", d, np.linalg.inv(covs[0] + covs[1]), d)
+    return amp_chi2, h_chi2
+
+
+def flat_top_fraction(x: np.ndarray, rel_tol: float = 1e-6) -> np.ndarray:
+    """Fraction of samples at the channel's extreme value: the larger of top and bottom.
+
+    ``x`` (..., N). A sample counts when within ``rel_tol`` of the peak-to-peak range of the
+    maximum (or minimum). A clean sine has ~``√(2 rel_tol)/π`` (0.05 %) there; a clipped one
+    has every clipped sample. Coarsely quantised records (a few bits over the signal) have
+    wide flat tops too: a known limit of the check.
+    """
+    hi, lo = x.max(-1, keepdims=True), x.min(-1, keepdims=True)
+    tol = rel_tol * (hi - lo)
+    top = np.count_nonzero(x >= hi - tol, axis=-1)
+    bottom = np.count_nonzero(x <= lo + tol, axis=-1)
+    return np.maximum(top, bottom) / x.shape[-1]
+
+
+def quality_flags(
+    *,
+    status: list[str],
+    flat_top: np.ndarray,
+    amplitude_change_chi2: np.ndarray,
+    h_change_chi2: np.ndarray,
+    estimate_snr_db: np.ndarray,
+    thd_db: np.ndarray,
+    harmonic_chi2: np.ndarray,
+    harmonic_dof: int,
+    clock_offset_ppm: np.ndarray,
+    clock_std_ppm: np.ndarray,
+    cycles: np.ndarray,
+    converged: np.ndarray,
+    thresholds: FlagThresholds = FlagThresholds(),
+) -> list[tuple[Flag, ...]]:
+    """The flags of ``S`` steps from their diagnostics; per-channel arrays are (S, 2).
+
+    ``estimate_snr_db`` is ``10 log10(|X|² / var)`` of each channel's fundamental phasor,
+    ``var`` its variance per real component; ``harmonic_chi2`` is ``Σ_k |X_k|² / var_k`` over
+    the harmonics (``harmonic_dof = 2 (K - 1)`` degrees of freedom under noise alone).
+    """
+    thr = thresholds
+    amp_limit = unsettled_chi2_limit(thr.unsettled_sigma, 1)
+    h_limit = unsettled_chi2_limit(thr.unsettled_sigma, 2)
+    harmonic_limit = unsettled_chi2_limit(thr.unsettled_sigma, harmonic_dof) if harmonic_dof else math.inf
+    out = []
+    for i, st in enumerate(status):
+        flags: list[Flag] = []
+        if st == "overload":
+            flags.append(Flag("overload", "step status is 'overload' (an input clipped)"))
+        elif st == "aborted":
+            flags.append(Flag("aborted", "step status is 'aborted'"))
+        elif st != "ok":
+            flags.append(Flag("invalid", f"unknown step status {st!r}"))
+        for c, name in enumerate(CHANNELS):
+            if flat_top[i, c] > thr.flat_top_fraction and st != "overload":
+                flags.append(Flag("overload", f"{name} has flat tops: {100 * flat_top[i, c]:.1f} % of samples at "
+                                              f"its extreme (limit {100 * thr.flat_top_fraction:.1f} %), clipping"))
+        for c, name in enumerate(CHANNELS):
+            if amplitude_change_chi2[i, c] > amp_limit:
+                flags.append(Flag("unsettled", f"{name} amplitude changes between the record halves: "
+                                               f"chi2 {amplitude_change_chi2[i, c]:.1f} > {amp_limit:.1f} "
+                                               f"(1 dof, {thr.unsettled_sigma:g} sigma)"))
+        if h_change_chi2[i] > h_limit:
+            flags.append(Flag("unsettled", f"H changes between the record halves: chi2 {h_change_chi2[i]:.1f} "
+                                           f"> {h_limit:.1f} (2 dof, {thr.unsettled_sigma:g} sigma)"))
+        for c, name in enumerate(CHANNELS):
+            if not estimate_snr_db[i, c] >= thr.min_snr_db:
+                flags.append(Flag("low_snr", f"{name} fundamental is {estimate_snr_db[i, c]:.1f} dB above its "
+                                             f"uncertainty (minimum {thr.min_snr_db:g} dB)"))
+        for c, name in enumerate(CHANNELS):
+            if thd_db[i, c] > thr.max_thd_db and harmonic_chi2[i, c] > harmonic_limit:
+                flags.append(Flag("distortion", f"{name} harmonic distortion {thd_db[i, c]:.1f} dB "
+                                                f"(limit {thr.max_thd_db:g} dB)"))
+        off, std = clock_offset_ppm[i], clock_std_ppm[i]
+        if abs(off) - 5.0 * std > thr.max_clock_offset_ppm:
+            flags.append(Flag("clock", f"frequency in the record is {off:+.0f} ppm from the commanded "
+                                       f"(tolerance {thr.max_clock_offset_ppm:g} ppm)"))
+        if cycles[i] < thr.min_cycles:
+            flags.append(Flag("few_cycles", f"record holds {cycles[i]:.2f} cycles (minimum {thr.min_cycles:g})"))
+        if not converged[i]:
+            flags.append(Flag("fit", "frequency search did not converge; fitted at the commanded frequency"))
+        out.append(tuple(flags))
+    return out
