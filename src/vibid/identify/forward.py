@@ -1,0 +1,306 @@
+"""The forward model of identification: declared setup + material parameters → AFC ``H(f)``.
+
+Interface (what :mod:`vibid.identify` re-exports)::
+
+    build_forward_model(setup, frequencies_hz, *, model=None, theta0=None, accuracy="default",
+                        per_modulus_loss=False, basis=None, post=None) -> ForwardModel
+    natural_frequencies(setup, params: dict, n=6, *, accuracy="default")
+        -> (frequency_hz (n,), decay_1_per_s (n,))
+
+    class ForwardModel:
+        parameter_names: tuple[str, ...]   # physical names, in theta order
+        frequencies_hz: np.ndarray         # (nf,)
+        afc(theta) -> jax.Array            # (nf,) complex128, reduced model; pure, jit-able,
+                                           # differentiable to any order
+        afc_batch(thetas) -> jax.Array     # (npop, nf), vmapped
+        model_error(theta) -> np.ndarray   # (nf,) standard uncertainty per real/imag part
+        afc_full(theta) -> np.ndarray      # (nf,) full sparse FE model, same discretisation
+        afc_full_jax                       # JAX function theta -> H of the full model (1st
+                                           # derivatives exact, for verification)
+        check(theta) -> float              # a-posteriori reduced-vs-full error (see below)
+        refresh(theta) -> ForwardModel     # local basis around theta unless this one is fine
+        natural_frequencies(theta, n=6)    # full model, (frequency_hz, decay_1_per_s)
+
+Deviations from the brief: the extra keywords ``basis`` and ``post`` (below), and the extra
+methods ``check``, ``natural_frequencies`` and attribute ``afc_full_jax``.
+
+Discretisation (``accuracy``): quintic C1 Argyris triangles on a uniform mesh refined
+around the clamped corners (:mod:`vibid.identify.mesh`). "default" converges the first six
+natural frequencies of the paper's strip to better than 1e-6 (measured against a much finer
+mesh, ``benchmarks/plate.md``); "fast" to a few 1e-6; "fine" to 1e-7.
+
+Reduced model (:mod:`vibid.identify.reduced`), two kinds of basis:
+
+* ``"wide"`` (default when ``theta0`` is not given): modes at the centre of the prior box
+  and at its faces, static corrections and parameter sensitivities, sized to keep the whole
+  box accurate (about 1e-7 of max |H| on the paper's strip); for global search.
+* ``"local"`` (the default when ``theta0`` is given, and what :meth:`ForwardModel.refresh`
+  builds): modes, static corrections and sensitivities at ``theta0`` only, about 20
+  unknowns; error below 1e-6 of max |H| within a few per cent of ``theta0`` and 1e-5 within
+  about 20 %; loss + exact Hessian in about 2 ms.
+
+``refresh(theta)`` returns ``self`` when the basis is local and the a-posteriori check at
+``theta`` (the full model at four frequencies: the two strongest resonances on the grid,
+the middle and the top of the band) is within ``REFRESH_TOL`` of max |H|; otherwise a new
+model with a local basis at ``theta``.
+
+``model_error(theta)``: per frequency, the discretisation error estimated as the
+difference to the next finer discretisation (whose own error is several times smaller),
+combined with the reduction error from the a-posteriori check; both divided by √2 to give a
+standard uncertainty per real and imaginary part.
+
+Extension points for the closed loop: ``post(theta, omega, H) -> H`` maps the plate's AFC
+to the observed one (delay, gain, ...) and may use parameters appended to the
+parameterisation; extra stiffness terms enter as further projected matrices
+(:class:`vibid.identify.reduced.ReducedBasis` ``term_names``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vibid.errors import VibidError
+from vibid.identify.assembly import Geometry, assemble_plate
+from vibid.identify.fullmodel import afc_full, make_full_afc_jax
+from vibid.identify.materials import Parameterisation, infer_model, theta_from_dict
+from vibid.identify.mesh import Discretisation
+from vibid.identify.modes import complex_eigenvalues, frequencies_and_decays
+from vibid.identify.reduced import ReducedAFC, build_basis
+
+jax.config.update("jax_enable_x64", True)
+log = logging.getLogger(__name__)
+
+#: Accuracy presets: cell size of the uniform mesh (m) and corner refinement levels.
+ACCURACY = {
+    "fast": (0.005, 4),
+    "default": (0.0033334, 4),
+    "fine": (0.0016667, 6),
+}
+#: The a-posteriori check's tolerance (fraction of max |H|) below which refresh keeps a basis.
+REFRESH_TOL = 1e-6
+#: How much softer than theta0 a local basis stays complete (stiffness ratio).
+LOCAL_SCALE_RATIO = 4.0
+
+
+def discretisation(geometry: Geometry, accuracy: str = "default") -> Discretisation:
+    """The Argyris discretisation of an accuracy preset for a specimen."""
+    if accuracy not in ACCURACY:
+        raise VibidError(f"unknown accuracy {accuracy!r}, expected one of {', '.join(ACCURACY)}")
+    size, levels = ACCURACY[accuracy]
+    nx = max(2, math.ceil(geometry.length_m / size - 1e-6))
+    ny = max(2, math.ceil(geometry.width_m / size - 1e-6))
+    return Discretisation("argyris", nx, ny, levels)
+
+
+def finer_discretisation(d: Discretisation) -> Discretisation:
+    """The next finer level used to estimate a discretisation's error."""
+    return Discretisation(d.element, (3 * d.nx + 1) // 2, (3 * d.ny + 1) // 2, d.corner_levels + 1)
+
+
+def _box_centre(bounds: dict, names) -> np.ndarray:
+    out = []
+    for n in names:
+        lo, hi = bounds[n]
+        out.append(math.sqrt(lo * hi) if lo > 0 and hi > 0 else 0.5 * (lo + hi))
+    return np.array(out)
+
+
+@dataclass(eq=False)
+class ForwardModel:
+    """Forward model of one setup on one frequency grid; see the module docstring."""
+
+    geometry: Geometry
+    frequencies_hz: np.ndarray
+    param: Parameterisation
+    bounds: dict
+    discretisation: Discretisation
+    theta0: np.ndarray
+    kind: str
+    post: object = None
+    _reduced: ReducedAFC = field(init=False, repr=False)
+
+    def __post_init__(self):
+        self.frequencies_hz = np.asarray(self.frequencies_hz, float)
+        self.theta0 = np.asarray(self.theta0, float)
+        self.mats = assemble_plate(self.geometry, self.discretisation)
+        f_max = float(self.frequencies_hz.max())
+        if self.kind == "wide":
+            basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
+                                snapshots=True)
+        elif self.kind == "local":
+            basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
+                                snapshots=False, scale_ratio=LOCAL_SCALE_RATIO)
+        else:
+            raise ValueError(f"unknown basis kind {self.kind!r}")
+        self.basis = basis
+        self._reduced = ReducedAFC(basis, self.param, 2 * np.pi * self.frequencies_hz, self.post)
+        self._afc = jax.jit(self._reduced.__call__)
+        self._afc_batch = jax.jit(jax.vmap(self._reduced.__call__))
+        self._full_jax = None
+        self._finer = None
+
+    # -- the interface ----------------------------------------------------------------
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.param.names
+
+    def afc(self, theta) -> jax.Array:
+        """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
+        return self._afc(theta)
+
+    def afc_batch(self, thetas) -> jax.Array:
+        """(npop, nf) AFCs of a population of parameter vectors."""
+        return self._afc_batch(jnp.asarray(thetas, jnp.float64))
+
+    def afc_full(self, theta) -> np.ndarray:
+        """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""
+        theta = np.asarray(theta, float)
+        H = afc_full(self.mats, self.param.complex_moduli(theta), self.frequencies_hz)
+        if self.post is not None:
+            H = np.asarray(self.post(jnp.asarray(theta), 2 * np.pi * self.frequencies_hz, H))
+        return H
+
+    @property
+    def afc_full_jax(self):
+        """JAX ``theta -> H`` of the full model (first derivatives exact)."""
+        if self._full_jax is None:
+            full = make_full_afc_jax(self.mats, self.frequencies_hz)
+            omega = 2 * np.pi * self.frequencies_hz
+
+            def fn(theta):
+                theta = jnp.asarray(theta, jnp.float64)
+                H = full(self.param.complex_moduli(theta, jnp))
+                return H if self.post is None else self.post(theta, omega, H)
+
+            self._full_jax = fn
+        return self._full_jax
+
+    def check_frequencies(self, theta) -> np.ndarray:
+        """Indices of the grid frequencies used by the a-posteriori check."""
+        mag = np.abs(np.asarray(self.afc(theta)))
+        peaks = [i for i in range(1, mag.size - 1) if mag[i] >= mag[i - 1] and mag[i] >= mag[i + 1]]
+        peaks = sorted(peaks, key=lambda i: -mag[i])[:2]
+        idx = set(peaks) | {mag.size // 2, mag.size - 1}
+        return np.array(sorted(idx))
+
+    def check(self, theta) -> float:
+        """Reduced-vs-full error at the check frequencies, as a fraction of max |H|."""
+        idx = self.check_frequencies(theta)
+        Hr = np.asarray(self.afc(theta))
+        Hf = afc_full(self.mats, self.param.complex_moduli(np.asarray(theta, float)),
+                      self.frequencies_hz[idx])
+        if self.post is not None:
+            Hf = np.asarray(self.post(jnp.asarray(theta), 2 * np.pi * self.frequencies_hz[idx], Hf))
+        return float(np.abs(Hr[idx] - Hf).max() / np.abs(Hr).max())
+
+    def refresh(self, theta) -> "ForwardModel":
+        """A model whose basis is local to ``theta``: ``self`` if it already is and passes
+        the a-posteriori check there, else a new one built at ``theta``."""
+        theta = np.asarray(theta, float)
+        if self.kind == "local":
+            err = self.check(theta)
+            if err <= REFRESH_TOL:
+                return self
+            log.info("refresh: reduced error %.1e at theta; rebuilding the basis", err)
+        return ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds,
+                            self.discretisation, theta, "local", self.post)
+
+    def model_error(self, theta) -> np.ndarray:
+        """(nf,) standard uncertainty of the model error per real and imaginary part.
+
+        Discretisation: ``|H − H_finer|`` with ``H_finer`` from the next finer mesh (built
+        once, lazily); reduction: the a-posteriori check's maximum error. Combined in
+        quadrature and divided by √2 (the error is shared by the two parts)."""
+        theta = np.asarray(theta, float)
+        if self._finer is None:
+            self._finer = ForwardModel(self.geometry, self.frequencies_hz, self.param,
+                                       self.bounds, finer_discretisation(self.discretisation),
+                                       theta, "local", self.post)
+        fine = self._finer.refresh(theta)
+        self._finer = fine
+        disc = np.abs(np.asarray(self.afc(theta)) - np.asarray(fine.afc(theta)))
+        red = self.check(theta) * float(np.abs(np.asarray(self.afc(theta))).max())
+        return np.sqrt(disc**2 + red**2) / math.sqrt(2.0)
+
+    def natural_frequencies(self, theta, n: int = 6):
+        """``(frequency_hz, decay_1_per_s)`` of the first ``n`` modes (full model)."""
+        theta = np.asarray(theta, float)
+        lam = complex_eigenvalues(self.mats, self.param.moduli(theta), self.param.losses(theta), n)
+        return frequencies_and_decays(lam)
+
+
+def build_forward_model(setup, frequencies_hz=None, *, model=None, theta0=None,
+                        accuracy: str = "default", per_modulus_loss: bool = False,
+                        basis: str | None = None, post=None) -> ForwardModel:
+    """Build the forward model of a declared setup.
+
+    Parameters
+    ----------
+    setup : :class:`vibid.setup_model.Setup`.
+    frequencies_hz : (nf,) frequencies in Hz (default: the setup's excitation frequencies).
+    model : ``"isotropic"``, ``"orthotropic"`` or ``"monoclinic"`` (default: the setup's).
+    theta0 : dict name -> value where the basis is built (default: the centre of the
+        setup's bounds, geometric for positive bounds).
+    accuracy : ``"fast"``, ``"default"`` or ``"fine"`` (see the module docstring).
+    per_modulus_loss : one loss factor per modulus (``beta11``, ...) instead of ``beta``.
+    basis : ``"wide"`` or ``"local"`` (default: wide without ``theta0``, local with it).
+    post : optional ``post(theta, omega_rad_s, H) -> H`` applied to every AFC.
+    """
+    if frequencies_hz is None:
+        frequencies_hz = setup.excitation.frequencies_hz
+    freqs = np.asarray(frequencies_hz, float)
+    if freqs.ndim != 1 or freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs < 0):
+        raise VibidError("frequencies_hz must be a non-empty list of finite frequencies >= 0 Hz")
+    model = model or setup.identification.model
+    try:
+        param = Parameterisation(model, per_modulus_loss)
+    except ValueError as exc:
+        raise VibidError(str(exc)) from None
+    bounds = param.default_bounds(dict(setup.identification.bounds))
+    geometry = Geometry.from_setup(setup)
+    if theta0 is None:
+        missing = [n for n in param.names if n not in bounds]
+        if missing:
+            raise VibidError(f"no bounds for {', '.join(missing)}: give theta0 or the bounds")
+        th0 = _box_centre(bounds, param.names)
+        kind = basis or "wide"
+    else:
+        try:
+            th0 = theta_from_dict(param, theta0)
+        except KeyError as exc:
+            raise VibidError(str(exc.args[0])) from None
+        kind = basis or "local"
+    return ForwardModel(geometry, freqs, param, bounds, discretisation(geometry, accuracy), th0, kind, post)
+
+
+def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default"):
+    """Natural frequencies and decay factors of the setup's plate (with its sensor).
+
+    Parameters
+    ----------
+    setup : :class:`vibid.setup_model.Setup`.
+    params : dict name -> value; the model follows from the names (``D, nu, beta`` is
+        isotropic, ``D11, D12, D22, D66, beta`` orthotropic, ...; ``beta11`` ... for one loss
+        per modulus).
+    n : how many modes.
+
+    Returns
+    -------
+    (frequency_hz (n,), decay_1_per_s (n,)): ``√Λ = 2π f + i γ`` (paper eq. 4.1.13).
+    """
+    try:
+        model, pml = infer_model(params)
+    except KeyError as exc:
+        raise VibidError(str(exc.args[0])) from None
+    param = Parameterisation(model, pml)
+    theta = theta_from_dict(param, params)
+    geometry = Geometry.from_setup(setup)
+    mats = assemble_plate(geometry, discretisation(geometry, accuracy))
+    lam = complex_eigenvalues(mats, param.moduli(theta), param.losses(theta), n)
+    return frequencies_and_decays(lam)

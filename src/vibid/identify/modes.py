@@ -1,0 +1,47 @@
+"""Natural frequencies and decay factors: the complex eigenproblem of the full model.
+
+Paper eq. 4.1.13: ``(Σ D̂_α K_α − Λ M) u = 0`` with the clamped edge fixed; then
+``ω_k = Re √Λ_k`` and ``γ_k = Im √Λ_k``, so that free vibrations decay as
+``exp((−γ_k + i ω_k) t)``. With one loss factor for all moduli the modes are real and
+``Λ = (1 + iβ) λ`` with ``λ`` from the real problem; otherwise the complex problem is solved
+by shift-invert Arnoldi.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from vibid.identify.forms import MODULI
+
+
+def complex_eigenvalues(mats, moduli, losses, n: int = 6) -> np.ndarray:
+    """The ``n`` smallest eigenvalues ``Λ`` (rad²/s², complex) of the plate.
+
+    Parameters
+    ----------
+    mats : :class:`vibid.identify.assembly.PlateMatrices`.
+    moduli, losses : six storage moduli (N·m) and loss factors in :data:`MODULI` order.
+    n : how many.
+    """
+    moduli = np.asarray(moduli, float)
+    losses = np.asarray(losses, float)
+    M = mats.inertia_matrix()
+    n = int(min(n, mats.n_dof - 2))
+    if np.allclose(losses, losses[0]):
+        K = mats.stiffness_matrix(dict(zip(MODULI, moduli)))
+        lam = spla.eigsh(K, k=n, M=M, sigma=0.0, which="LM", return_eigenvectors=False)
+        lam = np.sort(lam) * (1.0 + 1j * losses[0])
+    else:
+        K = mats.stiffness_matrix(dict(zip(MODULI, moduli * (1.0 + 1j * losses))))
+        lam = spla.eigs(K, k=n, M=M.astype(complex), sigma=0.0, which="LM",
+                        return_eigenvectors=False)
+        lam = lam[np.argsort(lam.real)]
+    return lam
+
+
+def frequencies_and_decays(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(f_k in Hz, γ_k in 1/s)`` from eigenvalues ``Λ_k``: ``√Λ = ω + iγ``, ``f = ω/2π``."""
+    root = np.sqrt(np.asarray(lam, complex))
+    root = np.where(root.real < 0, -root, root)
+    return root.real / (2 * np.pi), root.imag

@@ -1,0 +1,128 @@
+"""The reduced JAX model against the full sparse model; derivatives; refresh; conventions."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from vibid.identify import build_forward_model
+from plate_helpers import PAPER_THETA, strip_model, strip_setup
+
+
+@pytest.fixture(scope="module")
+def local():
+    return strip_model("local", "fast", 60)
+
+
+@pytest.fixture(scope="module")
+def full_paper(local):
+    return local.afc_full(PAPER_THETA)
+
+
+def test_local_reduced_matches_full_model(local, full_paper):
+    H = np.asarray(local.afc(PAPER_THETA))
+    assert np.abs(H - full_paper).max() < 1e-6 * np.abs(full_paper).max()
+
+
+def test_local_reduced_nearby(local):
+    theta = PAPER_THETA * np.array([1.05, 1.04, 1.5])
+    H, Hf = np.asarray(local.afc(theta)), local.afc_full(theta)
+    assert np.abs(H - Hf).max() < 1e-5 * np.abs(Hf).max()
+
+
+def test_wide_basis_covers_the_prior_box():
+    model = strip_model("wide", "fast", 60)
+    for theta in ([2.0, 0.05, 0.01], [80.0, 0.45, 0.001], PAPER_THETA):
+        H, Hf = np.asarray(model.afc(np.array(theta))), model.afc_full(np.array(theta))
+        assert np.abs(H - Hf).max() < 1e-5 * np.abs(Hf).max(), theta
+    batch = np.asarray(model.afc_batch(np.array([PAPER_THETA, [2.0, 0.05, 0.01]])))
+    np.testing.assert_allclose(batch[0], np.asarray(model.afc(PAPER_THETA)), rtol=1e-10)
+
+
+def test_static_limit_and_phase_convention(local):
+    """H → 1 as f → 0; past the first resonance the response lags (e^{+iωt}, β > 0)."""
+    setup = strip_setup()
+    f1 = local.natural_frequencies(PAPER_THETA, 1)[0][0]
+    freqs = np.array([1e-3, 0.5, f1, 1.2 * f1])
+    model = build_forward_model(setup, freqs, theta0=dict(zip(("D", "nu", "beta"), PAPER_THETA)),
+                                accuracy="fast")
+    H = np.asarray(model.afc(PAPER_THETA))
+    assert abs(H[0] - 1) < 1e-9
+    # quasi-static: 1 + ω² × (static deflection per unit acceleration) > 1, tiny phase
+    assert 0 < H[1].real - 1 < 1e-3 and abs(np.angle(H[1])) < 1e-5
+    assert np.angle(H[2]) == pytest.approx(-np.pi / 2, abs=0.05)  # -90° at resonance
+    assert np.angle(H[3]) < -np.pi / 2  # lags by more past it
+
+
+def test_gradient_matches_full_model_adjoint(local):
+    """d Re/Im H / dθ of the reduced model against the full model's adjoint derivative."""
+    theta = jnp.asarray(PAPER_THETA)
+    J = jax.jacfwd(lambda t: local.afc(t))(theta)
+    Jf = jax.jacfwd(lambda t: local.afc_full_jax(t))(theta)
+    scale = np.abs(np.asarray(Jf)).max(axis=0)
+    assert np.all(np.abs(np.asarray(J - Jf)).max(axis=0) < 1e-4 * scale)
+
+
+def test_loss_gradient_and_hessian_against_finite_differences(local, full_paper):
+    data = jnp.asarray(full_paper * (1 + 1e-3))
+
+    def loss(t):
+        return jnp.sum(jnp.abs(local.afc(t) - data) ** 2)
+
+    theta = jnp.asarray(PAPER_THETA * np.array([1.01, 0.99, 1.1]))
+    grad = jax.jit(jax.grad(loss))
+    g = np.asarray(grad(theta))
+    Hs = np.asarray(jax.jit(jax.hessian(loss))(theta))
+    steps = np.array([1e-6, 1e-6, 1e-5]) * np.asarray(theta)
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = steps[i]
+        fd = (jax.jit(loss)(theta + e) - jax.jit(loss)(theta - e)) / (2 * steps[i])
+        assert float(fd) == pytest.approx(g[i], rel=1e-4)
+        gfd = (np.asarray(grad(theta + e)) - np.asarray(grad(theta - e))) / (2 * steps[i])
+        np.testing.assert_allclose(Hs[:, i], gfd, rtol=1e-3, atol=1e-6 * np.abs(Hs).max())
+    np.testing.assert_allclose(Hs, Hs.T, rtol=1e-8)
+
+
+def test_parameterisations_agree():
+    """The isotropic plate written as orthotropic/monoclinic moduli, and one loss written per
+    modulus (the direct path), give the same AFC."""
+    setup = strip_setup()
+    freqs = np.linspace(10, 1500, 40)
+    D, nu, beta = PAPER_THETA
+    iso = build_forward_model(setup, freqs, theta0={"D": D, "nu": nu, "beta": beta}, accuracy="fast")
+    ortho_p = {"D11": D, "D12": nu * D, "D22": D, "D66": (1 - nu) * D / 2, "beta": beta}
+    ortho = build_forward_model(setup, freqs, model="orthotropic", theta0=ortho_p, accuracy="fast")
+    mono = build_forward_model(setup, freqs, model="monoclinic",
+                               theta0=dict(ortho_p, D16=0.0, D26=0.0), accuracy="fast")
+    pml = build_forward_model(setup, freqs, theta0={"D": D, "nu": nu, "beta11": beta, "beta12": beta,
+                                                    "beta66": beta}, per_modulus_loss=True, accuracy="fast")
+    H = np.asarray(iso.afc(PAPER_THETA))
+    scale = np.abs(H).max()
+    for m, th in ((ortho, [D, nu * D, D, (1 - nu) * D / 2, beta]),
+                  (mono, [D, nu * D, D, (1 - nu) * D / 2, 0.0, 0.0, beta]),
+                  (pml, [D, nu, beta, beta, beta])):
+        assert np.abs(np.asarray(m.afc(np.array(th))) - H).max() < 1e-6 * scale, m.parameter_names
+    # unequal losses: direct path against the full model (the basis holds real modes, so
+    # strongly non-proportional damping costs a little accuracy)
+    th = np.array([D, nu, 0.002, 0.004, 0.006])
+    assert np.abs(np.asarray(pml.afc(th)) - pml.afc_full(th)).max() < 1e-5 * scale
+
+
+def test_refresh_keeps_or_rebuilds(local):
+    assert local.refresh(PAPER_THETA) is local
+    far = local.refresh(PAPER_THETA * np.array([1.6, 0.7, 1.0]))
+    assert far is not local and far.kind == "local"
+    np.testing.assert_allclose(far.theta0, PAPER_THETA * np.array([1.6, 0.7, 1.0]))
+
+
+def test_model_error_estimates_the_discretisation_error(local):
+    """The estimate is small against the AFC and covers the difference to a fine model."""
+    err = local.model_error(PAPER_THETA)
+    H = np.asarray(local.afc(PAPER_THETA))
+    assert err.shape == H.shape and np.all(err >= 0)
+    assert err.max() < 1e-3 * np.abs(H).max()
+    fine = strip_model("local", "default", 60)
+    diff = np.abs(np.asarray(fine.afc(PAPER_THETA)) - H)
+    # the actual error of "fast" (seen from "default") is within 3 sigma of the estimate
+    assert np.all(diff <= 3 * np.sqrt(2) * err + 1e-9 * np.abs(H).max())
