@@ -1,0 +1,169 @@
+"""Typed results of the identification: why each optimiser stopped, its history, the answer.
+
+Every status maps to a sentence that tells the person at the stand what happened and what
+to do (the shape of optimistix's ``RESULTS``); nothing is returned without one, and a run
+that did not converge says so.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class Status(enum.Enum):
+    """Why a local optimiser stopped."""
+
+    CONVERGED = "converged"
+    MAX_ITERATIONS = "max_iterations"
+    STALLED = "stalled"
+    NOT_FINITE = "not_finite"
+    FAILED = "failed"
+
+    @property
+    def ok(self) -> bool:
+        return self is Status.CONVERGED
+
+    def sentence(self, detail: str = "") -> str:
+        base = {
+            Status.CONVERGED: "converged",
+            Status.MAX_ITERATIONS: (
+                "did not converge within the iteration limit: the estimate is not a minimum; "
+                "allow more iterations or start closer (a global search)"
+            ),
+            Status.STALLED: (
+                "stalled: the trust region shrank to nothing before the gradient vanished; "
+                "the loss is not smooth there (check the model's accuracy and the data)"
+            ),
+            Status.NOT_FINITE: (
+                "the loss is not finite at the start: check the data and the start values"
+            ),
+            Status.FAILED: "failed",
+        }[self]
+        return f"{base} ({detail})" if detail else base
+
+
+@dataclass(frozen=True)
+class HistoryEntry:
+    """One iteration of a local optimiser.
+
+    ``loss`` is chi2 at ``theta`` (the current iterate, physical units); ``step`` the norm
+    of the trial step in ``u``; ``radius`` the trust radius it was taken in (None where
+    the method has none); ``ratio`` actual over predicted decrease; ``accepted`` whether
+    the iterate moved.
+    """
+
+    iteration: int
+    loss: float
+    theta: tuple[float, ...]
+    step: float | None
+    radius: float | None
+    ratio: float | None = None
+    accepted: bool | None = None
+
+
+@dataclass(frozen=True)
+class LocalResult:
+    """The result of one local optimisation in the coordinates of a ParameterSpace."""
+
+    method: str
+    u: np.ndarray
+    theta: np.ndarray
+    loss: float
+    status: Status
+    message: str
+    n_iterations: int
+    n_evaluations: int
+    history: tuple[HistoryEntry, ...] = field(default=())
+
+    @property
+    def converged(self) -> bool:
+        return self.status.ok
+
+
+@dataclass(frozen=True)
+class GlobalResult:
+    """Differential evolution: the best point of each restart (sorted, best first)."""
+
+    u: np.ndarray  # (restarts, p)
+    theta: np.ndarray  # (restarts, p)
+    loss: np.ndarray  # (restarts,) the search objective at each
+    n_evaluations: int
+    messages: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """The identified parameters of one model with their uncertainty and provenance.
+
+    Attributes
+    ----------
+    parameter_names: the parameters, in order.
+    values, std: (p,) estimates and standard deviations (physical units; nan if unknown).
+    covariance, correlation: (p, p).
+    chi2, chi2_reduced: weighted sum of squared residuals, and over its degrees of freedom.
+    rel_rms_residual: RMS |H_model - H| over RMS |H|, on the points used.
+    status: Status of the final local run; ``message`` the sentence for the user.
+    noise_known: whether the AFC's standard uncertainty was given (else it was estimated
+        from the residual, and ``chi2_reduced`` is 1 by construction of that estimate's
+        scale: see vibid.identify.uncertainty).
+    global_result: the global search, if one ran.
+    local_results: every local run (polishes of several candidates), best first.
+    warnings: sentences about the data, bounds, identifiability.
+    model_afc: (n,) the model AFC at the estimate on all given frequencies (nan where a
+        point was not used).
+    """
+
+    model: str
+    parameter_names: tuple[str, ...]
+    values: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    chi2: float
+    chi2_reduced: float
+    dof: int
+    rel_rms_residual: float
+    status: Status
+    message: str
+    noise_known: bool
+    frequency_hz: np.ndarray
+    H: np.ndarray
+    H_std: np.ndarray | None
+    used: np.ndarray
+    model_afc: np.ndarray
+    global_result: GlobalResult | None = None
+    local_results: tuple[LocalResult, ...] = field(default=())
+    warnings: tuple[str, ...] = field(default=())
+    seconds: float = float("nan")
+
+    @property
+    def converged(self) -> bool:
+        return self.status.ok
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.parameter_names, self.values)}
+
+    @property
+    def parameter_std(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.parameter_names, self.std)}
+
+    @property
+    def history(self) -> tuple[HistoryEntry, ...]:
+        """The history of the local run that gave the answer."""
+        return self.local_results[0].history if self.local_results else ()
+
+    def summary(self) -> str:
+        """A few lines for the console."""
+        lines = [f"model {self.model}: {self.message}"]
+        for n, v, s in zip(self.parameter_names, self.values, self.std):
+            lines.append(f"  {n:>6} = {v:.6g} +- {s:.2g}")
+        lines.append(
+            f"  chi2_reduced = {self.chi2_reduced:.4g}, rel_rms_residual = "
+            f"{self.rel_rms_residual:.3g}"
+        )
+        lines.extend(f"  warning: {w}" for w in self.warnings)
+        return "\n".join(lines)

@@ -1,0 +1,208 @@
+"""Parameter spaces: physical parameters <-> one unconstrained, well-scaled vector ``u``.
+
+Every optimiser of the identification (differential evolution, trust-region Newton, BFGS,
+Levenberg-Marquardt) works on ``u``. Each parameter has a :class:`Transform`: a map
+``phi`` from its physical domain onto the real line, followed by an affine
+normalisation chosen so that the prior box ``[low, high]`` of the setup maps onto
+``[-1, 1]``:
+
+    u = (phi(theta) - centre) / half_width
+
+``phi`` is
+
+* ``log`` for quantities that are positive and known to within orders of magnitude
+  (stiffnesses, loss factor, masses, gains): peaks move with sqrt(D), so log D makes
+  their spacing uniform and the landscape far less skewed;
+* ``logit`` onto the open physical interval ``(a, b)`` for quantities with hard physical
+  limits (Poisson's ratio in (-1, 1/2)): no step of any optimiser can leave it;
+* ``linear`` for signed quantities without limits (D12, D16, D26, delays).
+
+New parameters (the closed loop's effects) slot in by adding a row to
+:data:`PARAMETER_KINDS`; an unknown name falls back to ``log`` for a positive box that
+spans more than a factor 10, else ``linear``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+from vibid.errors import VibidError
+
+#: How each known parameter is mapped: ("log",), ("logit", a, b) or ("linear",).
+PARAMETER_KINDS: dict[str, tuple] = {
+    "D": ("log",),
+    "D11": ("log",),
+    "D22": ("log",),
+    "D66": ("log",),
+    "D12": ("linear",),
+    "D16": ("linear",),
+    "D26": ("linear",),
+    "nu": ("logit", -1.0, 0.5),
+    "beta": ("log",),
+    # closed-loop effects (report-format.md, "Effect names")
+    "tau_s": ("linear",),
+    "gain": ("log",),
+    "k_theta_N_per_rad": ("log",),
+    "mass_kg": ("log",),
+    "alpha": ("linear",),
+}
+
+#: Fraction of a prior box kept away from a hard edge of the physical domain (a prior
+#: bound at 0 for a log parameter, or nu's bound at 1/2), so that its image is finite.
+EDGE_MARGIN = 1e-3
+
+
+@dataclass(frozen=True)
+class Transform:
+    """The map of one parameter between its physical value and its coordinate ``u``.
+
+    Attributes
+    ----------
+    name: the parameter's name, e.g. ``"D"``.
+    kind: ``"log"``, ``"logit"`` or ``"linear"``.
+    low, high: the prior box (physical units), from ``setup.identification.bounds``.
+    a, b: the open physical interval of a ``logit`` parameter (else nan).
+    centre, half_width: the affine normalisation of ``phi`` (prior box -> [-1, 1]).
+    """
+
+    name: str
+    kind: str
+    low: float
+    high: float
+    a: float
+    b: float
+    centre: float
+    half_width: float
+
+    # phi and its inverse, written with jnp so they trace under jit/grad and run on numpy
+    def _phi(self, theta):
+        if self.kind == "log":
+            return jnp.log(theta)
+        if self.kind == "logit":
+            s = (theta - self.a) / (self.b - self.a)
+            return jnp.log(s) - jnp.log1p(-s)
+        return theta
+
+    def _phi_inv(self, z):
+        if self.kind == "log":
+            return jnp.exp(z)
+        if self.kind == "logit":
+            return self.a + (self.b - self.a) * (1 / (1 + jnp.exp(-z)))
+        return z
+
+    def to_u(self, theta):
+        """Coordinate ``u`` of a physical value (array-friendly)."""
+        return (self._phi(theta) - self.centre) / self.half_width
+
+    def from_u(self, u):
+        """Physical value of a coordinate ``u`` (array-friendly, differentiable)."""
+        return self._phi_inv(self.centre + self.half_width * u)
+
+    def inside_domain(self, theta: float) -> bool:
+        """Whether ``theta`` lies in the physical domain of the map."""
+        if self.kind == "log":
+            return theta > 0
+        if self.kind == "logit":
+            return self.a < theta < self.b
+        return math.isfinite(theta)
+
+
+def make_transform(name: str, low: float, high: float, kind: tuple | None = None) -> Transform:
+    """The transform of parameter ``name`` with prior box ``[low, high]``.
+
+    Raises :class:`VibidError` when the box is empty or outside the physical domain.
+    """
+    low, high = float(low), float(high)
+    if not (math.isfinite(low) and math.isfinite(high) and low < high):
+        raise VibidError(f"bounds of {name}: need finite low < high, got [{low!r}, {high!r}]")
+    if kind is None:
+        kind = PARAMETER_KINDS.get(name)
+    if kind is None:
+        kind = ("log",) if (low > 0 and high / low > 10) else ("linear",)
+    a = b = math.nan
+    lo, hi = low, high
+    if kind[0] == "log":
+        if high <= 0:
+            raise VibidError(f"bounds of {name}: {name} is positive, got [{low!r}, {high!r}]")
+        lo = max(low, high * EDGE_MARGIN)  # a prior bound at 0 (e.g. beta >= 0)
+    elif kind[0] == "logit":
+        a, b = float(kind[1]), float(kind[2])
+        if high <= a or low >= b:
+            raise VibidError(
+                f"bounds of {name}: [{low!r}, {high!r}] lies outside its physical range ({a}, {b})"
+            )
+        margin = EDGE_MARGIN * (b - a)
+        lo, hi = max(low, a + margin), min(high, b - margin)
+    elif kind[0] != "linear":
+        raise VibidError(f"unknown transform kind {kind[0]!r} for parameter {name}")
+    proto = Transform(name, kind[0], low, high, a, b, 0.0, 1.0)
+    z_lo, z_hi = float(proto._phi(lo)), float(proto._phi(hi))
+    return Transform(name, kind[0], low, high, a, b, (z_lo + z_hi) / 2, (z_hi - z_lo) / 2)
+
+
+@dataclass(frozen=True)
+class ParameterSpace:
+    """The ordered parameters of one fit and their transforms.
+
+    ``to_u``/``from_u`` map whole vectors; ``from_u`` is differentiable, so the loss
+    can be written as a function of ``u``.
+    """
+
+    transforms: tuple[Transform, ...]
+
+    @classmethod
+    def from_bounds(cls, names, bounds: dict, kinds: dict | None = None) -> "ParameterSpace":
+        """Build the space of ``names`` with their prior boxes ``bounds[name] = (low, high)``."""
+        missing = [n for n in names if n not in bounds]
+        if missing:
+            raise VibidError(f"no bounds given for {', '.join(missing)}")
+        kinds = kinds or {}
+        return cls(tuple(make_transform(n, *bounds[n], kind=kinds.get(n)) for n in names))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(t.name for t in self.transforms)
+
+    @property
+    def size(self) -> int:
+        return len(self.transforms)
+
+    def to_u(self, theta) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float)
+        return np.array([float(t.to_u(v)) for t, v in zip(self.transforms, theta)])
+
+    def from_u(self, u):
+        """Physical vector(s) of ``u`` (last axis = parameters); jnp, differentiable."""
+        u = jnp.asarray(u)
+        return jnp.stack([t.from_u(u[..., i]) for i, t in enumerate(self.transforms)], axis=-1)
+
+    def theta(self, u) -> np.ndarray:
+        """``from_u`` as a numpy float array."""
+        return np.asarray(self.from_u(u), dtype=float)
+
+    def dtheta_du(self, u) -> np.ndarray:
+        """Diagonal of the Jacobian d theta / d u at ``u`` (one entry per parameter)."""
+        import jax
+
+        return np.array([
+            float(jax.grad(t.from_u)(float(ui))) for t, ui in zip(self.transforms, np.asarray(u))
+        ])
+
+    def inside_domain(self, theta) -> bool:
+        return all(t.inside_domain(float(v)) for t, v in zip(self.transforms, theta))
+
+    def out_of_bounds(self, theta, rel_tol: float = 1e-6) -> list[str]:
+        """Names of parameters whose value is outside (or on) its prior box."""
+        out = []
+        for t, v in zip(self.transforms, np.asarray(theta, dtype=float)):
+            tol = rel_tol * (t.high - t.low)
+            if not (t.low + tol < v < t.high - tol):
+                out.append(t.name)
+        return out
+
+    def as_dict(self, theta) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names, np.asarray(theta, dtype=float))}

@@ -1,0 +1,103 @@
+"""Global identification and bad data, on the independent Ritz plate (ritz_toy)."""
+
+import json
+
+import numpy as np
+import pytest
+from ritz_toy import RitzPlateModel
+
+from vibid.errors import VibidError
+from vibid.identify.fit import identify
+from vibid.report import build_report
+from vibid.setup_model import example_setup
+
+TRUE = np.array([17.97, 0.286, 0.003])
+
+
+@pytest.fixture(scope="module")
+def strip_1000():
+    setup = example_setup()
+    f = np.linspace(0, 1000, 101)
+    fm = RitzPlateModel(setup, f)
+    return setup, f, fm, np.asarray(fm.afc(TRUE))
+
+
+@pytest.mark.slow
+def test_global_search_from_the_box_finds_the_strip(strip_1000):
+    setup, f, fm, H = strip_1000
+    res = identify(setup, f, H, forward_model=fm, seed=1, restarts=3)
+    assert res.converged, res.message
+    np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
+    assert res.global_result is not None and res.global_result.theta.shape == (3, 3)
+    # same seed, same answer
+    res2 = identify(setup, f, H, forward_model=fm, seed=1, restarts=3)
+    np.testing.assert_array_equal(res.global_result.theta, res2.global_result.theta)
+
+
+def test_nan_points_are_dropped_with_a_warning(strip_1000):
+    setup, f, fm, H = strip_1000
+    Hb = H.copy()
+    Hb[[5, 40, 77]] = np.nan
+    res = identify(setup, f, Hb, forward_model=fm, method="local",
+                   start={"D": 20.0, "nu": 0.3, "beta": 0.01})
+    assert any("3 of 101 AFC points are not finite" in w for w in res.warnings)
+    assert np.all(np.isfinite(res.values)) and res.used.sum() == 98
+    np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
+    report = build_report(res, session_id="x")
+    json.dumps(report, allow_nan=False)  # strict JSON: no NaN anywhere
+    assert len(report["afc"]["frequency_hz"]) == 98
+
+
+def test_too_few_points_is_a_clear_error():
+    setup = example_setup()
+    f = np.array([100.0])
+    fm = RitzPlateModel(setup, f)
+    with pytest.raises(VibidError, match="too few AFC points"):
+        identify(setup, f, np.asarray(fm.afc(TRUE)), forward_model=fm, method="local")
+
+
+def test_all_nan_is_a_clear_error(strip_1000):
+    setup, f, fm, H = strip_1000
+    with pytest.raises(VibidError, match="no usable AFC point"):
+        identify(setup, f, np.full_like(H, np.nan), forward_model=fm)
+
+
+def test_bounds_that_exclude_the_truth_are_reported(strip_1000):
+    setup, f, fm, H = strip_1000
+    bounds = {"D": (30.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
+    res = identify(setup, f, H, forward_model=fm, bounds=bounds, method="local",
+                   start={"D": 30.5, "nu": 0.29, "beta": 0.003})
+    assert np.all(np.isfinite(res.values))
+    assert any(w.startswith("D = ") and "prior bounds" in w for w in res.warnings)
+
+
+def test_noise_known_gives_chi2_near_one(strip_1000):
+    setup, f, fm, H = strip_1000
+    sd = 0.01 * np.abs(H).max()
+    rng = np.random.default_rng(3)
+    Hn = H + sd * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+    res = identify(setup, f, Hn, np.full(f.size, sd), forward_model=fm, method="local",
+                   start=dict(zip(("D", "nu", "beta"), TRUE)))
+    assert res.noise_known
+    # chi2 of 2n - p degrees of freedom: mean 1, sd sqrt(2 / dof)
+    assert abs(res.chi2_reduced - 1) < 4 * np.sqrt(2 / res.dof)
+    assert np.all(np.abs(res.values - TRUE) < 5 * res.std)
+    report = build_report(res, session_id="abc", declared_model="isotropic")
+    assert report["format"] == "vibid.report" and report["format_version"] == 1
+    assert set(report["parameters"]) == {"D", "nu", "beta"}
+    assert report["parameters"]["D"]["std"] == pytest.approx(res.std[0])
+    (stage,) = report["loop"]["stages"]
+    assert stage["added"] is None and stage["chi2_reduced"] == pytest.approx(res.chi2_reduced)
+    assert report["effects"] == [] and report["loop"]["unexplained_residual"] is False
+
+
+def test_wrong_model_leaves_unexplained_residual(strip_1000):
+    """Data with a channel delay the model lacks: chi2 >> 1 is flagged."""
+    setup, f, fm, H = strip_1000
+    sd = 0.002 * np.abs(H).max()
+    Hd = H * np.exp(-2j * np.pi * f * 2e-4)
+    res = identify(setup, f, Hd, np.full(f.size, sd), forward_model=fm, method="local",
+                   start=dict(zip(("D", "nu", "beta"), TRUE)))
+    report = build_report(res)
+    assert report["loop"]["unexplained_residual"] is True
+    assert any("does not fit the data to their noise level" in w for w in res.warnings)

@@ -1,0 +1,108 @@
+"""Local methods: the trust-region subproblem, and the paper's local experiment.
+
+Reference data: the independent Ritz plate of ``ritz_toy`` (and, for the paper's strip,
+vibid's FE forward model); start from the paper's (+20 % D, +5 % nu, x100 beta).
+"""
+
+import numpy as np
+import pytest
+from ritz_toy import RitzPlateModel
+
+from vibid.identify.fit import identify
+from vibid.identify.fit_result import Status
+from vibid.identify.loss import LeastSquaresProblem, fit_data
+from vibid.identify.params import ParameterSpace
+from vibid.identify.trust_region import gauss_newton, solve_subproblem, trust_region
+from vibid.setup_model import example_setup
+
+TRUE = np.array([17.97, 0.286, 0.003])
+PAPER_START = TRUE * np.array([1.2, 1.05, 100.0])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_subproblem_is_the_constrained_minimum(seed):
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((3, 3))
+    B = A + A.T  # indefinite in general
+    g = rng.standard_normal(3)
+    radius = 0.3 + rng.random()
+    p, _ = solve_subproblem(g, B, radius)
+    assert np.linalg.norm(p) <= radius * (1 + 1e-9)
+    m = lambda q: g @ q + 0.5 * q @ B @ q  # noqa: E731
+    # brute force over the ball (sphere surface + interior samples)
+    q = rng.standard_normal((20000, 3))
+    q *= (radius * rng.random((20000, 1)) ** (1 / 3)) / np.linalg.norm(q, axis=1, keepdims=True)
+    sphere = q / np.linalg.norm(q, axis=1, keepdims=True) * radius
+    best = min(np.min(np.einsum("ij,j->i", s, g) + 0.5 * np.einsum("ij,jk,ik->i", s, B, s))
+               for s in (q, sphere))
+    assert m(p) <= best + 1e-9
+
+
+def test_hard_case_subproblem():
+    B = np.diag([-2.0, 1.0, 3.0])
+    g = np.array([0.0, 1.0, 1.0])  # no component along the negative eigenvector
+    p, on_boundary = solve_subproblem(g, B, 1.0)
+    assert on_boundary and np.linalg.norm(p) == pytest.approx(1.0)
+    assert abs(p[0]) > 0.5
+
+
+@pytest.fixture(scope="module")
+def toy_problem():
+    setup = example_setup()
+    f = np.linspace(0, 600, 201)
+    fm = RitzPlateModel(setup, f)
+    H = np.asarray(fm.afc(TRUE))
+    space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
+    return LeastSquaresProblem(fm, fit_data(f, H), space), setup, f, H, fm
+
+
+@pytest.mark.parametrize("method", ["exact", "bfgs", "lm"])
+def test_paper_start_recovers_all_three(toy_problem, method):
+    problem = toy_problem[0]
+    u0 = problem.space.to_u(PAPER_START)
+    r = gauss_newton(problem, u0) if method == "lm" else trust_region(
+        problem, u0, hessian=method, max_iter=1000)
+    assert r.status is Status.CONVERGED, r.message
+    np.testing.assert_allclose(r.theta, TRUE, rtol=1e-6)
+    losses = [h.loss for h in r.history]
+    if method != "lm":  # trust region: the iterate's loss never increases
+        assert all(b <= a for a, b in zip(losses, losses[1:]))
+        assert r.history[-1].radius > 0
+
+
+def test_non_convergence_is_reported(toy_problem):
+    problem = toy_problem[0]
+    r = trust_region(problem, problem.space.to_u(PAPER_START), max_iter=3)
+    assert r.status is Status.MAX_ITERATIONS and not r.converged
+    assert "did not converge" in r.message
+
+
+def test_identify_local_from_paper_start(toy_problem):
+    _, setup, f, H, fm = toy_problem
+    res = identify(setup, f, H, forward_model=fm, method="local",
+                   start=dict(zip(("D", "nu", "beta"), PAPER_START)))
+    assert res.converged
+    np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
+    assert np.all(np.isfinite(res.std))
+    assert res.rel_rms_residual < 1e-8
+
+
+@pytest.fixture(scope="module")
+def fe_strip_600():
+    from vibid.identify import build_forward_model
+
+    setup = example_setup()
+    f = np.linspace(0, 600, 201)
+    return setup, f, build_forward_model(setup, f)
+
+
+@pytest.mark.slow
+def test_paper_start_on_the_fe_strip(fe_strip_600):
+    """The paper's section 6.2 experiment on vibid's own plate model (data from the full
+    FE model, fit with the reduced one)."""
+    setup, f, fm = fe_strip_600
+    H = np.asarray(fm.afc_full(TRUE))
+    res = identify(setup, f, H, forward_model=fm, method="local", refresh=False,
+                   start=dict(zip(("D", "nu", "beta"), PAPER_START)))
+    assert res.converged, res.message
+    np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
