@@ -15,6 +15,29 @@ The subproblem min g.p + p.B.p/2, |p| <= radius is solved exactly from the eigen
 decomposition of B (N&W section 4.3, including the "hard case"): p is tiny (3 to 10
 unknowns), so this costs nothing.
 
+Two additions to Algorithm 4.1, both for the long curved valleys of the identification
+(one resonance in the band: chi2 is ~1e8 times stiffer across the valley of D and nu than
+along it, and the valley bends):
+
+* a second-order correction (N&W section 15.6; for least squares the "geodesic
+  acceleration" of Transtrum & Sethna, arXiv:1201.5885): when a step gives less than 3/4
+  of the predicted decrease, the step p is bent by c = -(Z Z^T B Z Z^T)^+ (g(u+p) - g -
+  B p), with Z a basis of the directions orthogonal to p, i.e. one Newton correction in the
+  stiff directions back onto the valley floor, from the gradient already computed at
+  u + p (one more chi2 evaluation). The ratio of the bent step is judged against the
+  predicted decrease of p. A straight step can follow a bending valley only over ~|p|^4
+  lambda_stiff kappa^2 < predicted decrease, which held the radius at ~1e-4 for
+  thousands of iterations; bent steps go about ten times further.
+* stopping tests against the rounding level of chi2 (see :func:`chi2_rounding_level`):
+  chi2 = |r|^2 is computed to about ftol chi2 + 2 |r| |dr| + |dr|^2, with |dr| the rounding
+  of the residual vector; once the decrease the quadratic model predicts (the Newton
+  decrement g.B^-1.g / 2, B positive definite) is below it, no step can show a decrease
+  that is not rounding, and the run is converged. This is decided from g and B alone,
+  before any trial step, so it does not depend on how the rounding of trial values falls.
+  With BFGS the test is confirmed with the exact Hessian (a quasi-Newton B can be far too
+  stiff along a valley and predict nothing while far from the minimum); if that still
+  predicts a decrease, BFGS goes on from the exact Hessian.
+
 :func:`gauss_newton` is the Levenberg-Marquardt path: scipy.optimize.least_squares on the
 weighted residual vector with its exact JAX Jacobian.
 
@@ -88,6 +111,40 @@ def solve_subproblem(g: np.ndarray, B: np.ndarray, radius: float) -> tuple[np.nd
     return p * min(1.0, radius / np.linalg.norm(p)), True
 
 
+def chi2_rounding_level(f: float, f_floor: float, rel: float = 1e-12) -> float:
+    """How precisely chi2 = |r|^2 is known from rounding: ``rel * f + 2 |r| |dr| + |dr|^2``
+    with |r| = sqrt(f) and |dr|^2 = ``f_floor`` (the rounding of the residual vector)."""
+    f = abs(float(f))
+    return rel * f + 2.0 * math.sqrt(f * f_floor) + f_floor
+
+
+def _second_order_correction(p: np.ndarray, g: np.ndarray, g_new: np.ndarray,
+                             B: np.ndarray) -> np.ndarray | None:
+    """Correction c orthogonal to p that brings u + p back onto the valley floor.
+
+    The model's gradient error at u + p, e = g(u + p) - g - B p (second order in |p|), is
+    removed in the directions orthogonal to p by one Newton step of the model restricted
+    to them (its trust region: |c| <= |p| / 2, which also handles an indefinite B there).
+    None when there is no such direction or nothing to correct.
+    """
+    n = p.size
+    norm_p = float(np.linalg.norm(p))
+    if n < 2 or norm_p == 0:
+        return None
+    e = g_new - g - B @ p
+    if not np.all(np.isfinite(e)):
+        return None
+    # orthonormal basis of the complement of p
+    Q, _ = np.linalg.qr(np.column_stack([p / norm_p, np.eye(n)]))
+    Z = Q[:, 1:n]
+    ez = Z.T @ e
+    if not np.any(ez):
+        return None
+    cz, _ = solve_subproblem(ez, Z.T @ B @ Z, 0.5 * norm_p)
+    c = Z @ cz
+    return c if np.all(np.isfinite(c)) and np.any(c) else None
+
+
 def _newton_decrease(g: np.ndarray, B: np.ndarray) -> float:
     """g.B^-1.g / 2, the decrease the quadratic model predicts (inf unless B > 0)."""
     try:
@@ -121,9 +178,13 @@ def trust_region(
         [-1, 1] in every coordinate).
     eta: acceptance threshold on the ratio of actual to predicted decrease, in [0, 1/4).
     max_iter: iteration limit; reaching it is reported as MAX_ITERATIONS.
-    xtol: converged when an accepted step is shorter than ``xtol`` (inf-norm in ``u``).
-    ftol: converged when the decrease the quadratic model still predicts (with B positive
-        definite) is below ``ftol * chi2`` (chi2 floored at the rounding level).
+    xtol: converged when an accepted step that the trust region did not cut (a full
+        Newton step) is shorter than ``xtol`` (inf-norm in ``u``).
+    ftol: relative rounding level of chi2: converged when the decrease the quadratic
+        model still predicts (the Newton decrement, B positive definite) is below
+        ``ftol * chi2 + 2 sqrt(chi2 * f_floor) + f_floor``, the rounding level of chi2
+        (:func:`chi2_rounding_level`; ``f_floor`` = 1e-20 per point: residuals exact to
+        ~1e-10 relative).
 
     Returns
     -------
@@ -147,24 +208,48 @@ def trust_region(
     if not (np.isfinite(f) and np.all(np.isfinite(g))):
         return result(Status.NOT_FINITE, f"chi2 = {f}", 0)
     B = problem.hessian(u)
+    B_exact = True  # B is the exact Hessian at u (always for "exact"; BFGS: at the start)
     radius = radius0
-    # chi2 below which a zero-residual fit is exact to rounding (relative residual 1e-10)
-    f_floor = 1e-20 * getattr(problem, "n_points", 100)
+    # chi2 below which a zero-residual fit is exact to rounding (relative residual 1e-10);
+    # a problem with some parameters held (fit.HeldProblem) counts the points of the full one
+    n_points = getattr(problem, "n_points", None) or getattr(
+        getattr(problem, "problem", None), "n_points", 100)
+    f_floor = 1e-20 * n_points
     history.append(HistoryEntry(0, f, tuple(space.theta(u)), None, radius))
     for k in range(1, max_iter + 1):
         if not np.all(np.isfinite(B)):
             return result(Status.NOT_FINITE, "the Hessian is not finite", k - 1)
-        # stop tests on the current model
+        # stop tests on the current model, deterministic (no trial value enters)
         if f <= f_floor or not np.any(g):
             return result(Status.CONVERGED, "the residual vanished to rounding", k - 1)
-        if _newton_decrease(g, B) <= ftol * max(f, f_floor):
-            return result(Status.CONVERGED, "the predicted decrease is negligible", k - 1)
+        f_round = chi2_rounding_level(f, f_floor, ftol)
+        decrement = _newton_decrease(g, B)
+        if decrement <= f_round and not B_exact:
+            # a quasi-Newton B may be far too stiff along a valley: check with the exact
+            # Hessian, and go on from it (BFGS restarted) if it still predicts a decrease
+            B, B_exact = problem.hessian(u), True
+            if not np.all(np.isfinite(B)):
+                return result(Status.NOT_FINITE, "the Hessian is not finite", k - 1)
+            decrement = _newton_decrease(g, B)
+        if decrement <= f_round:
+            return result(Status.CONVERGED, "the decrease still predicted is below the "
+                          f"rounding level of chi2 ({decrement:.1e} <= {f_round:.1e})", k - 1)
         p, on_boundary = solve_subproblem(g, B, radius)
         predicted = -(g @ p + 0.5 * p @ B @ p)
         f_new, g_new = problem.value_and_grad(u + p)
         n_eval += 1
         actual = f - f_new if np.isfinite(f_new) else -np.inf
         rho = actual / predicted if predicted > 0 else (-np.inf if actual < 0 else 0.0)
+        corrected = False
+        if rho < 0.75 and predicted > 0 and np.isfinite(f_new) and np.all(np.isfinite(g_new)):
+            # second-order correction: bend the step back onto the valley floor
+            c = _second_order_correction(p, g, g_new, B)
+            if c is not None:
+                f_c, g_c = problem.value_and_grad(u + p + c)
+                n_eval += 1
+                rho_c = (f - f_c) / predicted if np.isfinite(f_c) else -np.inf
+                if rho_c > rho and np.all(np.isfinite(g_c)):
+                    p, f_new, g_new, rho, corrected = p + c, f_c, g_c, rho_c, True
         step = float(np.linalg.norm(p))
         if rho < 0.25:
             radius_next = 0.25 * radius
@@ -183,15 +268,21 @@ def trust_region(
                 if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
                     Bs = B @ s
                     B = B + np.outer(y, y) / sy - np.outer(Bs, Bs) / (s @ Bs)
+                B_exact = False
         history.append(HistoryEntry(k, f, tuple(space.theta(u)), step, radius, float(rho), accepted))
-        log.debug("%s it %d chi2 %.6g step %.3g radius %.3g rho %.3g", method, k, f, step, radius, rho)
-        if accepted and np.max(np.abs(p)) <= xtol:
+        log.debug("%s it %d chi2 %.12g |g| %.3g decrement %.3g rounding %.3g step %.3g%s "
+                  "radius %.3g predicted %.3g rho %.3g%s", method, k, f, np.linalg.norm(g),
+                  decrement, f_round, step, " (corrected)" if corrected else "", radius,
+                  predicted, rho, "" if accepted else " rejected")
+        if accepted and not on_boundary and np.max(np.abs(p)) <= xtol:
             return result(Status.CONVERGED, "the step became negligible", k)
         radius = radius_next
         if radius < 1e-14:
             # no step helps any more: at the minimum to rounding if the quadratic model
             # predicts nothing worth having (chi2's own rounding is ~1e-16 chi2 per point)
             scale = max(f, f_floor)
+            if not B_exact:
+                B = problem.hessian(u)
             if _newton_decrease(g, B) <= 1e-6 * scale or np.linalg.norm(g) <= 1e-4 * scale:
                 return result(Status.CONVERGED, "no further decrease above rounding", k)
             return result(Status.STALLED, f"trust radius {radius:.1e}", k)
