@@ -236,21 +236,27 @@ def identify(
     else:
         starts = [_start_u(space, start)]
     runs: list[LocalResult] = []
+    problems: dict[int, LeastSquaresProblem] = {}  # id(run) -> the problem it ran on
     for u0 in starts:
-        if method == "global":
-            runs.extend(polish_by_continuation(problem, u0, local))
-        else:
-            runs.append(LOCAL_METHODS[local](problem, u0))
+        # each start is polished on a model built around it (the global search's model
+        # only has to find basins); models of one shape share their compiled functions
+        p_start = _refreshed(problem, space.theta(u0), data, space) if (
+            refresh and method == "global") else problem
+        new = (polish_by_continuation(p_start, u0, local) if method == "global"
+               else [LOCAL_METHODS[local](p_start, u0)])
+        problems.update((id(r), p_start) for r in new)
+        runs.extend(new)
     runs.sort(key=lambda r: (not np.isfinite(r.loss), r.loss))
     best = runs[0]
+    problem = problems[id(best)]
 
-    # the model's own error and a model rebuilt around the estimate
-    refreshed = forward_model.refresh(best.theta) if refresh else forward_model
-    if refreshed is not forward_model:
-        forward_model = refreshed
-        problem = LeastSquaresProblem(forward_model, data, space)
+    # a model rebuilt around the estimate (if it moved), and the model's own error
+    refreshed = _refreshed(problem, best.theta, data, space) if refresh else problem
+    if refreshed is not problem:
+        problem = refreshed
         runs.insert(0, LOCAL_METHODS[local](problem, best.u))
         best = runs[0]
+    forward_model = problem.model
     if data.noise_known:
         me = np.asarray(forward_model.model_error(best.theta), dtype=float)
         if np.any(me > 0):
@@ -262,6 +268,13 @@ def identify(
 
     return _result(problem, forward_model, data, model, best, runs, global_result, warnings,
                    t0, throw)
+
+
+def _refreshed(problem: LeastSquaresProblem, theta, data: FitData,
+               space: ParameterSpace) -> LeastSquaresProblem:
+    """``problem`` on its model rebuilt around ``theta`` (itself if the model stays)."""
+    model = problem.model.refresh(theta)
+    return problem if model is problem.model else LeastSquaresProblem(model, data, space)
 
 
 def _rival_minima(runs, best, cov, chi2_red, noise_known, names):

@@ -27,13 +27,17 @@ methods ``check``, ``natural_frequencies`` and attribute ``afc_full_jax``.
 Discretisation (``accuracy``): quintic C1 Argyris triangles on a uniform mesh refined
 around the clamped corners (:mod:`vibid.identify.mesh`). "default" converges the first six
 natural frequencies of the paper's strip to better than 1e-6 (measured against a much finer
-mesh, ``benchmarks/plate.md``); "fast" to a few 1e-6; "fine" to 1e-7.
+mesh, ``benchmarks/plate.md``); "fast" to a few 1e-6; "fine" to 1e-7. A specimen larger
+than the strip gets cells sized by its bending wavelength at the top of the band instead
+(:func:`discretisation`), at a similar accuracy of the modes in the band.
 
 Reduced model (:mod:`vibid.identify.reduced`), two kinds of basis:
 
 * ``"wide"`` (default when ``theta0`` is not given): modes at the centre of the prior box
   and at its faces, static corrections and parameter sensitivities, sized to keep the whole
-  box accurate (about 1e-7 of max |H| on the paper's strip); for global search.
+  box accurate (about 1e-7 of max |H| on the paper's strip; truncated to about 1e-4 for
+  models with more than two stiffness parameters, see ``WIDE_TOL_MANY``); for global
+  search.
 * ``"local"`` (the default when ``theta0`` is given, and what :meth:`ForwardModel.refresh`
   builds): modes, static corrections and sensitivities at ``theta0`` only, about 20
   unknowns; error below 1e-6 of max |H| within a few per cent of ``theta0`` and 1e-5 within
@@ -60,6 +64,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -76,23 +81,64 @@ from vibid.identify.reduced import ReducedAFC, build_basis
 jax.config.update("jax_enable_x64", True)
 log = logging.getLogger(__name__)
 
-#: Accuracy presets: cell size of the uniform mesh (m) and corner refinement levels.
+#: Accuracy presets: (cell size, m; corner refinement levels; cells per bending wavelength
+#: at the top of the band; cells across the specimen's shorter side). The cell size is the
+#: finest a specimen needs: the paper's strip (20 mm wide) gets it whatever the band. A
+#: larger specimen, whose bending waves in the band span many such cells, gets cells sized
+#: by the wavelength instead (see :func:`discretisation`).
 ACCURACY = {
-    "fast": (0.005, 4),
-    "default": (0.0033334, 4),
-    "fine": (0.0016667, 6),
+    "fast": (0.005, 4, 8.0, 4),
+    "default": (0.0033334, 4, 12.0, 6),
+    "fine": (0.0016667, 6, 24.0, 12),
 }
+#: Up to this many stiffness parameters (isotropic: D, nu) the wide basis is kept to
+#: rounding (about 1e-7 of max |H| over the whole box, some 90 unknowns). With more
+#: (orthotropic, monoclinic) that basis grows to some 440 unknowns and each global-search
+#: evaluation to an eigenproblem of that size, so it is truncated at a relative Gram
+#: eigenvalue of WIDE_TOL_MANY: about 140 unknowns and 1e-4 of max |H| over the box, enough
+#: to find the basin; the polish runs on local bases (``refresh``), accurate to 1e-6.
+WIDE_FEW_PARAMETERS = 2
+WIDE_TOL_MANY = 1e-6
 #: The a-posteriori check's tolerance (fraction of max |H|) below which refresh keeps a basis.
 REFRESH_TOL = 1e-6
 #: How much softer than theta0 a local basis stays complete (stiffness ratio).
 LOCAL_SCALE_RATIO = 4.0
 
 
-def discretisation(geometry: Geometry, accuracy: str = "default") -> Discretisation:
-    """The Argyris discretisation of an accuracy preset for a specimen."""
+def bending_wavelength_m(rigidity_n_m: float, mass_per_area_kg_m2: float, f_hz: float) -> float:
+    """Free bending wavelength ``2 pi (D / (rho h))^(1/4) / sqrt(omega)`` of a thin plate, m."""
+    omega = 2 * np.pi * max(f_hz, 1e-9)
+    return float(2 * np.pi * (rigidity_n_m / mass_per_area_kg_m2) ** 0.25 / np.sqrt(omega))
+
+
+@partial(jax.jit, static_argnums=0)
+def _afc_jit(kernel, arrays, theta):
+    return kernel(arrays, theta)
+
+
+@partial(jax.jit, static_argnums=0)
+def _afc_batch_jit(kernel, arrays, thetas):
+    return jax.vmap(kernel, in_axes=(None, 0))(arrays, thetas)
+
+
+def discretisation(geometry: Geometry, accuracy: str = "default", *, f_max_hz: float | None = None,
+                   rigidity_n_m: float | None = None) -> Discretisation:
+    """The Argyris discretisation of an accuracy preset for a specimen.
+
+    Without a band (``f_max_hz``, and the softest bending rigidity ``rigidity_n_m`` the
+    model is built around), the preset's cell size. With one, the cell is the larger of the
+    preset's cell and ``min(wavelength(f_max) / cells_per_wavelength, shorter side /
+    cells_across)``: a 150 x 100 mm plate up to 600 Hz then needs 16 x 11 cells instead of
+    45 x 30, at the same accuracy of its modes in the band (about 1e-6), while the 20 mm
+    strip keeps the preset's cells in every band (its width decides).
+    """
     if accuracy not in ACCURACY:
         raise VibidError(f"unknown accuracy {accuracy!r}, expected one of {', '.join(ACCURACY)}")
-    size, levels = ACCURACY[accuracy]
+    size, levels, per_wavelength, across = ACCURACY[accuracy]
+    if f_max_hz is not None and rigidity_n_m is not None and f_max_hz > 0 and rigidity_n_m > 0:
+        lam = bending_wavelength_m(rigidity_n_m, geometry.mass_per_area_kg_m2, f_max_hz)
+        short = min(geometry.length_m, geometry.width_m)
+        size = max(size, min(lam / per_wavelength, short / across))
     nx = max(2, math.ceil(geometry.length_m / size - 1e-6))
     ny = max(2, math.ceil(geometry.width_m / size - 1e-6))
     return Discretisation("argyris", nx, ny, levels)
@@ -131,8 +177,9 @@ class ForwardModel:
         self.mats = assemble_plate(self.geometry, self.discretisation)
         f_max = float(self.frequencies_hz.max())
         if self.kind == "wide":
+            many = len(self.param.stiffness_names) > WIDE_FEW_PARAMETERS
             basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                snapshots=True)
+                                snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13)
         elif self.kind == "local":
             basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
                                 snapshots=False, scale_ratio=LOCAL_SCALE_RATIO)
@@ -140,8 +187,6 @@ class ForwardModel:
             raise ValueError(f"unknown basis kind {self.kind!r}")
         self.basis = basis
         self._reduced = ReducedAFC(basis, self.param, 2 * np.pi * self.frequencies_hz, self.post)
-        self._afc = jax.jit(self._reduced.__call__)
-        self._afc_batch = jax.jit(jax.vmap(self._reduced.__call__))
         self._full_jax = None
         self._finer = None
 
@@ -150,13 +195,23 @@ class ForwardModel:
     def parameter_names(self) -> tuple[str, ...]:
         return self.param.names
 
+    @property
+    def kernel(self):
+        """The reduced map's static code: ``kernel(arrays, theta) -> H`` (hashable)."""
+        return self._reduced.kernel
+
+    @property
+    def arrays(self) -> dict:
+        """The reduced map's arrays (a pytree): models of one kernel and shape share code."""
+        return self._reduced.arrays
+
     def afc(self, theta) -> jax.Array:
         """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
-        return self._afc(theta)
+        return _afc_jit(self.kernel, self.arrays, jnp.asarray(theta, jnp.float64))
 
     def afc_batch(self, thetas) -> jax.Array:
         """(npop, nf) AFCs of a population of parameter vectors."""
-        return self._afc_batch(jnp.asarray(thetas, jnp.float64))
+        return _afc_batch_jit(self.kernel, self.arrays, jnp.asarray(thetas, jnp.float64))
 
     def afc_full(self, theta) -> np.ndarray:
         """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""
@@ -276,7 +331,10 @@ def build_forward_model(setup, frequencies_hz=None, *, model=None, theta0=None,
         except KeyError as exc:
             raise VibidError(str(exc.args[0])) from None
         kind = basis or "local"
-    return ForwardModel(geometry, freqs, param, bounds, discretisation(geometry, accuracy), th0, kind, post)
+    D = np.asarray(param.moduli(th0), float)
+    softest = float(min(D[0], D[3]))  # D11, D22: the shorter bending wavelength
+    disc = discretisation(geometry, accuracy, f_max_hz=float(freqs.max()), rigidity_n_m=softest)
+    return ForwardModel(geometry, freqs, param, bounds, disc, th0, kind, post)
 
 
 def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default"):

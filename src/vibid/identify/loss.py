@@ -127,32 +127,33 @@ def fit_data(frequency_hz, H, std=None, used=None) -> FitData:
     return FitData(f, H, s, mask, tuple(warnings))
 
 
-#: Compiled functions per forward model (weakly keyed) and (points used, parameter space):
-#: identifying many data sets with one model compiles once.
+#: Compiled functions of models that split into a static kernel and arrays
+#: (``model.kernel(model.arrays, theta)``, vibid's ForwardModel), keyed by (kernel,
+#: points used, parameter space): every model of one kernel and array shape (a model
+#: rebuilt around a new estimate, another restart's local model) shares one compilation.
+_COMPILED_KERNELS: dict = {}
+#: Compiled functions of other models (a closure over the model), weakly keyed by model.
 _COMPILED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def _compile(model, space, model_idx):
-    """jit-compiled residuals, Jacobians, chi2, gradient, Hessian and batch chi2."""
+def _compile(afc, space, model_idx):
+    """jit-compiled residuals, Jacobians, chi2, its value and gradient, its Hessian, batch chi2,
+    each a function of (u or theta, arrays, H, sig) with ``afc(arrays, theta) -> H``."""
     idx = jnp.asarray(model_idx)
-    try:  # the cache must not keep the model alive
-        model_ref = weakref.ref(model)
-    except TypeError:
-        model_ref = lambda: model  # noqa: E731
 
-    def residuals_theta(theta, H, sig):
-        r = (model_ref().afc(theta)[idx] - H) / sig
+    def residuals_theta(theta, arrays, H, sig):
+        r = (afc(arrays, theta)[idx] - H) / sig
         return jnp.concatenate([r.real, r.imag])
 
-    def residuals_u(u, H, sig):
-        return residuals_theta(space.from_u(u), H, sig)
+    def residuals_u(u, arrays, H, sig):
+        return residuals_theta(space.from_u(u), arrays, H, sig)
 
-    def chi2_u(u, H, sig):
-        r = residuals_u(u, H, sig)
+    def chi2_u(u, arrays, H, sig):
+        r = residuals_u(u, arrays, H, sig)
         return jnp.sum(r * r)
 
-    def chi2_batch(U, H, sig):
-        A = model_ref().afc_batch(space.from_u(U))[:, idx]
+    def chi2_batch(U, arrays, H, sig):
+        A = jax.vmap(afc, in_axes=(None, 0))(arrays, space.from_u(U))[:, idx]
         r = (A - H[None, :]) / sig[None, :]
         c = jnp.sum(r.real**2 + r.imag**2, axis=1)
         return jnp.where(jnp.isfinite(c), c, jnp.inf)
@@ -161,6 +162,19 @@ def _compile(model, space, model_idx):
             jax.jit(jax.jacfwd(residuals_theta)), jax.jit(chi2_u),
             jax.jit(jax.value_and_grad(chi2_u)), jax.jit(jax.hessian(chi2_u)),
             jax.jit(chi2_batch))
+
+
+def _kernel_and_arrays(model):
+    """``(afc(arrays, theta), arrays, cache, key)`` for any ForwardModel."""
+    kernel = getattr(model, "kernel", None)
+    if kernel is not None:
+        return kernel, model.arrays, _COMPILED_KERNELS, kernel
+    try:  # a plain model: close over it weakly, so that the cache does not keep it alive
+        model_ref = weakref.ref(model)
+        cache = _COMPILED.setdefault(model, {})
+    except TypeError:
+        model_ref, cache = (lambda: model), {}  # noqa: E731
+    return (lambda _arrays, theta: model_ref().afc(theta)), {}, cache, None
 
 
 class LeastSquaresProblem:
@@ -219,41 +233,39 @@ class LeastSquaresProblem:
 
     # -- compiled functions -------------------------------------------------------------
     def _build(self) -> None:
-        key = (self._model_idx.tobytes(), self.space)
-        try:
-            cache = _COMPILED.setdefault(self.model, {})
-        except TypeError:  # a model that cannot be weakly referenced: no cache
-            cache = {}
+        afc, self._arrays, cache, kernel_key = _kernel_and_arrays(self.model)
+        key = (kernel_key, self._model_idx.tobytes(), self.space)
         if key not in cache:
-            cache[key] = _compile(self.model, self.space, self._model_idx)
+            cache[key] = _compile(afc, self.space, self._model_idx)
         (self._res_u, self._jac_u, self._jac_theta, self._chi2, self._vg, self._hess,
          self._batch) = cache[key]
 
     # -- public evaluations (numpy in, numpy out) ---------------------------------------
     def residuals(self, u) -> np.ndarray:
-        return np.asarray(self._res_u(jnp.asarray(u, float), self._H, self._sig))
+        return np.asarray(self._res_u(jnp.asarray(u, float), self._arrays, self._H, self._sig))
 
     def jacobian(self, u) -> np.ndarray:
-        return np.asarray(self._jac_u(jnp.asarray(u, float), self._H, self._sig))
+        return np.asarray(self._jac_u(jnp.asarray(u, float), self._arrays, self._H, self._sig))
 
     def jacobian_theta(self, theta) -> np.ndarray:
         """d residuals / d theta (physical units), for the Fisher information."""
-        return np.asarray(self._jac_theta(jnp.asarray(theta, float), self._H, self._sig))
+        return np.asarray(self._jac_theta(jnp.asarray(theta, float), self._arrays, self._H,
+                                          self._sig))
 
     def chi2(self, u) -> float:
-        v = float(self._chi2(jnp.asarray(u, float), self._H, self._sig))
+        v = float(self._chi2(jnp.asarray(u, float), self._arrays, self._H, self._sig))
         return v if np.isfinite(v) else np.inf
 
     def value_and_grad(self, u) -> tuple[float, np.ndarray]:
-        v, g = self._vg(jnp.asarray(u, float), self._H, self._sig)
+        v, g = self._vg(jnp.asarray(u, float), self._arrays, self._H, self._sig)
         return float(v), np.asarray(g)
 
     def hessian(self, u) -> np.ndarray:
-        return np.asarray(self._hess(jnp.asarray(u, float), self._H, self._sig))
+        return np.asarray(self._hess(jnp.asarray(u, float), self._arrays, self._H, self._sig))
 
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
-        return np.asarray(self._batch(jnp.asarray(U, float), self._H, self._sig))
+        return np.asarray(self._batch(jnp.asarray(U, float), self._arrays, self._H, self._sig))
 
     def model_afc(self, theta) -> np.ndarray:
         return np.asarray(self.model.afc(jnp.asarray(theta, float)))

@@ -63,7 +63,7 @@ class ReducedBasis:
     load : (n,) projected inertia load ``Vᵀ M 1``; probe : (n,) projected probe ``Vᵀ c``.
     probe_rigid : value of the probe on the rigid translation (1).
     n_modes : how many modes it holds; f_top_hz : the highest of them at ``theta0``.
-    theta0 : where it was built.
+    theta0 : where it was built; moduli0 : (6,) its moduli there.
     """
 
     V: np.ndarray
@@ -76,6 +76,7 @@ class ReducedBasis:
     f_top_hz: float
     theta0: np.ndarray
     term_names: tuple = MODULI
+    moduli0: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -166,7 +167,7 @@ def _orthonormal(V, E, tol):
 def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
                 max_modes: int = 40, min_modes: int = 6, krylov: int = 2,
                 snapshots: bool = True, tol: float = 1e-13,
-                scale_ratio: float | None = None) -> ReducedBasis:
+                scale_ratio: float | None = None, sensitivities: bool = True) -> ReducedBasis:
     """Build the reduced basis around ``theta0`` (see the module docstring).
 
     Parameters
@@ -184,6 +185,8 @@ def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float =
     tol : relative Gram eigenvalue below which directions are dropped.
     scale_ratio : how much softer than ``theta0`` the plate may get (default: from
         ``bounds`` by :func:`stiffness_scale_ratio`).
+    sensitivities : add the parameter-sensitivity vectors (off: modes and static
+        corrections only, a smaller and less accurate basis for a coarse search).
     """
     theta0 = np.asarray(theta0, float)
     M = mats.inertia_matrix().tocsc()
@@ -215,7 +218,7 @@ def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float =
                 v = lu.solve(M @ v)
         S = np.column_stack(statics)
         cols += [Phi, S]
-        J = _moduli_jacobian(param, th)
+        J = _moduli_jacobian(param, th) if sensitivities else np.zeros((6, 0))
         for kk in range(J.shape[1]):
             Kd = mats.stiffness_matrix(dict(zip(MODULI, J[:, kk])))
             cols.append(lu.solve(np.column_stack([Kd @ Phi, Kd @ S[:, :1]])))
@@ -232,11 +235,91 @@ def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float =
     basis = ReducedBasis(
         V=V, K=np.array([project(mats.stiffness[name]) for name in MODULI]),
         M=project(M), load=V.T @ f, probe=V.T @ mats.probe, probe_rigid=mats.probe_rigid,
-        n_modes=n_modes, f_top_hz=f_reached, theta0=theta0,
+        n_modes=n_modes, f_top_hz=f_reached, theta0=theta0, moduli0=D0,
     )
     log.info("reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
              n_modes, f_reached, len(points), basis.size, n_candidates)
     return basis
+
+
+#: Reduced bases are padded to a multiple of this size, so that models rebuilt around new
+#: estimates (``ForwardModel.refresh``) mostly share one shape and one compilation.
+PAD_MULTIPLE = 16
+
+
+@dataclass(frozen=True)
+class ReducedKernel:
+    """The reduced forward map's code, apart from its arrays: ``kernel(arrays, theta) -> H``.
+
+    Hashable and static (the parameterisation and the ``post`` map), so that every jitted
+    function of the identification takes a model's arrays as arguments and is compiled once
+    per kernel and array shape, not once per model (Equinox's split of a module into
+    static fields and array leaves).
+    """
+
+    param: object
+    post: Callable | None = None
+
+    def __call__(self, arrays: dict, theta):
+        a = arrays
+        theta = jnp.asarray(theta, jnp.float64)
+        D = self.param.moduli(theta, jnp)
+        w2 = a["w2"]
+        if self.param.proportional:
+            # (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z:
+            # well conditioned whatever the spread of λ (μ is bounded by 1/λ_min).
+            beta = self.param.losses(theta, jnp)[0]
+            A = jnp.tensordot(D, a["K"], axes=1) + a["pad"]
+            L = jnp.linalg.cholesky(A)
+            solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
+            B = solve(solve(a["M"]).T)
+            mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
+            weight = (Z.T @ solve(a["probe"])) * (Z.T @ solve(a["load"]))
+            denom = (1.0 + 1j * beta) - w2[:, None] * mu[None, :]
+            H = a["probe_rigid"] + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
+        else:
+            Dc = D * (1.0 + 1j * self.param.losses(theta, jnp))
+            A = jnp.tensordot(Dc, a["K"].astype(jnp.complex128), axes=1) + a["pad"]
+            sys = A[None, :, :] - w2[:, None, None] * a["M"][None]
+            rhs = (w2[:, None] * a["load"][None, :]).astype(jnp.complex128)
+            q = jnp.linalg.solve(sys, rhs[..., None])[..., 0]
+            H = a["probe_rigid"] + q @ a["probe"]
+        if self.post is not None:
+            H = self.post(theta, jnp.sqrt(w2), H)
+        return H
+
+
+def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> dict:
+    """The kernel's arrays for ``basis`` on angular frequencies ``omega`` (rad/s), the basis
+    padded with decoupled dummy unknowns up to a multiple of ``multiple``.
+
+    A dummy unknown has no load and no probe (it adds exactly nothing to H), unit inertia
+    and a constant stiffness far above the basis's highest eigenvalue, each a different one
+    so that the eigenvalue derivatives stay finite."""
+    n = basis.size
+    n_pad = (-n) % multiple
+    m = n + n_pad
+    K = np.zeros((basis.K.shape[0], m, m))
+    K[:, :n, :n] = basis.K
+    M = np.eye(m)
+    M[:n, :n] = basis.M
+    pad = np.zeros((m, m))
+    if n_pad:
+        import scipy.linalg as sla
+
+        D0 = np.zeros(basis.K.shape[0])
+        D0[:len(MODULI)] = basis.moduli0
+        lam_max = float(abs(sla.eigh(np.tensordot(D0, basis.K, axes=1), basis.M,
+                                     eigvals_only=True)).max())
+        pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
+    load = np.zeros(m)
+    load[:n] = basis.load
+    probe = np.zeros(m)
+    probe[:n] = basis.probe
+    return {"K": jnp.asarray(K), "M": jnp.asarray(M), "pad": jnp.asarray(pad),
+            "load": jnp.asarray(load), "probe": jnp.asarray(probe),
+            "probe_rigid": jnp.asarray(float(basis.probe_rigid)),
+            "w2": jnp.asarray(np.asarray(omega, float) ** 2)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,48 +332,23 @@ class ReducedAFC:
     param : the parameterisation (names, moduli, losses).
     omega : (nf,) angular frequencies in rad/s.
     post : optional ``post(theta, omega, H) -> H`` applied last (delay, gain, ...).
+    kernel, arrays : the same map split into static code and array leaves
+        (``self(theta) == self.kernel(self.arrays, theta)``).
     """
 
     basis: ReducedBasis
     param: object
     omega: np.ndarray
     post: Callable | None = None
-    _arrays: dict = field(init=False, repr=False)
+    kernel: ReducedKernel = field(init=False, repr=False)
+    arrays: dict = field(init=False, repr=False)
 
     def __post_init__(self):
-        b = self.basis
-        object.__setattr__(self, "_arrays", {
-            "K": jnp.asarray(b.K), "M": jnp.asarray(b.M), "load": jnp.asarray(b.load), "probe": jnp.asarray(b.probe),
-            "w2": jnp.asarray(np.asarray(self.omega, float) ** 2),
-        })
+        object.__setattr__(self, "kernel", ReducedKernel(self.param, self.post))
+        object.__setattr__(self, "arrays", padded_arrays(self.basis, self.omega))
 
     def __call__(self, theta):
-        a = self._arrays
-        theta = jnp.asarray(theta, jnp.float64)
-        D = self.param.moduli(theta, jnp)
-        w2 = a["w2"]
-        if self.param.proportional:
-            # (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z:
-            # well conditioned whatever the spread of λ (μ is bounded by 1/λ_min).
-            beta = self.param.losses(theta, jnp)[0]
-            A = jnp.tensordot(D, a["K"], axes=1)
-            L = jnp.linalg.cholesky(A)
-            solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)
-            B = solve(solve(a["M"]).T)
-            mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
-            weight = (Z.T @ solve(a["probe"])) * (Z.T @ solve(a["load"]))
-            denom = (1.0 + 1j * beta) - w2[:, None] * mu[None, :]
-            H = self.basis.probe_rigid + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
-        else:
-            Dc = D * (1.0 + 1j * self.param.losses(theta, jnp))
-            A = jnp.tensordot(Dc, a["K"].astype(jnp.complex128), axes=1)
-            sys = A[None, :, :] - w2[:, None, None] * a["M"][None]
-            rhs = (w2[:, None] * a["load"][None, :]).astype(jnp.complex128)
-            q = jnp.linalg.solve(sys, rhs[..., None])[..., 0]
-            H = self.basis.probe_rigid + q @ a["probe"]
-        if self.post is not None:
-            H = self.post(theta, jnp.sqrt(w2), H)
-        return H
+        return self.kernel(self.arrays, theta)
 
     def eigenvalues(self, theta):
         """Reduced eigenvalues ``Λ`` (rad²/s², complex), smallest first (numpy)."""
