@@ -6,8 +6,11 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
    mapped to coordinates ``u`` in which the prior box is [-1, 1]
    (:mod:`~vibid.identify.params`);
 2. global: differential evolution over the whole prior box, several restarts
-   (:mod:`~vibid.identify.global_search`); or local: a start given by the caller;
-3. polish of every restart's best point (not only the best: a restart in the right
+   (:mod:`~vibid.identify.global_search`), on chi2 and, for models that give their modes,
+   on the match of the measured resonance peaks (:mod:`~vibid.identify.peaks`), which
+   finds the basin where chi2's needle-like minima defeat the search (orthotropic
+   plates); or local: a start given by the caller;
+3. polish of every restart's best point, each on a model rebuilt around it (not only the best: a restart in the right
    basin may score worse than one in a wrong basin at its loose tolerance) by
    continuation in the loss factor: fit the other
    parameters with beta held at a decreasing ladder of values (half a decade apart), and
@@ -36,6 +39,7 @@ from vibid.identify.fit_result import IdentificationResult, LocalResult, Status
 from vibid.identify.global_search import differential_evolution
 from vibid.identify.loss import FitData, ForwardModel, LeastSquaresProblem, fit_data
 from vibid.identify.params import ParameterSpace
+from vibid.identify.peaks import measured_peaks, peak_score
 from vibid.identify.trust_region import gauss_newton, trust_region
 from vibid.identify.uncertainty import fisher_uncertainty
 
@@ -55,6 +59,13 @@ RUNG_MAX_ITER = 30
 
 #: The parameter that smooths the landscape when large (the loss factor).
 SMOOTHING_PARAMETER = "beta"
+#: A start from peak matching begins its continuation at this multiple of the loss factor
+#: that the search on chi2 found (which the narrow peaks determine well; starting higher,
+#: at 10x, led the orthotropic plate's polish into wrong basins).
+PEAK_START_BETA_FACTOR = 1.0
+#: Weight of ln chi2 in the peak-matching score: a change of chi2 by a factor e counts as
+#: much as a 0.3 % mismatch of one peak frequency.
+PEAK_CHI2_WEIGHT = 1e-5
 #: Ratio between rungs of the continuation ladder (half a decade).
 LADDER_RATIO = 10**-0.5
 
@@ -230,9 +241,19 @@ def identify(
 
     global_result = None
     if method == "global":
-        global_result = differential_evolution(problem, restarts=restarts, rng=seed,
+        rng = np.random.default_rng(seed)
+        global_result = differential_evolution(problem, restarts=restarts, rng=rng,
                                                progress=progress)
-        starts = _distinct(global_result.u)
+        peak_starts = _peak_starts(problem, data, restarts, rng, progress)
+        if peak_starts and SMOOTHING_PARAMETER in space.names:
+            # the peak frequencies say little about the loss factor: start the polish's
+            # continuation from the chi2 search's estimate of it (times the factor)
+            ib = space.names.index(SMOOTHING_PARAMETER)
+            t = space.transforms[ib]
+            b = min(PEAK_START_BETA_FACTOR * float(global_result.theta[0][ib]), t.high)
+            for u in peak_starts:
+                u[ib] = float(t.to_u(b))
+        starts = _distinct(list(global_result.u) + peak_starts)
     else:
         starts = [_start_u(space, start)]
     runs: list[LocalResult] = []
@@ -268,6 +289,35 @@ def identify(
 
     return _result(problem, forward_model, data, model, best, runs, global_result, warnings,
                    t0, throw)
+
+
+def _peak_starts(problem: LeastSquaresProblem, data: FitData, restarts: int, rng,
+                 progress: bool) -> list[np.ndarray]:
+    """Starts from a global search that matches the measured resonance peaks
+    (:mod:`vibid.identify.peaks`); none when the model cannot give its modes or the AFC
+    shows no peak."""
+    model = problem.model
+    if not hasattr(model, "modes_batch") or not model.param.proportional:
+        return []
+    u = data.used
+    peaks = measured_peaks(data.frequency_hz[u], data.H[u], None if data.std is None
+                           else data.std[u])
+    if peaks.count == 0:
+        return []
+    space = problem.space
+
+    def score(U):
+        # peak matching first; among parameter sets that match the peaks equally well
+        # (fewer peaks in the band than stiffness parameters leave a family of them) the
+        # AFC's chi2 decides, through a term too small to outweigh a visible mismatch
+        f_hz, height = model.modes_batch(space.theta(U))
+        chi2 = np.maximum(problem.chi2_batch(U), 1e-300)
+        return np.asarray(peak_score(f_hz, height, peaks)) + PEAK_CHI2_WEIGHT * np.log(chi2)
+
+    result = differential_evolution(problem, restarts=restarts, rng=rng, progress=progress,
+                                    score=score, label="peak matching")
+    log.info("peak matching: %d measured peaks, best score %.3g", peaks.count, result.loss[0])
+    return list(result.u)
 
 
 def _refreshed(problem: LeastSquaresProblem, theta, data: FitData,

@@ -121,6 +121,11 @@ def _afc_batch_jit(kernel, arrays, thetas):
     return jax.vmap(kernel, in_axes=(None, 0))(arrays, thetas)
 
 
+@partial(jax.jit, static_argnums=0)
+def _modes_batch_jit(kernel, arrays, thetas):
+    return jax.vmap(kernel.modes, in_axes=(None, 0))(arrays, thetas)
+
+
 def discretisation(geometry: Geometry, accuracy: str = "default", *, f_max_hz: float | None = None,
                    rigidity_n_m: float | None = None) -> Discretisation:
     """The Argyris discretisation of an accuracy preset for a specimen.
@@ -212,6 +217,11 @@ class ForwardModel:
     def afc_batch(self, thetas) -> jax.Array:
         """(npop, nf) AFCs of a population of parameter vectors."""
         return _afc_batch_jit(self.kernel, self.arrays, jnp.asarray(thetas, jnp.float64))
+
+    def modes_batch(self, thetas):
+        """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
+        the reduced model for a population of parameter vectors (proportional loss)."""
+        return _modes_batch_jit(self.kernel, self.arrays, jnp.asarray(thetas, jnp.float64))
 
     def afc_full(self, theta) -> np.ndarray:
         """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""

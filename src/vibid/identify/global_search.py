@@ -60,6 +60,8 @@ def differential_evolution(
     max_generations: int = 60,
     rng: np.random.Generator | int | None = None,
     progress: bool = False,
+    score=None,
+    label: str = "global search",
 ) -> GlobalResult:
     """Search the prior box for the minimum of chi2, ``restarts`` times.
 
@@ -73,6 +75,9 @@ def differential_evolution(
         searched parameter).
     rng: seed or Generator; the same seed gives the same result.
     progress: show a progress bar (tqdm, on stderr) over all generations of all restarts.
+    score: another population score ``score(U (S, p)) -> (S,)`` to minimise instead of
+        chi2 (e.g. :func:`vibid.identify.peaks.peak_score`); ``loss`` then holds it.
+    label: the progress bar's and the log's name of this search.
 
     Returns
     -------
@@ -102,13 +107,14 @@ def differential_evolution(
     def objective(U_free):
         U_free = np.atleast_2d(U_free.T).T if U_free.ndim == 1 else U_free
         n_eval[0] += U_free.shape[1]
-        return problem.chi2_batch(full(U_free))
+        U = full(U_free)
+        return problem.chi2_batch(U) if score is None else np.asarray(score(U))
 
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=restarts * max_generations, desc="global search", unit="gen",
+        bar = tqdm(total=restarts * max_generations, desc=label, unit="gen",
                    leave=False, dynamic_ncols=True)
     us, losses, messages = [], [], []
     n_pop = popsize * len(free)
@@ -136,7 +142,7 @@ def differential_evolution(
             us.append(u)
             losses.append(float(sol.fun))
             messages.append(f"restart {r + 1}: {sol.message} ({sol.nit} generations)")
-            log.info("DE restart %d: chi2 %.6g at %s (%d generations)", r + 1, sol.fun,
+            log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
                      space.as_dict(space.theta(u)), sol.nit)
     finally:
         if bar is not None:

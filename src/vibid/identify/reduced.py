@@ -288,6 +288,24 @@ class ReducedKernel:
             H = self.post(theta, jnp.sqrt(w2), H)
         return H
 
+    def modes(self, arrays: dict, theta):
+        """Natural frequencies (Hz, ascending) of the reduced model and the height of each
+        mode's resonance peak in |H| (``|weight| / (mu beta)``, the modal term at
+        resonance); padding modes have zero height. Proportional loss only."""
+        theta = jnp.asarray(theta, jnp.float64)
+        a = arrays
+        D = self.param.moduli(theta, jnp)
+        beta = self.param.losses(theta, jnp)[0]
+        A = jnp.tensordot(D, a["K"], axes=1) + a["pad"]
+        L = jnp.linalg.cholesky(A)
+        solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
+        B = solve(solve(a["M"]).T)
+        mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
+        weight = (Z.T @ solve(a["probe"])) * (Z.T @ solve(a["load"]))
+        mu, weight = mu[::-1], weight[::-1]  # largest mu = lowest frequency first
+        f_hz = 1.0 / jnp.sqrt(jnp.abs(mu)) / (2 * jnp.pi)
+        return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)
+
 
 def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> dict:
     """The kernel's arrays for ``basis`` on angular frequencies ``omega`` (rad/s), the basis

@@ -1,0 +1,82 @@
+"""Resonance peaks of a measured AFC, and a global-search score that matches them.
+
+Fitting the AFC itself over a wide prior box is a needle-in-a-haystack search when the
+loss factor is small: a model peak earns credit only within its half-power band (about
+beta f) of a measured one, so with several stiffness parameters (an orthotropic plate:
+D11, D12, D22, D66) differential evolution on chi2 rarely lands in the right basin. The
+frequencies of the resonances are smooth functions of the parameters, so a score that
+asks each measured peak to be explained by some model mode, and each strong model mode in
+the band by some measured peak,
+
+    score(theta) = sum_i min_j (ln f_j - ln F_i)^2 + sum_{j visible} min_i (ln f_j - ln F_i)^2,
+
+(F_i measured peak frequencies, f_j the model's natural frequencies, "visible": in the band
+and with a resonance peak at least half as high as the lowest measured one) has wide
+basins around every parameter set that reproduces the peaks. Its minima are starts for
+the polish on the AFC (:mod:`vibid.identify.fit`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+#: A peak must rise this many times above the AFC's median magnitude (and, with a known
+#: uncertainty, this many standard deviations above zero) to count as a resonance.
+MIN_PEAK_RATIO = 3.0
+MIN_PEAK_SNR = 10.0
+
+
+@dataclass(frozen=True)
+class Peaks:
+    """Resonance peaks found in a measured AFC.
+
+    frequency_hz: (m,) peak frequencies, refined by a parabola through the three grid
+        points around each maximum of ln |H|; height: (m,) |H| at the grid maximum.
+    f_max_hz: the highest frequency of the band searched.
+    """
+
+    frequency_hz: np.ndarray
+    height: np.ndarray
+    f_max_hz: float
+
+    @property
+    def count(self) -> int:
+        return int(self.frequency_hz.size)
+
+
+def measured_peaks(frequency_hz, H, std=None) -> Peaks:
+    """The resonance peaks of ``H`` (complex, (n,)) on the grid ``frequency_hz`` (Hz)."""
+    f = np.asarray(frequency_hz, float)
+    mag = np.abs(np.asarray(H))
+    order = np.argsort(f)
+    f, mag = f[order], mag[order]
+    s = None if std is None else np.asarray(std, float)[order]
+    floor = MIN_PEAK_RATIO * float(np.median(mag))
+    found_f, found_h = [], []
+    for i in range(1, f.size - 1):
+        if not (mag[i] > mag[i - 1] and mag[i] >= mag[i + 1] and mag[i] > floor):
+            continue
+        if s is not None and mag[i] < MIN_PEAK_SNR * s[i]:
+            continue
+        x, y = f[i - 1:i + 2], np.log(mag[i - 1:i + 2])
+        a, b, _ = np.polyfit(x - x[1], y, 2)
+        shift = -b / (2 * a) if a < 0 else 0.0
+        found_f.append(x[1] + float(np.clip(shift, x[0] - x[1], x[2] - x[1])))
+        found_h.append(mag[i])
+    return Peaks(np.array(found_f), np.array(found_h), float(f.max()))
+
+
+def peak_score(f_model_hz, height_model, peaks: Peaks):
+    """The score of the module docstring for a population: (S, n) model frequencies and
+    peak heights -> (S,) scores (JAX or numpy arrays)."""
+    F = jnp.asarray(peaks.frequency_hz)
+    fm = jnp.maximum(jnp.asarray(f_model_hz), 1e-12)
+    d2 = (jnp.log(fm)[:, :, None] - jnp.log(F)[None, None, :]) ** 2  # (S, n, m)
+    explained = jnp.min(d2, axis=1).sum(axis=1)
+    visible = (fm <= peaks.f_max_hz) & (jnp.asarray(height_model) >= 0.5 * float(peaks.height.min()))
+    spurious = jnp.where(visible, jnp.min(d2, axis=2), 0.0).sum(axis=1)
+    score = explained + spurious
+    return jnp.where(jnp.isfinite(score), score, jnp.inf)
