@@ -112,7 +112,19 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
 
 
 def write_report(report: dict, path) -> None:
-    """Write ``report`` as JSON (strict: no NaN)."""
-    with open(path, "w", encoding="utf-8") as fh:
-        json.dump(report, fh, indent=1, allow_nan=False)
-        fh.write("\n")
+    """Write ``report`` as JSON (strict: no NaN). The text is made in full first and then
+    replaces ``path`` in one step, so a failure never leaves half a report behind."""
+    import os
+    import tempfile
+
+    text = json.dumps(report, indent=1, allow_nan=False) + "\n"
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".report-", suffix=".json", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise

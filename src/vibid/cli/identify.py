@@ -47,6 +47,9 @@ def run(args) -> int:
                               afc=afc.to_report_block())
         write_report(report, args.json)
         print(f"report written to {args.json}")
+    if not result.converged:
+        # the report is written (it says why); the job itself failed
+        raise VibidError(f"the identification did not converge: {result.message}")
     return 0
 
 
