@@ -266,15 +266,8 @@ class ReducedKernel:
         D = self.param.moduli(theta, jnp)
         w2 = a["w2"]
         if self.param.proportional:
-            # (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z:
-            # well conditioned whatever the spread of λ (μ is bounded by 1/λ_min).
             beta = self.param.losses(theta, jnp)[0]
-            A = jnp.tensordot(D, a["K"], axes=1) + a["pad"]
-            L = jnp.linalg.cholesky(A)
-            solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
-            B = solve(solve(a["M"]).T)
-            mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
-            weight = (Z.T @ solve(a["probe"])) * (Z.T @ solve(a["load"]))
+            mu, weight = self._modal(a, D)
             denom = (1.0 + 1j * beta) - w2[:, None] * mu[None, :]
             H = a["probe_rigid"] + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
         else:
@@ -288,20 +281,26 @@ class ReducedKernel:
             H = self.post(theta, jnp.sqrt(w2), H)
         return H
 
+    @staticmethod
+    def _modal(a: dict, D):
+        """``(mu, weight)``: inverse eigenvalues ``mu = 1/λ`` (s²/rad², ascending) of the
+        real pencil ``(Σ D_α K_α, M)`` and each mode's weight (probe x load) in H.
+
+        (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z: well
+        conditioned whatever the spread of λ (μ is bounded by 1/λ_min)."""
+        L = jnp.linalg.cholesky(jnp.tensordot(D, a["K"], axes=1) + a["pad"])
+        solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
+        B = solve(solve(a["M"]).T)
+        mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
+        return mu, (Z.T @ solve(a["probe"])) * (Z.T @ solve(a["load"]))
+
     def modes(self, arrays: dict, theta):
         """Natural frequencies (Hz, ascending) of the reduced model and the height of each
         mode's resonance peak in |H| (``|weight| / (mu beta)``, the modal term at
         resonance); padding modes have zero height. Proportional loss only."""
         theta = jnp.asarray(theta, jnp.float64)
-        a = arrays
-        D = self.param.moduli(theta, jnp)
         beta = self.param.losses(theta, jnp)[0]
-        A = jnp.tensordot(D, a["K"], axes=1) + a["pad"]
-        L = jnp.linalg.cholesky(A)
-        solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
-        B = solve(solve(a["M"]).T)
-        mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
-        weight = (Z.T @ solve(a["probe"])) * (Z.T @ solve(a["load"]))
+        mu, weight = self._modal(arrays, self.param.moduli(theta, jnp))
         mu, weight = mu[::-1], weight[::-1]  # largest mu = lowest frequency first
         f_hz = 1.0 / jnp.sqrt(jnp.abs(mu)) / (2 * jnp.pi)
         return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)

@@ -1,0 +1,49 @@
+"""Resonance peaks of an AFC and the peak-matching score, on an analytic two-mode AFC."""
+
+import numpy as np
+import pytest
+
+from vibid.identify.peaks import measured_peaks, peak_score
+
+F_MODES = np.array([123.4, 456.7])
+BETA = 0.01
+
+
+def two_mode_afc(f_hz):
+    """Base-excited two-mode system: H = 1 + sum_j a_j w^2 / (w_j^2 (1 + i beta) - w^2)."""
+    w2 = (2 * np.pi * f_hz) ** 2
+    wj2 = (2 * np.pi * F_MODES) ** 2
+    a = np.array([0.8, 0.3])
+    return 1 + (a[None, :] * w2[:, None] / (wj2[None, :] * (1 + 1j * BETA) - w2[:, None])).sum(1)
+
+
+def test_peaks_found_at_the_natural_frequencies():
+    f = np.linspace(5, 600, 300)  # 2 Hz grid: the parabola must refine between points
+    p = measured_peaks(f, two_mode_afc(f))
+    assert p.count == 2
+    # |H| peaks at w_j (1 + O(beta^2)); the 3-point parabola on ln|H| is good to ~0.1 Hz here
+    np.testing.assert_allclose(p.frequency_hz, F_MODES, atol=0.15)
+    assert abs(p.frequency_hz[0] - f[np.argmin(abs(f - F_MODES[0]))]) > 0  # refined, not snapped
+
+
+def test_noise_below_the_snr_limit_makes_no_peak():
+    f = np.linspace(5, 600, 300)
+    rng = np.random.default_rng(0)
+    H = 1 + 0.01 * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+    assert measured_peaks(f, H, np.full(f.size, 0.01)).count == 0
+
+
+def test_score_is_zero_at_a_match_and_penalises_misses_and_spurious_modes():
+    f = np.linspace(5, 600, 300)
+    p = measured_peaks(f, two_mode_afc(f))
+    strong = np.array([[100.0, 100.0, 100.0]])
+    exact = np.array([[*p.frequency_hz, 900.0]])  # a third mode above the band is ignored
+    assert float(peak_score(exact, strong, p)[0]) == pytest.approx(0.0, abs=1e-20)
+    off = exact * np.array([[1.01, 1.0, 1.0]])  # 1 % off: counted once as unexplained,
+    # once as a spurious visible mode -> 2 ln(1.01)^2
+    assert float(peak_score(off, strong, p)[0]) == pytest.approx(2 * np.log(1.01) ** 2, rel=1e-9)
+    extra = np.array([[*p.frequency_hz, 300.0]])  # a strong mode in the band with no peak
+    assert float(peak_score(extra, strong, p)[0]) == pytest.approx(
+        np.min(np.log(300.0 / p.frequency_hz) ** 2), rel=1e-9)  # the nearest peak, 456.7 Hz
+    weak = np.array([[100.0, 100.0, 1e-6]])  # the same mode, too weak to be seen: no penalty
+    assert float(peak_score(extra, weak, p)[0]) == pytest.approx(0.0, abs=1e-20)
