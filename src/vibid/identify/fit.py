@@ -10,8 +10,9 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
    on the match of the measured resonance peaks (:mod:`~vibid.identify.peaks`), which
    finds the basin where chi2's needle-like minima defeat the search (orthotropic
    plates); or local: a start given by the caller;
-3. polish of every restart's best point, each on a model rebuilt around it (not only the best: a restart in the right
-   basin may score worse than one in a wrong basin at its loose tolerance) by
+3. polish of every restart's best point, each on a model rebuilt around it (not only the
+   best: a restart in the right basin may score worse than one in a wrong basin at its
+   loose tolerance) by
    continuation in the loss factor: fit the other
    parameters with beta held at a decreasing ladder of values (half a decade apart), and
    from each rung fit all parameters freely, until the free fit's beta lies above the
@@ -59,10 +60,6 @@ RUNG_MAX_ITER = 30
 
 #: The parameter that smooths the landscape when large (the loss factor).
 SMOOTHING_PARAMETER = "beta"
-#: A start from peak matching begins its continuation at this multiple of the loss factor
-#: that the search on chi2 found (which the narrow peaks determine well; starting higher,
-#: at 10x, led the orthotropic plate's polish into wrong basins).
-PEAK_START_BETA_FACTOR = 1.0
 #: Weight of ln chi2 in the peak-matching score: a change of chi2 by a factor e counts as
 #: much as a 0.3 % mismatch of one peak frequency.
 PEAK_CHI2_WEIGHT = 1e-5
@@ -246,13 +243,12 @@ def identify(
                                                progress=progress)
         peak_starts = _peak_starts(problem, data, restarts, rng, progress)
         if peak_starts and SMOOTHING_PARAMETER in space.names:
-            # the peak frequencies say little about the loss factor: start the polish's
-            # continuation from the chi2 search's estimate of it (times the factor)
+            # the peak frequencies say little about the loss factor, which the chi2
+            # search's narrow peaks pin down well: the polish starts from that estimate
+            # (starting higher, at 10x, led the orthotropic plate into wrong basins)
             ib = space.names.index(SMOOTHING_PARAMETER)
-            t = space.transforms[ib]
-            b = min(PEAK_START_BETA_FACTOR * float(global_result.theta[0][ib]), t.high)
             for u in peak_starts:
-                u[ib] = float(t.to_u(b))
+                u[ib] = global_result.u[0][ib]
         starts = _distinct(list(global_result.u) + peak_starts)
     else:
         starts = [_start_u(space, start)]

@@ -167,7 +167,7 @@ def _orthonormal(V, E, tol):
 def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
                 max_modes: int = 40, min_modes: int = 6, krylov: int = 2,
                 snapshots: bool = True, tol: float = 1e-13,
-                scale_ratio: float | None = None, sensitivities: bool = True) -> ReducedBasis:
+                scale_ratio: float | None = None) -> ReducedBasis:
     """Build the reduced basis around ``theta0`` (see the module docstring).
 
     Parameters
@@ -185,8 +185,6 @@ def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float =
     tol : relative Gram eigenvalue below which directions are dropped.
     scale_ratio : how much softer than ``theta0`` the plate may get (default: from
         ``bounds`` by :func:`stiffness_scale_ratio`).
-    sensitivities : add the parameter-sensitivity vectors (off: modes and static
-        corrections only, a smaller and less accurate basis for a coarse search).
     """
     theta0 = np.asarray(theta0, float)
     M = mats.inertia_matrix().tocsc()
@@ -218,7 +216,7 @@ def build_basis(mats, param, theta0, bounds, f_max_hz: float, *, margin: float =
                 v = lu.solve(M @ v)
         S = np.column_stack(statics)
         cols += [Phi, S]
-        J = _moduli_jacobian(param, th) if sensitivities else np.zeros((6, 0))
+        J = _moduli_jacobian(param, th)
         for kk in range(J.shape[1]):
             Kd = mats.stiffness_matrix(dict(zip(MODULI, J[:, kk])))
             cols.append(lu.solve(np.column_stack([Kd @ Phi, Kd @ S[:, :1]])))
