@@ -128,7 +128,8 @@ def differential_evolution(
                 if bar is not None:
                     bar.update(1)
                     bar.set_postfix(restart=f"{r + 1}/{restarts}",
-                                    chi2=f"{intermediate_result.fun:.4g}")
+                                    **{"chi2" if score is None else "score":
+                                       f"{intermediate_result.fun:.4g}"})
 
             sol = scipy_de(
                 objective, [(-1.0, 1.0)] * len(free), init=init, mutation=mutation,
