@@ -94,6 +94,9 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
             "warnings": warnings,
             "noise_known": result.noise_known,
             "chi2": _num(result.chi2),
+            "chi2_reduced_data_weights": _num(result.chi2_reduced_data_weights),
+            "model_error_std": None if result.model_error_bias is None else {
+                n: _num(abs(b)) for n, b in zip(result.parameter_names, result.model_error_bias)},
             "dof": int(result.dof),
             "parameter_names": list(result.parameter_names),
             "covariance": [_nums(row) for row in result.covariance],

@@ -28,6 +28,7 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -39,6 +40,7 @@ from vibid.errors import VibidError
 from vibid.identify.fit_result import IdentificationResult, LocalResult, Status
 from vibid.identify.global_search import differential_evolution
 from vibid.identify.loss import FitData, ForwardModel, LeastSquaresProblem, fit_data
+from vibid.identify.model_error import ModelErrorSplit, split_model_error
 from vibid.identify.params import ParameterSpace
 from vibid.identify.peaks import measured_peaks, peak_score
 from vibid.identify.trust_region import gauss_newton, trust_region
@@ -274,17 +276,56 @@ def identify(
         runs.insert(0, LOCAL_METHODS[local](problem, best.u))
         best = runs[0]
     forward_model = problem.model
+    systematic = None
     if data.noise_known:
-        me = np.asarray(forward_model.model_error(best.theta), dtype=float)
-        if np.any(me > 0):
-            old = problem.sigma.copy()
-            problem.set_weights(me)
-            if np.max(np.abs(problem.sigma / old - 1)) > 1e-3:
-                runs.insert(0, LOCAL_METHODS[local](problem, best.u))
-                best = runs[0]
+        best, systematic = _weigh_model_error(problem, best, runs, local)
 
+    # minima found under other weights (or models) are compared under the final ones
+    assert best is runs[0]
+    compared = [best] + [_on_weights(r, problems.get(id(r), problem), problem.sigma)
+                         for r in runs[1:]]
     return _result(problem, forward_model, data, model, best, runs, global_result, warnings,
-                   t0, throw)
+                   t0, throw, systematic, compared)
+
+
+def _weigh_model_error(problem: LeastSquaresProblem, best: LocalResult, runs: list,
+                       local: str) -> tuple[LocalResult, ModelErrorSplit | None]:
+    """Put the model's own error where it belongs (:mod:`vibid.identify.model_error`):
+    its unexplained part into the weights (then polish again if they changed), the part
+    the parameters absorb into a systematic covariance term, taken with the final weights.
+    Returns the best run and the split (None if the model estimates no error)."""
+    model = problem.model
+    if not hasattr(model, "model_error_parts"):
+        me = np.asarray(model.model_error(best.theta), dtype=float)
+        if np.any(me > 0):
+            problem.set_weights(me)
+            best = _polish_again(problem, best, runs, local)
+        return best, None
+    d, red = model.model_error_parts(best.theta)
+    d, red = problem.on_points(d), problem.on_points(red)
+    if not (np.any(d != 0) or np.any(red > 0)):
+        return best, None
+    problem.set_weights()
+    split = split_model_error(problem.jacobian_theta(best.theta), d, red, problem.sigma)
+    old = problem.sigma.copy()
+    problem.set_weights(point_error=split.point_std)
+    if np.max(np.abs(problem.sigma / old - 1)) > 1e-3:
+        best = _polish_again(problem, best, runs, local)
+        split = split_model_error(problem.jacobian_theta(best.theta), d, red, problem.sigma)
+    return best, split
+
+
+def _on_weights(run: LocalResult, problem: LeastSquaresProblem, sigma) -> LocalResult:
+    """``run`` with its loss evaluated on its own problem weighted with ``sigma``."""
+    if problem.sigma.shape == np.shape(sigma) and np.array_equal(problem.sigma, sigma):
+        return run
+    problem.use_sigma(sigma)
+    return dataclasses.replace(run, loss=problem.chi2(run.u))
+
+
+def _polish_again(problem, best, runs, local) -> LocalResult:
+    runs.insert(0, LOCAL_METHODS[local](problem, best.u))
+    return runs[0]
 
 
 def _peak_starts(problem: LeastSquaresProblem, data: FitData, restarts: int, rng,
@@ -398,7 +439,8 @@ def _distinct(U: np.ndarray, tol: float = 1e-3) -> list[np.ndarray]:
 
 
 def _result(problem, forward_model, data: FitData, model, best: LocalResult, runs,
-            global_result, warnings, t0, throw) -> IdentificationResult:
+            global_result, warnings, t0, throw,
+            systematic: ModelErrorSplit | None = None, compared=None) -> IdentificationResult:
     space = problem.space
     theta = best.theta
     if not np.all(np.isfinite(theta)):  # cannot happen for finite u; never report NaN
@@ -410,8 +452,10 @@ def _result(problem, forward_model, data: FitData, model, best: LocalResult, run
     unc = fisher_uncertainty(problem.jacobian_theta(theta), space.names,
                              chi2_reduced=chi2_red, noise_known=data.noise_known)
     warnings.extend(unc.warnings)
-    cov, note = _rival_minima(runs, best, unc.covariance, chi2_red, data.noise_known,
+    cov, note = _rival_minima(compared or runs, best, unc.covariance, chi2_red, data.noise_known,
                               space.names)
+    if systematic is not None:
+        cov = cov + systematic.covariance
     if note:
         warnings.append(note)
     std = np.sqrt(np.abs(np.diag(cov)))
@@ -424,6 +468,10 @@ def _result(problem, forward_model, data: FitData, model, best: LocalResult, run
         Hm_used = Hm_used[problem._model_idx]
     H_used = data.H[data.used]
     rel_rms = float(np.sqrt(np.mean(np.abs(Hm_used - H_used) ** 2) / np.mean(np.abs(H_used) ** 2)))
+    chi2_red_data = math.nan
+    if data.noise_known and dof > 0:
+        rd = (Hm_used - H_used) / data.std[data.used]
+        chi2_red_data = float(np.sum(rd.real**2 + rd.imag**2)) / dof
     model_afc = np.full(data.H.shape, np.nan + 1j * np.nan)
     model_afc[data.used] = Hm_used
 
@@ -457,5 +505,7 @@ def _result(problem, forward_model, data: FitData, model, best: LocalResult, run
         message=message, noise_known=data.noise_known, frequency_hz=data.frequency_hz,
         H=data.H, H_std=data.std, used=data.used, model_afc=model_afc,
         global_result=global_result, local_results=tuple(runs), warnings=tuple(warnings),
+        model_error_bias=None if systematic is None else systematic.bias,
+        chi2_reduced_data_weights=chi2_red_data,
         seconds=time.perf_counter() - t0,
     )

@@ -112,6 +112,13 @@ class IdentificationResult:
     global_result: the global search, if one ran.
     local_results: every local run (polishes of several candidates), best first.
     warnings: sentences about the data, bounds, identifiability.
+    model_error_bias: (p,) the shift of the estimate that the forward model's own
+        discretisation error causes, to first order (:mod:`vibid.identify.model_error`);
+        ``covariance`` includes it as the systematic term bias bias^T. None when the model
+        gives no signed error estimate or the noise is unknown.
+    chi2_reduced_data_weights: the reduced chi2 with the signal stage's standard
+        uncertainties alone as weights (``chi2_reduced`` also weighs the model's
+        unexplained error); nan when they are unknown.
     model_afc: (n,) the model AFC at the estimate on all given frequencies (nan where a
         point was not used).
     """
@@ -138,6 +145,8 @@ class IdentificationResult:
     local_results: tuple[LocalResult, ...] = field(default=())
     warnings: tuple[str, ...] = field(default=())
     seconds: float = float("nan")
+    model_error_bias: np.ndarray | None = None
+    chi2_reduced_data_weights: float = float("nan")
 
     @property
     def converged(self) -> bool:

@@ -2,7 +2,8 @@
 
 With H_k the measured AFC at frequency f_k (k over the points kept), H(theta)_k the
 model's, sigma_m,k the standard uncertainty of each of Re H_k and Im H_k from the signal
-stage and sigma_f,k the forward model's own error estimate there,
+stage and sigma_f,k the forward model's own error estimate there (the part of it that no
+parameter change explains, :mod:`vibid.identify.model_error`),
 
     r_k = (H(theta)_k - H_k) / sigma_k,     sigma_k^2 = sigma_m,k^2 + sigma_f,k^2,
     chi2(theta) = sum_k |r_k|^2 = sum_k (Re r_k)^2 + (Im r_k)^2,
@@ -48,7 +49,9 @@ class ForwardModel(Protocol):
         """(npop, nf) complex AFC of a population of parameter vectors."""
 
     def model_error(self, theta) -> np.ndarray:
-        """(nf,) standard deviation of the model's own error, per Re/Im part."""
+        """(nf,) standard deviation of the model's own error, per Re/Im part. A model may
+        also offer ``model_error_parts(theta) -> (signed complex error (nf,), reduction
+        std)``, which the identification then splits (:mod:`vibid.identify.model_error`)."""
 
     def refresh(self, theta) -> "ForwardModel":
         """The model rebuilt around ``theta`` if it moved far from its expansion point."""
@@ -210,8 +213,11 @@ class LeastSquaresProblem:
         self._build()
 
     # -- weights ------------------------------------------------------------------------
-    def set_weights(self, model_error: np.ndarray | None = None) -> None:
-        """sigma_k from the data's std and the model's error estimate (see module doc)."""
+    def set_weights(self, model_error: np.ndarray | None = None, *,
+                    point_error: np.ndarray | None = None) -> None:
+        """sigma_k from the data's std and the model's error estimate (see module doc):
+        ``model_error`` on the model's frequencies, or ``point_error`` (n_points,) on the
+        fitted points (:mod:`vibid.identify.model_error`)."""
         d = self.data
         H = d.H[self._idx]
         if d.std is None:
@@ -219,12 +225,21 @@ class LeastSquaresProblem:
             sigma = np.full(self.n_points, scale)
         else:
             sigma = d.std[self._idx].copy()
+            me = None
             if model_error is not None:
                 me = np.asarray(model_error, dtype=float).ravel()[self._model_idx]
+            elif point_error is not None:
+                me = np.asarray(point_error, dtype=float).ravel()
+            if me is not None:
                 sigma = np.sqrt(sigma**2 + np.where(np.isfinite(me), me, 0.0) ** 2)
         self.sigma = sigma
         self._sig = jnp.asarray(sigma)
         self._H = jnp.asarray(H)
+
+    def use_sigma(self, sigma: np.ndarray) -> None:
+        """Weigh with ``sigma`` (n_points,) as given (another problem's final weights)."""
+        self.sigma = np.asarray(sigma, float).copy()
+        self._sig = jnp.asarray(self.sigma)
 
     @property
     def dof(self) -> int:
@@ -266,6 +281,10 @@ class LeastSquaresProblem:
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
         return np.asarray(self._batch(jnp.asarray(U, float), self._arrays, self._H, self._sig))
+
+    def on_points(self, model_values) -> np.ndarray:
+        """The fitted points' entries of an array over the model's frequencies."""
+        return np.asarray(model_values)[self._model_idx]
 
     def model_afc(self, theta) -> np.ndarray:
         return np.asarray(self.model.afc(jnp.asarray(theta, float)))
