@@ -45,8 +45,8 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from vibid.identify.forms import MODULI
+from vibid.identify.modes import arpack_start
 
-jax.config.update("jax_enable_x64", True)
 log = logging.getLogger(__name__)
 
 
@@ -137,7 +137,8 @@ def _modes(K, M, lu, n_min, n_max, f_top):
     opinv = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
     k = min(max(n_min, 16), n_max, K.shape[0] - 2)
     while True:
-        lam, Phi = spla.eigsh(K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM")
+        lam, Phi = spla.eigsh(K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM",
+                              v0=arpack_start(K.shape[0]))
         order = np.argsort(lam)
         lam, Phi = lam[order], Phi[:, order]
         freqs = np.sqrt(np.abs(lam)) / (2 * np.pi)
