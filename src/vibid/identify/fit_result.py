@@ -174,5 +174,8 @@ class IdentificationResult:
             f"  chi2_reduced = {self.chi2_reduced:.4g}, rel_rms_residual = "
             f"{self.rel_rms_residual:.3g}"
         )
+        if self.model_error_bias is not None:
+            lines.append("  model's discretisation bias (in the std): " + ", ".join(
+                f"{n} {abs(b):.2g}" for n, b in zip(self.parameter_names, self.model_error_bias)))
         lines.extend(f"  warning: {w}" for w in self.warnings)
         return "\n".join(lines)
