@@ -83,7 +83,6 @@ from vibid.identify.mesh import Discretisation
 from vibid.identify.modes import complex_eigenvalues, frequencies_and_decays
 from vibid.identify.reduced import ReducedAFC, build_basis
 
-jax.config.update("jax_enable_x64", True)
 log = logging.getLogger(__name__)
 
 #: Accuracy presets: (cell size, m; corner refinement levels; cells per bending wavelength

@@ -26,7 +26,6 @@ import scipy.sparse.linalg as spla
 
 from vibid.identify.forms import MODULI
 
-jax.config.update("jax_enable_x64", True)
 
 
 def _solve_all(mats, complex_moduli, frequencies_hz, sensitivities: bool = False):

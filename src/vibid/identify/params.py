@@ -27,8 +27,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
+import scipy.special
 
 from vibid.errors import VibidError
 
@@ -56,6 +58,16 @@ PARAMETER_KINDS: dict[str, tuple] = {
 EDGE_MARGIN = 1e-3
 
 
+
+def _xp(x):
+    """The array namespace for ``x``: jnp for JAX arrays and tracers, else numpy."""
+    return jnp if isinstance(x, jax.Array) else np
+
+
+def _sigmoid(z):
+    """1 / (1 + exp(-z)) without overflow for either namespace."""
+    return jax.nn.sigmoid(z) if _xp(z) is jnp else scipy.special.expit(z)
+
 @dataclass(frozen=True)
 class Transform:
     """The map of one parameter between its physical value and its coordinate ``u``.
@@ -78,21 +90,34 @@ class Transform:
     centre: float
     half_width: float
 
-    # phi and its inverse, written with jnp so they trace under jit/grad and run on numpy
+    # phi and its inverse, written for both numpy (plain values: no JAX dispatch, which
+    # compiles each operation on first use) and jnp (traced under jit/grad)
     def _phi(self, theta):
+        xp = _xp(theta)
         if self.kind == "log":
-            return jnp.log(theta)
+            return xp.log(theta)
         if self.kind == "logit":
             s = (theta - self.a) / (self.b - self.a)
-            return jnp.log(s) - jnp.log1p(-s)
+            return xp.log(s) - xp.log1p(-s)
         return theta
 
     def _phi_inv(self, z):
+        xp = _xp(z)
         if self.kind == "log":
-            return jnp.exp(z)
+            return xp.exp(z)
         if self.kind == "logit":
-            return self.a + (self.b - self.a) * (1 / (1 + jnp.exp(-z)))
+            return self.a + (self.b - self.a) * _sigmoid(z)
         return z
+
+    def dfrom_u(self, u):
+        """d theta / d u at ``u`` (array-friendly)."""
+        z = self.centre + self.half_width * u
+        if self.kind == "log":
+            return self.half_width * _xp(z).exp(z)
+        if self.kind == "logit":
+            sig = _sigmoid(z)
+            return self.half_width * (self.b - self.a) * sig * (1 - sig)
+        return self.half_width + 0 * z
 
     def to_u(self, theta):
         """Coordinate ``u`` of a physical value (array-friendly)."""
@@ -176,9 +201,11 @@ class ParameterSpace:
         return np.array([float(t.to_u(v)) for t, v in zip(self.transforms, theta)])
 
     def from_u(self, u):
-        """Physical vector(s) of ``u`` (last axis = parameters); jnp, differentiable."""
-        u = jnp.asarray(u)
-        return jnp.stack([t.from_u(u[..., i]) for i, t in enumerate(self.transforms)], axis=-1)
+        """Physical vector(s) of ``u`` (last axis = parameters); numpy for numpy input,
+        jnp (differentiable) for JAX arrays and tracers."""
+        xp = _xp(u)
+        u = xp.asarray(u)
+        return xp.stack([t.from_u(u[..., i]) for i, t in enumerate(self.transforms)], axis=-1)
 
     def theta(self, u) -> np.ndarray:
         """``from_u`` as a numpy float array."""
@@ -186,11 +213,7 @@ class ParameterSpace:
 
     def dtheta_du(self, u) -> np.ndarray:
         """Diagonal of the Jacobian d theta / d u at ``u`` (one entry per parameter)."""
-        import jax
-
-        return np.array([
-            float(jax.grad(t.from_u)(float(ui))) for t, ui in zip(self.transforms, np.asarray(u))
-        ])
+        return np.array([float(t.dfrom_u(float(ui))) for t, ui in zip(self.transforms, np.asarray(u))])
 
     def inside_domain(self, theta) -> bool:
         return all(t.inside_domain(float(v)) for t, v in zip(self.transforms, theta))

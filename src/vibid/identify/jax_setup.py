@@ -1,0 +1,54 @@
+"""The JAX settings vibid relies on, in one place: 64-bit floats, and a compilation cache.
+
+64-bit: the AFC near a resonance of a lightly damped plate (beta ~ 1e-3) needs double
+precision; the whole identify/ package assumes it.
+
+Compilation cache: every vibid process compiles the same few functions (the model's AFC,
+chi2, its gradient and Hessian, the batched chi2 of the global search), which takes a few
+seconds for seconds of work. JAX's persistent cache keeps the compiled code on disk, so a
+second ``vibid identify`` of a session of the same shape starts at once. The folder is
+``$VIBID_JAX_CACHE`` if set (``off`` disables the cache), else
+``$XDG_CACHE_HOME/vibid/jax`` (``~/.cache/vibid/jax``); a cache folder the user already
+gave JAX (``JAX_COMPILATION_CACHE_DIR``) is kept. A cache that cannot be read or written
+only costs the compilation (JAX turns such errors into warnings).
+"""
+
+from __future__ import annotations
+
+import os
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+#: Functions that compile faster than this are not worth a disk entry.
+MIN_COMPILE_S = 0.2
+
+
+def cache_dir() -> str | None:
+    """The compilation cache folder vibid uses, or None if disabled."""
+    env = os.environ.get("VIBID_JAX_CACHE")
+    if env is not None:
+        return None if env.strip().lower() in ("", "0", "off", "no", "none") else env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "vibid", "jax")
+
+
+def enable_compilation_cache() -> str | None:
+    """Turn on JAX's persistent compilation cache (see the module doc); returns the folder."""
+    current = jax.config.jax_compilation_cache_dir
+    if current:
+        return current
+    path = cache_dir()
+    if path is None:
+        return None
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError:
+        return None
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_S)
+    return path
+
+
+enable_compilation_cache()
