@@ -6,10 +6,11 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
    mapped to coordinates ``u`` in which the prior box is [-1, 1]
    (:mod:`~vibid.identify.params`);
 2. global: differential evolution over the whole prior box, several restarts
-   (:mod:`~vibid.identify.global_search`), on chi2 and, for models that give their modes,
-   on the match of the measured resonance peaks (:mod:`~vibid.identify.peaks`), which
-   finds the basin where chi2's needle-like minima defeat the search (orthotropic
-   plates); or local: a start given by the caller;
+   (:mod:`~vibid.identify.global_search`), on chi2; if the best of those minima (after
+   the polish of step 3) does not fit the data (:func:`_convincing`), and the model gives
+   its modes, a second search on the match of the measured resonance peaks
+   (:mod:`~vibid.identify.peaks`), which finds the basin where chi2's needle-like minima
+   defeat the search (orthotropic plates); or local: a start given by the caller;
 3. polish of every restart's best point, each on a model rebuilt around it (not only the
    best: a restart in the right basin may score worse than one in a wrong basin at its
    loose tolerance) by
@@ -65,6 +66,14 @@ SMOOTHING_PARAMETER = "beta"
 #: Weight of ln chi2 in the peak-matching score: a change of chi2 by a factor e counts as
 #: much as a 0.3 % mismatch of one peak frequency.
 PEAK_CHI2_WEIGHT = 1e-5
+#: The peak-matching search runs only when the chi2 search's best polished minimum fits
+#: worse than this (reduced chi2 with a known noise; RMS residual over RMS |H| without).
+CONVINCING_CHI2_RED = 2.0
+CONVINCING_REL_RMS = 1e-2
+#: Two converged runs closer than this (relative, per parameter) found the same minimum:
+#: runs that stop at the rounding level of chi2 in a flat valley (one resonance in the
+#: band, noiseless data) still differ by some 1e-6.
+SAME_MINIMUM_REL = 1e-5
 #: Ratio between rungs of the continuation ladder (half a decade).
 LADDER_RATIO = 10**-0.5
 
@@ -239,33 +248,42 @@ def identify(
     problem = LeastSquaresProblem(forward_model, data, space)
 
     global_result = None
+    runs: list[LocalResult] = []
+    problems: dict[int, LeastSquaresProblem] = {}  # id(run) -> the problem it ran on
+
+    def polish(starts):
+        for u0 in starts:
+            # each start is polished on a model built around it (the global search's model
+            # only has to find basins); models of one shape share their compiled functions
+            p_start = _refreshed(problem, space.theta(u0), data, space) if (
+                refresh and method == "global") else problem
+            new = (polish_by_continuation(p_start, u0, local) if method == "global"
+                   else [LOCAL_METHODS[local](p_start, u0)])
+            problems.update((id(r), p_start) for r in new)
+            runs.extend(new)
+
     if method == "global":
         rng = np.random.default_rng(seed)
         global_result = differential_evolution(problem, restarts=restarts, rng=rng,
                                                progress=progress)
-        peak_starts = _peak_starts(problem, data, restarts, rng, progress)
-        if peak_starts and SMOOTHING_PARAMETER in space.names:
-            # the peak frequencies say little about the loss factor, which the chi2
-            # search's narrow peaks pin down well: the polish starts from that estimate
-            # (starting higher, at 10x, led the orthotropic plate into wrong basins)
-            ib = space.names.index(SMOOTHING_PARAMETER)
-            for u in peak_starts:
-                u[ib] = global_result.u[0][ib]
-        starts = _distinct(list(global_result.u) + peak_starts)
+        polish(_distinct(list(global_result.u)))
+        if not _convincing(min(runs, key=_sort_key), problems, data):
+            # the chi2 search missed the basin (its minima are needles when beta is small
+            # and there are several stiffnesses): search on the resonance peaks too
+            peak_starts = _peak_starts(problem, data, restarts, rng, progress)
+            if peak_starts and SMOOTHING_PARAMETER in space.names:
+                # the peak frequencies say little about the loss factor, which the chi2
+                # search's narrow peaks pin down well: the polish starts from that estimate
+                # (starting higher, at 10x, led the orthotropic plate into wrong basins)
+                ib = space.names.index(SMOOTHING_PARAMETER)
+                for u in peak_starts:
+                    u[ib] = global_result.u[0][ib]
+            done = list(global_result.u)
+            polish([u for u in _distinct(done + peak_starts)
+                    if all(np.max(np.abs(u - v)) > 1e-3 for v in done)])
     else:
-        starts = [_start_u(space, start)]
-    runs: list[LocalResult] = []
-    problems: dict[int, LeastSquaresProblem] = {}  # id(run) -> the problem it ran on
-    for u0 in starts:
-        # each start is polished on a model built around it (the global search's model
-        # only has to find basins); models of one shape share their compiled functions
-        p_start = _refreshed(problem, space.theta(u0), data, space) if (
-            refresh and method == "global") else problem
-        new = (polish_by_continuation(p_start, u0, local) if method == "global"
-               else [LOCAL_METHODS[local](p_start, u0)])
-        problems.update((id(r), p_start) for r in new)
-        runs.extend(new)
-    runs.sort(key=lambda r: (not np.isfinite(r.loss), r.loss))
+        polish([_start_u(space, start)])
+    runs.sort(key=_sort_key)
     best = runs[0]
     problem = problems[id(best)]
 
@@ -286,6 +304,25 @@ def identify(
                          for r in runs[1:]]
     return _result(problem, forward_model, data, model, best, runs, global_result, warnings,
                    t0, throw, systematic, compared)
+
+
+def _sort_key(run: LocalResult):
+    return (not np.isfinite(run.loss), run.loss)
+
+
+def _convincing(run: LocalResult, problems: dict, data: FitData) -> bool:
+    """Whether the chi2 search's best polished minimum fits the data well enough that a
+    second search (on the resonance peaks) is not needed: with a known noise, a reduced
+    chi2 up to CONVINCING_CHI2_RED; without, an RMS residual up to CONVINCING_REL_RMS of
+    the RMS |H| (a wrong basin misses whole resonances: ratios of 10 and more, and
+    relative residuals of order 1)."""
+    if not np.isfinite(run.loss):
+        return False
+    problem = problems[id(run)]
+    if data.noise_known:
+        return run.loss / max(problem.dof, 1) <= CONVINCING_CHI2_RED
+    # unknown noise: sigma is the RMS |H| at every point, so chi2 / n is the relative MSE
+    return run.loss / (2 * problem.n_points) <= CONVINCING_REL_RMS**2
 
 
 def _weigh_model_error(problem: LeastSquaresProblem, best: LocalResult, runs: list,
@@ -390,9 +427,10 @@ def _rival_minima(runs, best, cov, chi2_red, noise_known, names):
         if r is best or not r.converged or not np.isfinite(r.loss) or r.loss > best.loss + delta:
             continue
         d = r.theta - best.theta
-        if not np.any((np.abs(d) > 2 * sd) & (np.abs(d) > 1e-6 * np.abs(best.theta))):
-            continue  # the same minimum (to its uncertainty, or to rounding)
-        if any(np.all(np.abs(r.theta - q.theta) <= 1e-6 * (np.abs(q.theta) + sd)) for q, _ in rivals):
+        if not np.any((np.abs(d) > 2 * sd) & (np.abs(d) > SAME_MINIMUM_REL * np.abs(best.theta))):
+            continue  # the same minimum (to its uncertainty, or to where the runs stopped)
+        if any(np.all(np.abs(r.theta - q.theta) <= SAME_MINIMUM_REL * (np.abs(q.theta) + sd))
+               for q, _ in rivals):
             continue
         rivals.append((r, d))
     if not rivals:
