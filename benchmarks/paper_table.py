@@ -146,10 +146,15 @@ def main(argv=None) -> int:
                 "chi2_reduced": res.chi2_reduced, "status": res.status.value,
                 "warnings": list(res.warnings), "seconds": secs,
             })
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(out, fh, indent=1)
+    write_json(args.json, out)
     return 0
+
+
+def write_json(path: str | None, data: dict) -> None:
+    """Write a benchmark's results as JSON when a path was given."""
+    if path:
+        with open(path, "w") as fh:
+            json.dump(data, fh, indent=1)
 
 
 if __name__ == "__main__":

@@ -19,9 +19,11 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
    from each rung fit all parameters freely, until the free fit's beta lies above the
    rung; the lowest chi2 of all free fits wins. The local method is the paper's
    trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Marquardt);
-4. the forward model's own error estimate enters the weights at the estimate and the
-   polish is repeated once if it changed them (and once more if the model was rebuilt
-   around the estimate);
+4. the forward model's own error at the estimate is split
+   (:mod:`~vibid.identify.model_error`): the part no parameter change explains enters the
+   weights, and the polish is repeated once if that changed them (and once more if the
+   model was rebuilt around the estimate); the part the parameters absorb is a bias that
+   enters the covariance as a systematic term;
 5. the covariance from the Fisher information (:mod:`~vibid.identify.uncertainty`), and
    warnings: points dropped, estimates on their prior bounds, parameters the data cannot
    separate, a fit worse than the noise.
