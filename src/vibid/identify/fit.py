@@ -18,7 +18,10 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
    parameters with beta held at a decreasing ladder of values (half a decade apart), and
    from each rung fit all parameters freely, until the free fit's beta lies above the
    rung; the lowest chi2 of all free fits wins. The local method is the paper's
-   trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Marquardt);
+   trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Marquardt); then a
+   walk along the flattest direction of chi2 at the best minimum (:func:`_valley_starts`)
+   polishes the neighbouring minima of the valley the data leave open, which finds a lower
+   one the search missed, or rivals the std must cover;
 4. the forward model's own error at the estimate is split
    (:mod:`~vibid.identify.model_error`): the part no parameter change explains enters the
    weights, and the polish is repeated once if that changed them (and once more if the
@@ -76,6 +79,8 @@ CONVINCING_REL_RMS = 1e-2
 #: runs that stop at the rounding level of chi2 in a flat valley (one resonance in the
 #: band, noiseless data) still differ by some 1e-6.
 SAME_MINIMUM_REL = 1e-5
+#: Steps of the valley walk (:func:`_valley_starts`), in Delta-chi2 = 1 lengths.
+VALLEY_STEPS = (3.0, 6.0, 12.0, 24.0, 48.0)
 #: Ratio between rungs of the continuation ladder (half a decade).
 LADDER_RATIO = 10**-0.5
 
@@ -286,6 +291,19 @@ def identify(
     else:
         polish([_start_u(space, start)])
     runs.sort(key=_sort_key)
+    if method == "global":
+        # neighbouring minima along the valley the data leave open: a lower one (the
+        # global search missed it) or one about as low (then the std must cover both)
+        walk = _valley_starts(problems[id(runs[0])], runs[0])
+        n_before = len(runs)
+        for u0 in walk:
+            p_start = _refreshed(problem, space.theta(u0), data, space) if refresh else problem
+            r = LOCAL_METHODS[local](p_start, u0)
+            problems[id(r)] = p_start
+            runs.append(r)
+        log.info("valley walk: %d starts, best chi2 %.6g -> %.6g", len(walk),
+                 runs[0].loss, min(r.loss for r in runs[n_before:]) if walk else runs[0].loss)
+        runs.sort(key=_sort_key)
     best = runs[0]
     problem = problems[id(best)]
 
@@ -306,6 +324,35 @@ def identify(
                          for r in runs[1:]]
     return _result(problem, forward_model, data, model, best, runs, global_result, warnings,
                    t0, throw, systematic, compared)
+
+
+def _valley_starts(problem: LeastSquaresProblem, best: LocalResult) -> list[np.ndarray]:
+    """Starts for local fits along the flattest direction of chi2 at ``best``.
+
+    When the data barely separate two parameters (D and nu with few resonances above the
+    noise), chi2 has a long valley with a row of local minima along it, often a few
+    per cent apart and tens of standard deviations of the best one's Fisher covariance:
+    the global search lands in one of them, not always the lowest. Steps of VALLEY_STEPS
+    times the Delta-chi2 = 1 length along the Hessian's weakest eigenvector, both ways,
+    inside the prior box, reach the neighbours; each is then polished locally."""
+    if not np.isfinite(best.loss):
+        return []
+    try:
+        w, V = np.linalg.eigh(problem.hessian(best.u))
+    except np.linalg.LinAlgError:
+        return []
+    if not (np.all(np.isfinite(w)) and w[0] > 0):
+        return []
+    v = V[:, 0]
+    length = math.sqrt(2.0 / w[0])  # chi2 rises by 1 over this distance, in u
+    starts = []
+    for sign in (1.0, -1.0):
+        for k in VALLEY_STEPS:
+            u = best.u + sign * k * length * v
+            if np.any(np.abs(u) > 1.0):
+                break  # the prior box ends here
+            starts.append(u)
+    return starts
 
 
 def _sort_key(run: LocalResult):
