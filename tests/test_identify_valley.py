@@ -1,13 +1,16 @@
-"""The valley walk after the global search (fit._valley_starts): neighbouring minima along
-the direction the data barely determine."""
+"""Which minimum: the valley walk after the global search (fit._valley_starts), which finds
+neighbouring minima along the direction the data barely determine, and the prior box,
+which decides between minima the data do not (fit._best_inside_prior)."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
-from vibid.identify.fit import VALLEY_STEPS, _valley_starts, identify
+from vibid.identify.fit import VALLEY_STEPS, _best_inside_prior, _valley_starts, identify
 from vibid.identify.fit_result import LocalResult, Status
+from vibid.identify.loss import fit_data
+from vibid.identify.params import ParameterSpace
 
 
 class _Quadratic:
@@ -73,3 +76,24 @@ def test_the_walk_finds_a_lower_minimum_than_the_global_search():
     assert any("distinct minima" in w for w in res.warnings)
     z = np.abs(res.values - truth) / res.std
     assert np.all(z < 2), z
+
+
+class _Dof:
+    dof = 400
+
+
+def test_the_prior_box_decides_between_minima_the_data_do_not():
+    space = ParameterSpace.from_bounds(("D", "nu", "beta"), {
+        "D": [1.0, 100.0], "nu": [0.0, 0.5], "beta": [1e-4, 0.1]})
+    data = fit_data(np.arange(1.0, 201.0), np.ones(200, complex), np.ones(200))  # noise known
+    outside = _run([16.9, -0.07, 0.0032], loss=376.5)
+    inside = _run([17.2, 0.168, 0.0032], loss=377.1)
+    far = _run([19.0, 0.40, 0.0032], loss=376.5 + 11.4)
+    problems = {id(r): _Dof() for r in (outside, inside, far)}
+    # chi2 lower outside the box by 0.6, far less than the 99 % quantile for 3 parameters
+    # (11.3): the data do not prefer it, the prior excludes it
+    assert _best_inside_prior([outside, inside, far], space, problems, data) is inside
+    # lower by more than 11.3: the data insist, the answer stays outside (with a warning)
+    assert _best_inside_prior([outside, far], space, problems, data) is None
+    # the best already inside: nothing to choose
+    assert _best_inside_prior([inside, outside], space, problems, data) is None

@@ -21,7 +21,9 @@ The pipeline (paper sections 5-6, with the changes that make it work from a vagu
    trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Marquardt); then a
    walk along the flattest direction of chi2 at the best minimum (:func:`_valley_starts`)
    polishes the neighbouring minima of the valley the data leave open, which finds a lower
-   one the search missed, or rivals the std must cover;
+   one the search missed, or rivals the std must cover; a best minimum outside the prior
+   box gives way to the best inside it unless it fits significantly better
+   (:func:`_best_inside_prior`);
 4. the forward model's own error at the estimate is split
    (:mod:`~vibid.identify.model_error`): the part no parameter change explains enters the
    weights, and the polish is repeated once if that changed them (and once more if the
@@ -304,6 +306,11 @@ def identify(
         log.info("valley walk: %d starts, best chi2 %.6g -> %.6g", len(walk),
                  runs[0].loss, min(r.loss for r in runs[n_before:]) if walk else runs[0].loss)
         runs.sort(key=_sort_key)
+        inside = _best_inside_prior(runs, space, problems, data)
+        if inside is not None and inside is not runs[0]:
+            log.info("prior box: chi2 %.6g inside it against %.6g outside", inside.loss,
+                     runs[0].loss)
+            runs.insert(0, runs.pop(next(i for i, r in enumerate(runs) if r is inside)))
     best = runs[0]
     problem = problems[id(best)]
 
@@ -353,6 +360,29 @@ def _valley_starts(problem: LeastSquaresProblem, best: LocalResult) -> list[np.n
                 break  # the prior box ends here
             starts.append(u)
     return starts
+
+
+def _best_inside_prior(runs, space: ParameterSpace, problems: dict, data: FitData):
+    """The best converged run inside the prior box, if the best of all lies outside it
+    and fits the data not significantly better (chi2 lower by less than the 99 % quantile
+    of chi-square with p degrees of freedom, in units of the noise variance): then the data
+    leave the choice to the prior, which excludes the outside one. A minimum outside the
+    box that fits significantly better stays the answer (and the report warns that the
+    bounds may exclude the truth). None when there is nothing to choose."""
+    from scipy.stats import chi2 as chi2_dist
+
+    best = runs[0]
+    if not space.out_of_bounds(best.theta) or not np.isfinite(best.loss):
+        return None
+    inside = [r for r in runs if r.converged and np.isfinite(r.loss)
+              and not space.out_of_bounds(r.theta)]
+    if not inside:
+        return None
+    cand = min(inside, key=lambda r: r.loss)
+    p = problems[id(best)]
+    noise_var = 1.0 if data.noise_known else best.loss / max(p.dof, 1)
+    delta = chi2_dist.ppf(0.99, space.size) * noise_var
+    return cand if cand.loss <= best.loss + delta else None
 
 
 def _sort_key(run: LocalResult):
