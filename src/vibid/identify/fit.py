@@ -110,6 +110,7 @@ class HeldProblem:
         self.problem = problem
         self.free = np.asarray(free, dtype=int)
         self.space = _HeldSpace(problem.space, self.free, np.asarray(u_base, float).copy())
+        self.n_points = problem.n_points
 
     def value_and_grad(self, u_free):
         f, g = self.problem.value_and_grad(self.space.full(u_free))
@@ -260,13 +261,13 @@ def identify(
     runs: list[LocalResult] = []
     problems: dict[int, LeastSquaresProblem] = {}  # id(run) -> the problem it ran on
 
-    def polish(starts):
+    def polish(starts, continuation: bool = True):
         for u0 in starts:
             # each start is polished on a model built around it (the global search's model
             # only has to find basins); models of one shape share their compiled functions
             p_start = _refreshed(problem, space.theta(u0), data, space) if (
                 refresh and method == "global") else problem
-            new = (polish_by_continuation(p_start, u0, local) if method == "global"
+            new = (polish_by_continuation(p_start, u0, local) if continuation
                    else [LOCAL_METHODS[local](p_start, u0)])
             problems.update((id(r), p_start) for r in new)
             runs.extend(new)
@@ -275,7 +276,7 @@ def identify(
         rng = np.random.default_rng(seed)
         global_result = differential_evolution(problem, restarts=restarts, rng=rng,
                                                progress=progress)
-        polish(_distinct(list(global_result.u)))
+        polish(_distinct(global_result.u))
         if not _convincing(min(runs, key=_sort_key), problems, data):
             # the chi2 search missed the basin (its minima are needles when beta is small
             # and there are several stiffnesses): search on the resonance peaks too
@@ -287,22 +288,16 @@ def identify(
                 ib = space.names.index(SMOOTHING_PARAMETER)
                 for u in peak_starts:
                     u[ib] = global_result.u[0][ib]
-            done = list(global_result.u)
-            polish([u for u in _distinct(done + peak_starts)
-                    if all(np.max(np.abs(u - v)) > 1e-3 for v in done)])
+            polish(_distinct(peak_starts, against=global_result.u))
     else:
-        polish([_start_u(space, start)])
+        polish([_start_u(space, start)], continuation=False)
     runs.sort(key=_sort_key)
     if method == "global":
         # neighbouring minima along the valley the data leave open: a lower one (the
         # global search missed it) or one about as low (then the std must cover both)
         walk = _valley_starts(problems[id(runs[0])], runs[0])
         n_before = len(runs)
-        for u0 in walk:
-            p_start = _refreshed(problem, space.theta(u0), data, space) if refresh else problem
-            r = LOCAL_METHODS[local](p_start, u0)
-            problems[id(r)] = p_start
-            runs.append(r)
+        polish(walk, continuation=False)
         log.info("valley walk: %d starts, best chi2 %.6g -> %.6g", len(walk),
                  runs[0].loss, min(r.loss for r in runs[n_before:]) if walk else runs[0].loss)
         runs.sort(key=_sort_key)
@@ -369,8 +364,6 @@ def _best_inside_prior(runs, space: ParameterSpace, problems: dict, data: FitDat
     leave the choice to the prior, which excludes the outside one. A minimum outside the
     box that fits significantly better stays the answer (and the report warns that the
     bounds may exclude the truth). None when there is nothing to choose."""
-    from scipy.stats import chi2 as chi2_dist
-
     best = runs[0]
     if not space.out_of_bounds(best.theta) or not np.isfinite(best.loss):
         return None
@@ -381,8 +374,7 @@ def _best_inside_prior(runs, space: ParameterSpace, problems: dict, data: FitDat
     cand = min(inside, key=lambda r: r.loss)
     p = problems[id(best)]
     noise_var = 1.0 if data.noise_known else best.loss / max(p.dof, 1)
-    delta = chi2_dist.ppf(0.99, space.size) * noise_var
-    return cand if cand.loss <= best.loss + delta else None
+    return cand if cand.loss <= best.loss + _indistinct_chi2(space.size, noise_var) else None
 
 
 def _sort_key(run: LocalResult):
@@ -412,7 +404,7 @@ def _weigh_model_error(problem: LeastSquaresProblem, best: LocalResult, runs: li
     Returns the best run and the split (None if the model estimates no error)."""
     model = problem.model
     if not hasattr(model, "model_error_parts"):
-        me = np.asarray(model.model_error(best.theta), dtype=float)
+        me = problem.on_points(np.asarray(model.model_error(best.theta), dtype=float))
         if np.any(me > 0):
             problem.set_weights(me)
             best = _polish_again(problem, best, runs, local)
@@ -424,7 +416,7 @@ def _weigh_model_error(problem: LeastSquaresProblem, best: LocalResult, runs: li
     problem.set_weights()
     split = split_model_error(problem.jacobian_theta(best.theta), d, red, problem.sigma)
     old = problem.sigma.copy()
-    problem.set_weights(point_error=split.point_std)
+    problem.set_weights(split.point_std)
     if np.max(np.abs(problem.sigma / old - 1)) > 1e-3:
         best = _polish_again(problem, best, runs, local)
         split = split_model_error(problem.jacobian_theta(best.theta), d, red, problem.sigma)
@@ -480,6 +472,15 @@ def _refreshed(problem: LeastSquaresProblem, theta, data: FitData,
     return problem if model is problem.model else LeastSquaresProblem(model, data, space)
 
 
+def _indistinct_chi2(p: int, noise_var: float) -> float:
+    """How much higher a minimum's chi2 may lie and still fit the data about as well as
+    the best: the 99 % quantile of chi-square with ``p`` degrees of freedom, in units of
+    the noise variance."""
+    from scipy.stats import chi2 as chi2_dist
+
+    return float(chi2_dist.ppf(0.99, p)) * noise_var
+
+
 def _rival_minima(runs, best, cov, chi2_red, noise_known, names):
     """Widen the covariance by the other minima that fit the data about as well.
 
@@ -493,11 +494,9 @@ def _rival_minima(runs, best, cov, chi2_red, noise_known, names):
     sum_i w_i (C + d_i d_i^T) / sum_i w_i with d_i = theta_i - theta_best (the Fisher C of
     the best minimum standing in for each). Returns (covariance, warning or None).
     """
-    from scipy.stats import chi2 as chi2_dist
-
     p = len(names)
     noise_var = 1.0 if noise_known else (chi2_red if np.isfinite(chi2_red) and chi2_red > 0 else 1.0)
-    delta = chi2_dist.ppf(0.99, p) * noise_var
+    delta = _indistinct_chi2(p, noise_var)
     sd = np.sqrt(np.abs(np.diag(cov)))
     if not np.all(np.isfinite(sd)):
         return cov, None
@@ -547,17 +546,20 @@ def _start_u(space: ParameterSpace, start) -> np.ndarray:
     return space.to_u(theta)
 
 
-def _distinct(U: np.ndarray, tol: float = 1e-3) -> list[np.ndarray]:
+def _distinct(U, tol: float = 1e-3, against=()) -> list[np.ndarray]:
+    """The points of ``U`` farther than ``tol`` (inf-norm) from each other and from every
+    point of ``against``."""
+    seen = [np.asarray(v, float) for v in against]
     out: list[np.ndarray] = []
     for u in U:
-        if all(np.max(np.abs(u - v)) > tol for v in out):
+        if all(np.max(np.abs(u - v)) > tol for v in seen + out):
             out.append(np.asarray(u, float))
     return out
 
 
 def _result(problem, forward_model, data: FitData, model, best: LocalResult, runs,
             global_result, warnings, t0, throw,
-            systematic: ModelErrorSplit | None = None, compared=None) -> IdentificationResult:
+            systematic: ModelErrorSplit | None, compared: list) -> IdentificationResult:
     space = problem.space
     theta = best.theta
     if not np.all(np.isfinite(theta)):  # cannot happen for finite u; never report NaN
@@ -569,7 +571,7 @@ def _result(problem, forward_model, data: FitData, model, best: LocalResult, run
     unc = fisher_uncertainty(problem.jacobian_theta(theta), space.names,
                              chi2_reduced=chi2_red, noise_known=data.noise_known)
     warnings.extend(unc.warnings)
-    cov, note = _rival_minima(compared or runs, best, unc.covariance, chi2_red, data.noise_known,
+    cov, note = _rival_minima(compared, best, unc.covariance, chi2_red, data.noise_known,
                               space.names)
     if systematic is not None:
         cov = cov + systematic.covariance
@@ -582,7 +584,7 @@ def _result(problem, forward_model, data: FitData, model, best: LocalResult, run
     np.fill_diagonal(corr, 1.0)
     Hm_used = problem.model_afc(theta)
     if Hm_used.size != data.n_used:
-        Hm_used = Hm_used[problem._model_idx]
+        Hm_used = problem.on_points(Hm_used)
     H_used = data.H[data.used]
     rel_rms = float(np.sqrt(np.mean(np.abs(Hm_used - H_used) ** 2) / np.mean(np.abs(H_used) ** 2)))
     chi2_red_data = math.nan

@@ -188,8 +188,7 @@ class LeastSquaresProblem:
     one compilation as long as the shapes agree).
     """
 
-    def __init__(self, model: ForwardModel, data: FitData, space: ParameterSpace,
-                 model_error: np.ndarray | None = None):
+    def __init__(self, model: ForwardModel, data: FitData, space: ParameterSpace):
         if tuple(model.parameter_names) != space.names:
             raise VibidError(
                 f"the forward model's parameters {model.parameter_names} differ from the "
@@ -209,15 +208,14 @@ class LeastSquaresProblem:
         self._idx = np.flatnonzero(data.used)
         self.n_points = self._idx.size
         self.n_params = space.size
-        self.set_weights(model_error)
+        self.set_weights()
         self._build()
 
     # -- weights ------------------------------------------------------------------------
-    def set_weights(self, model_error: np.ndarray | None = None, *,
-                    point_error: np.ndarray | None = None) -> None:
-        """sigma_k from the data's std and the model's error estimate (see module doc):
-        ``model_error`` on the model's frequencies, or ``point_error`` (n_points,) on the
-        fitted points (:mod:`vibid.identify.model_error`)."""
+    def set_weights(self, point_error: np.ndarray | None = None) -> None:
+        """sigma_k from the data's std and the model's error estimate ``point_error``
+        (n_points,) on the fitted points (see module doc and
+        :mod:`vibid.identify.model_error`)."""
         d = self.data
         H = d.H[self._idx]
         if d.std is None:
@@ -225,12 +223,8 @@ class LeastSquaresProblem:
             sigma = np.full(self.n_points, scale)
         else:
             sigma = d.std[self._idx].copy()
-            me = None
-            if model_error is not None:
-                me = np.asarray(model_error, dtype=float).ravel()[self._model_idx]
-            elif point_error is not None:
+            if point_error is not None:
                 me = np.asarray(point_error, dtype=float).ravel()
-            if me is not None:
                 sigma = np.sqrt(sigma**2 + np.where(np.isfinite(me), me, 0.0) ** 2)
         self.sigma = sigma
         self._sig = jnp.asarray(sigma)
@@ -296,5 +290,5 @@ class LeastSquaresProblem:
         d = self.data
         new.data = FitData(d.frequency_hz, np.asarray(H, complex), None if std is None else
                            np.asarray(std, float), d.used, d.warnings)
-        new.set_weights(None)
+        new.set_weights()
         return new

@@ -58,7 +58,6 @@ PARAMETER_KINDS: dict[str, tuple] = {
 EDGE_MARGIN = 1e-3
 
 
-
 def _xp(x):
     """The array namespace for ``x``: jnp for JAX arrays and tracers, else numpy."""
     return jnp if isinstance(x, jax.Array) else np
@@ -67,6 +66,7 @@ def _xp(x):
 def _sigmoid(z):
     """1 / (1 + exp(-z)) without overflow for either namespace."""
     return jax.nn.sigmoid(z) if _xp(z) is jnp else scipy.special.expit(z)
+
 
 @dataclass(frozen=True)
 class Transform:
@@ -117,7 +117,7 @@ class Transform:
         if self.kind == "logit":
             sig = _sigmoid(z)
             return self.half_width * (self.b - self.a) * sig * (1 - sig)
-        return self.half_width + 0 * z
+        return self.half_width * _xp(z).ones_like(z)
 
     def to_u(self, theta):
         """Coordinate ``u`` of a physical value (array-friendly)."""

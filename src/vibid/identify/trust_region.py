@@ -210,11 +210,8 @@ def trust_region(
     B = problem.hessian(u)
     B_exact = True  # B is the exact Hessian at u (always for "exact"; BFGS: at the start)
     radius = radius0
-    # chi2 below which a zero-residual fit is exact to rounding (relative residual 1e-10);
-    # a problem with some parameters held (fit.HeldProblem) counts the points of the full one
-    n_points = getattr(problem, "n_points", None) or getattr(
-        getattr(problem, "problem", None), "n_points", 100)
-    f_floor = 1e-20 * n_points
+    # chi2 below which a zero-residual fit is exact to rounding (relative residual 1e-10)
+    f_floor = 1e-20 * getattr(problem, "n_points", 100)
     history.append(HistoryEntry(0, f, tuple(space.theta(u)), None, radius))
     for k in range(1, max_iter + 1):
         if not np.all(np.isfinite(B)):
