@@ -198,6 +198,7 @@ class ForwardModel:
         self._reduced = ReducedAFC(basis, self.param, 2 * np.pi * self.frequencies_hz, self.post)
         self._full_jax = None
         self._finer = None
+        self._last_check = None  # (theta, _check_points(theta))
 
     # -- the interface ----------------------------------------------------------------
     @property
@@ -259,13 +260,18 @@ class ForwardModel:
         return np.array(sorted(idx))
 
     def _check_points(self, theta):
-        """(reduced AFC on the grid, check indices, full AFC at them)."""
+        """(reduced AFC on the grid, check indices, full AFC at them). The last result is
+        kept: ``refresh`` checks at the estimate and ``reduction_error`` then asks again
+        at the same point, and each asks four sparse solves of the full model."""
+        theta = np.asarray(theta, float)
+        if self._last_check is not None and np.array_equal(self._last_check[0], theta):
+            return self._last_check[1]
         idx = self.check_frequencies(theta)
         Hr = np.asarray(self.afc(theta))
-        Hf = afc_full(self.mats, self.param.complex_moduli(np.asarray(theta, float)),
-                      self.frequencies_hz[idx])
+        Hf = afc_full(self.mats, self.param.complex_moduli(theta), self.frequencies_hz[idx])
         if self.post is not None:
             Hf = np.asarray(self.post(jnp.asarray(theta), 2 * np.pi * self.frequencies_hz[idx], Hf))
+        self._last_check = (theta.copy(), (Hr, idx, Hf))
         return Hr, idx, Hf
 
     def check(self, theta) -> float:
