@@ -22,29 +22,20 @@ import tempfile
 
 CHILD = r"""
 import json, sys, time
-import numpy as np
 sys.path.insert(0, {bench!r})
-from paper_table import PAPER_START, TRUE, make_model, strip_setup
-from vibid.identify.loss import LeastSquaresProblem, fit_data
-from vibid.identify.params import ParameterSpace
+from paper_table import TRUE, paper_start_problem
 from vibid.identify.trust_region import trust_region
 
 t = time.perf_counter()
-setup = strip_setup(600)
-f = np.linspace(0, 600, 201)
-fm = make_model(setup, f, False)
-H = np.asarray(fm.afc_full(np.array([TRUE[k] for k in ("D", "nu", "beta")])))
+problem, u0 = paper_start_problem()
 build = time.perf_counter() - t
 t = time.perf_counter()
-space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
-problem = LeastSquaresProblem(fm, fit_data(f, H), space)
-u0 = space.to_u([PAPER_START[k] for k in ("D", "nu", "beta")])
 problem.chi2(u0); problem.value_and_grad(u0); problem.hessian(u0)
 first = time.perf_counter() - t
 t = time.perf_counter()
 r = trust_region(problem, u0)
 run = time.perf_counter() - t
-err = max(abs(v / TRUE[k] - 1) for k, v in space.as_dict(r.theta).items())
+err = max(abs(v / TRUE[k] - 1) for k, v in problem.space.as_dict(r.theta).items())
 print(json.dumps({{"build": build, "first_calls": first, "run": run, "max_rel_err": err}}))
 """
 

@@ -64,6 +64,21 @@ def make_model(setup, freqs, toy: bool):
     return build_forward_model(setup, freqs)
 
 
+def paper_start_problem(toy: bool = False):
+    """``(problem, u0)``: the least-squares problem of the noiseless 0-600 Hz strip (data
+    from the full model) and the paper's start in its coordinates, for the local run."""
+    from vibid.identify.loss import LeastSquaresProblem, fit_data
+    from vibid.identify.params import ParameterSpace
+
+    setup = strip_setup(600)
+    f = np.linspace(0, 600, 201)
+    fm = make_model(setup, f, toy)
+    H = np.asarray(fm.afc_full(np.array([TRUE[k] for k in ("D", "nu", "beta")])))
+    space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
+    problem = LeastSquaresProblem(fm, fit_data(f, H), space)
+    return problem, space.to_u([PAPER_START[k] for k in ("D", "nu", "beta")])
+
+
 def noisy(H, level, seed):
     rng = np.random.default_rng(seed)
     sd = level * np.abs(H).max()
@@ -83,21 +98,14 @@ def main(argv=None) -> int:
     ap.add_argument("--toy", action="store_true", help="use the tests' Ritz model instead of the FE model")
     args = ap.parse_args(argv)
     from vibid.identify.fit import identify
-    from vibid.identify.loss import LeastSquaresProblem, fit_data
-    from vibid.identify.params import ParameterSpace
     from vibid.identify.trust_region import trust_region
 
     theta_true = np.array([TRUE[k] for k in ("D", "nu", "beta")])
     out = {"model": "ritz-toy" if args.toy else "fe", "rows": []}
 
     # the local run from the paper's start, noiseless 0-600 Hz
-    setup = strip_setup(600)
-    f = np.linspace(0, 600, 201)
-    fm = make_model(setup, f, args.toy)
-    H = np.asarray(fm.afc_full(theta_true))
-    space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
-    problem = LeastSquaresProblem(fm, fit_data(f, H), space)
-    u0 = space.to_u([PAPER_START[k] for k in ("D", "nu", "beta")])
+    problem, u0 = paper_start_problem(args.toy)
+    space = problem.space
     t = time.perf_counter()
     r = trust_region(problem, u0)
     cold = time.perf_counter() - t
