@@ -24,7 +24,7 @@ CHILD = r"""
 import json, sys, time
 sys.path.insert(0, {bench!r})
 from paper_table import TRUE, paper_start_problem
-from vibid.identify.trust_region import trust_region
+from vibid.identify.fit.trust_region import trust_region
 
 t = time.perf_counter()
 problem, u0 = paper_start_problem()

@@ -22,11 +22,13 @@ import os
 import sys
 import time
 
-os.environ.setdefault("JAX_ENABLE_X64", "1")
 
 import numpy as np  # noqa: E402
 
+from vibid.identify.runtime import configure  # noqa: E402
 from vibid.setup_model import example_setup  # noqa: E402
+
+configure()  # 64-bit JAX and the compilation cache, as the CLI does
 
 TRUE = {"D": 17.97, "nu": 0.286, "beta": 0.003}
 PAPER_START = {"D": 17.97 * 1.2, "nu": 0.286 * 1.05, "beta": 0.003 * 100}
@@ -68,7 +70,7 @@ def paper_start_problem(toy: bool = False):
     """``(problem, u0)``: the least-squares problem of the noiseless 0-600 Hz strip (data
     from the full model) and the paper's start in its coordinates, for the local run."""
     from vibid.identify.loss import LeastSquaresProblem, fit_data
-    from vibid.identify.params import ParameterSpace
+    from vibid.identify.fit.space import ParameterSpace
 
     setup = strip_setup(600)
     f = np.linspace(0, 600, 201)
@@ -98,7 +100,7 @@ def main(argv=None) -> int:
     ap.add_argument("--toy", action="store_true", help="use the tests' Ritz model instead of the FE model")
     args = ap.parse_args(argv)
     from vibid.identify.fit import identify
-    from vibid.identify.trust_region import trust_region
+    from vibid.identify.fit.trust_region import trust_region
 
     theta_true = np.array([TRUE[k] for k in ("D", "nu", "beta")])
     out = {"model": "ritz-toy" if args.toy else "fe", "rows": []}

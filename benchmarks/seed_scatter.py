@@ -20,7 +20,6 @@ import os
 import sys
 import time
 
-os.environ.setdefault("JAX_ENABLE_X64", "1")
 
 import numpy as np  # noqa: E402
 

@@ -8,7 +8,7 @@ import functools
 import numpy as np
 
 from vibid.setup_model import ResponseSensor, Sensors, Specimen, example_setup
-from vibid.identify.materials import flexural_rigidity
+from vibid.identify.model.materials import flexural_rigidity
 
 #: The paper's strip: steel, E 198 GPa, nu 0.286, rho 7920, h 1 mm -> D = 17.97 N m.
 PAPER_D = flexural_rigidity(198e9, 0.286, 0.001)

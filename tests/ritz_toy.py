@@ -12,7 +12,7 @@ mass is rho h over the plate plus the sensor as a point mass. The AFC at the sen
 
 It has nothing in common with vibid's FE model (no mesh, no Morley elements), which is
 what makes it useful to test the inverse half on its own; it is not meant to be accurate
-against the real plate. It satisfies the ForwardModel protocol of vibid.identify.loss.
+against the real plate. It satisfies the ForwardModel protocol of vibid.identify.fit.problem.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def ritz_matrices(length_m, width_m, thickness_m, density_kg_m3, sensor_xy_m, se
 
 
 class RitzPlateModel:
-    """A ForwardModel (vibid.identify.loss.ForwardModel) backed by the Ritz plate."""
+    """A ForwardModel (vibid.identify.fit.problem.ForwardModel) backed by the Ritz plate."""
 
     def __init__(self, setup, frequencies_hz, model="isotropic", **kw):
         sp, r = setup.specimen, setup.sensors.response

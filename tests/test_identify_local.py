@@ -9,10 +9,11 @@ import pytest
 from ritz_toy import RitzPlateModel
 
 from vibid.identify.fit import identify
-from vibid.identify.fit_result import Status
-from vibid.identify.loss import LeastSquaresProblem, fit_data
-from vibid.identify.params import ParameterSpace
-from vibid.identify.trust_region import gauss_newton, solve_subproblem, trust_region
+from vibid.identify.fit.result import Status
+from vibid.identify.fit.data import fit_data
+from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.trust_region import gauss_newton, solve_subproblem, trust_region
 from vibid.setup_model import example_setup
 
 TRUE = np.array([17.97, 0.286, 0.003])

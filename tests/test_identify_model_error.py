@@ -1,10 +1,10 @@
 """The model's own error split into a parameter bias and an unexplained remainder
-(vibid.identify.model_error), against constructions whose answer is known exactly."""
+(vibid.identify.model.model_error), against constructions whose answer is known exactly."""
 
 import numpy as np
 import pytest
 
-from vibid.identify.model_error import split_model_error
+from vibid.identify.model.model_error import split_model_error
 
 
 def _setup(rng, n=40, p=3):

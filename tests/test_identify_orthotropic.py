@@ -3,7 +3,7 @@ vibid's FE forward model. The data come from a finer discretisation ("fine": 32 
 cells, 6 corner levels, through its own local reduced basis, 5e-8 of max|H| from its full
 model) than the fit's (16 x 11 cells), plus noise of 1e-3 max|H|. Three resonances lie in
 the band for four stiffnesses, so the search needs the peak matching of
-vibid.identify.peaks; about 75 s on two cores, hence marked slow
+vibid.identify.fit.peaks; about 75 s on two cores, hence marked slow
 (it still runs by default and in CI)."""
 
 import dataclasses

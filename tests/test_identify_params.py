@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from vibid.errors import VibidError
-from vibid.identify.params import ParameterSpace, make_transform
+from vibid.identify.fit.space import ParameterSpace, make_transform
 
 
 def test_prior_box_maps_to_unit_box_and_back():

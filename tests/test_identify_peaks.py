@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vibid.identify.peaks import measured_peaks, peak_score
+from vibid.identify.fit.peaks import measured_peaks, peak_score
 
 F_MODES = np.array([123.4, 456.7])
 BETA = 0.01

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from ritz_toy import RitzPlateModel
 
-from vibid.identify.fit import LOCAL_METHODS
-from vibid.identify.loss import LeastSquaresProblem, fit_data
-from vibid.identify.params import ParameterSpace
-from vibid.identify.uncertainty import fisher_uncertainty
+from vibid.identify.fit.local import LOCAL_METHODS
+from vibid.identify.fit.data import fit_data
+from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.uncertainty import fisher_uncertainty
 from vibid.setup_model import example_setup
 
 TRUE = np.array([17.97, 0.286, 0.003])

@@ -1,20 +1,20 @@
-"""Which minimum: the valley walk after the global search (fit._valley_starts), which finds
-neighbouring minima along the direction the data barely determine, and the prior box,
-which decides between minima the data do not (fit._best_inside_prior)."""
+"""Which minimum: the valley walk after the global search (fit.minima.valley_starts), which
+finds neighbouring minima along the direction the data barely determine, and the prior box,
+which decides between minima the data do not (fit.minima.best_inside_prior)."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
-from vibid.identify.fit import VALLEY_STEPS, _best_inside_prior, _valley_starts, identify
-from vibid.identify.fit_result import LocalResult, Status
-from vibid.identify.loss import fit_data
-from vibid.identify.params import ParameterSpace
+from vibid.identify.fit import identify
+from vibid.identify.fit.minima import VALLEY_STEPS, best_inside_prior, valley_starts
+from vibid.identify.fit.result import LocalResult, Status
+from vibid.identify.fit.space import ParameterSpace
 
 
 class _Quadratic:
-    """A problem whose chi2 Hessian is fixed (what _valley_starts asks of a problem)."""
+    """A problem whose chi2 Hessian is fixed (what valley_starts asks of a problem)."""
 
     def __init__(self, H):
         self.H = H
@@ -32,7 +32,7 @@ def test_starts_lie_along_the_weakest_direction_at_the_given_lengths_inside_the_
     rng = np.random.default_rng(0)
     Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
     lam = np.array([2e4, 8e4, 2e6])  # weakest: the first column of Q
-    start = _valley_starts(_Quadratic((Q * lam) @ Q.T), _run([0.1, -0.2, 0.3]))
+    start = valley_starts(_Quadratic((Q * lam) @ Q.T), _run([0.1, -0.2, 0.3]))
     length = np.sqrt(2 / lam[0])  # chi2 rises by 1 over this distance
     assert len(start) >= 6  # the box ends after the third step at the latest here
     for u in start:
@@ -45,8 +45,8 @@ def test_starts_lie_along_the_weakest_direction_at_the_given_lengths_inside_the_
 
 def test_no_walk_where_the_hessian_is_not_positive_definite():
     H = np.diag([1.0, -1.0, 4.0])
-    assert _valley_starts(_Quadratic(H), _run([0.0, 0.0, 0.0])) == []
-    assert _valley_starts(_Quadratic(np.eye(3)), _run([0.0, 0.0, 0.0], loss=np.inf)) == []
+    assert valley_starts(_Quadratic(H), _run([0.0, 0.0, 0.0])) == []
+    assert valley_starts(_Quadratic(np.eye(3)), _run([0.0, 0.0, 0.0], loss=np.inf)) == []
 
 
 @pytest.mark.slow
@@ -78,22 +78,17 @@ def test_the_walk_finds_a_lower_minimum_than_the_global_search():
     assert np.all(z < 2), z
 
 
-class _Dof:
-    dof = 400
-
-
 def test_the_prior_box_decides_between_minima_the_data_do_not():
     space = ParameterSpace.from_bounds(("D", "nu", "beta"), {
         "D": [1.0, 100.0], "nu": [0.0, 0.5], "beta": [1e-4, 0.1]})
-    data = fit_data(np.arange(1.0, 201.0), np.ones(200, complex), np.ones(200))  # noise known
+    # the noise is known: chi2 differences count in units of the noise variance (1)
     outside = _run([16.9, -0.07, 0.0032], loss=376.5)
     inside = _run([17.2, 0.168, 0.0032], loss=377.1)
     far = _run([19.0, 0.40, 0.0032], loss=376.5 + 11.4)
-    problems = {id(r): _Dof() for r in (outside, inside, far)}
     # chi2 lower outside the box by 0.6, far less than the 99 % quantile for 3 parameters
     # (11.3): the data do not prefer it, the prior excludes it
-    assert _best_inside_prior([outside, inside, far], space, problems, data) is inside
+    assert best_inside_prior([outside, inside, far], space, noise_var=1.0) is inside
     # lower by more than 11.3: the data insist, the answer stays outside (with a warning)
-    assert _best_inside_prior([outside, far], space, problems, data) is None
+    assert best_inside_prior([outside, far], space, noise_var=1.0) is None
     # the best already inside: nothing to choose
-    assert _best_inside_prior([inside, outside], space, problems, data) is None
+    assert best_inside_prior([inside, outside], space, noise_var=1.0) is None

@@ -7,11 +7,11 @@ import pytest
 import scipy.sparse.linalg as spla
 from skfem import Basis, MeshTri
 
-from vibid.identify.assembly import Geometry, assemble_plate
-from vibid.identify.disc import assemble_disc, disc_quadrature
-from vibid.identify.elements import ElementTriArgyrisLocal
-from vibid.identify.forms import MODULI, bending_66, translational_inertia
-from vibid.identify.mesh import Discretisation, plate_mesh
+from vibid.identify.model.assembly import Geometry, assemble_plate
+from vibid.identify.model.disc import assemble_disc, disc_quadrature
+from vibid.identify.model.elements import ElementTriArgyrisLocal
+from vibid.identify.model.forms import MODULI, bending_66, translational_inertia
+from vibid.identify.model.mesh import Discretisation, plate_mesh
 from plate_helpers import strip_setup
 
 GEOM = Geometry.from_setup(strip_setup())
@@ -55,7 +55,7 @@ def test_stiffness_and_mass_positive_definite(mats):
 ])
 def test_moment_convention_energies(mats, name, field, energy):
     """κ(w)ᵀ K_α κ(w) for clamped polynomial fields against their integrals by hand."""
-    from vibid.identify.assembly import plate_basis
+    from vibid.identify.model.assembly import plate_basis
 
     basis = plate_basis(GEOM, DISC)
     w = basis.project(field)[mats.free]
@@ -138,7 +138,7 @@ def test_disc_matrices_positive_semidefinite(centre):
 def test_edge_rotation_matrix_integrates_the_slope_along_the_clamp():
     """Hook for a rotational spring along x = 0: ∫ w,x v,x dy; for w = x + x y it is
     ∫_0^W (1 + y)^2 dy."""
-    from vibid.identify.assembly import edge_rotation_matrix, plate_basis
+    from vibid.identify.model.assembly import edge_rotation_matrix, plate_basis
 
     K = edge_rotation_matrix(GEOM, DISC)
     w = plate_basis(GEOM, DISC).project(lambda x: x[0] + x[0] * x[1])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vibid.identify import natural_frequencies
-from vibid.identify.modes import frequencies_and_decays
+from vibid.identify.model.modal import frequencies_and_decays
 from plate_helpers import PAPER_THETA, plate_setup, strip_setup
 
 RHO = 7920.0

@@ -10,10 +10,10 @@
 import numpy as np
 import pytest
 
-from vibid.identify.assembly import Geometry, assemble_plate
-from vibid.identify.fullmodel import afc_full
-from vibid.identify.mesh import Discretisation
-from vibid.identify.modes import complex_eigenvalues, frequencies_and_decays
+from vibid.identify.model.assembly import Geometry, assemble_plate
+from vibid.identify.model.full import afc_full
+from vibid.identify.model.mesh import Discretisation
+from vibid.identify.model.modal import complex_eigenvalues, frequencies_and_decays
 from plate_helpers import PAPER_THETA, strip_model, strip_setup
 
 GEOM = Geometry.from_setup(strip_setup())

@@ -46,3 +46,21 @@ def test_mistyped_fields_are_named():
         "setup.sensors.response.x_m: expected a number, got null",
         "setup.excitation.frequencies_hz: expected a list of numbers",
     ]
+
+
+def test_bounds_may_name_effect_parameters_as_priors():
+    """session-format.md: bounds may name an effect's parameters (a prior for the loop),
+    which does not declare the effect; unknown names and impossible boxes stay errors."""
+    doc = example_setup().to_dict()
+    doc["identification"]["bounds"]["k_theta_N_per_rad"] = [1e3, 1e7]
+    doc["identification"]["bounds"]["tau_s"] = [-1e-4, 1e-4]
+    setup = parse_setup(doc)
+    assert setup.identification.bounds["k_theta_N_per_rad"] == (1e3, 1e7)
+    assert setup.identification.parameter_names == ("D", "nu", "beta")
+    doc["identification"]["bounds"]["k_theta_N_per_rad"] = [-1.0, 1e7]
+    with pytest.raises(SetupError, match="k_theta_N_per_rad is a stiffness and must be positive"):
+        parse_setup(doc)
+    doc["identification"]["bounds"]["k_theta_N_per_rad"] = [1e3, 1e7]
+    doc["identification"]["bounds"]["E"] = [1.0, 2.0]
+    with pytest.raises(SetupError, match="E is not a parameter of model 'isotropic'"):
+        parse_setup(doc)

@@ -9,16 +9,14 @@ import numpy as np
 
 def plot_afc_fit(path: str | os.PathLike, frequency_hz, H, std, model_afc, *, title: str = "") -> str:
     """Write a PNG of |H| and phase, measured (with ±2 std) and modelled; return its path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: the process's backend is left alone
 
     f = np.asarray(frequency_hz, float)
     H = np.asarray(H, complex)
     Hm = np.asarray(model_afc, complex)
     s = np.asarray(std, float) if std is not None else np.zeros_like(f)
-    fig, (ax_mag, ax_ph) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    fig = Figure(figsize=(9, 6.5))
+    ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
     ax_mag.semilogy(f, np.abs(Hm), "-", color="C1", lw=1.2, label="model")
     ax_mag.errorbar(f, np.abs(H), yerr=2 * s, fmt=".", ms=3, color="C0", elinewidth=0.8,
                     label="measured (±2 std)")
@@ -34,5 +32,4 @@ def plot_afc_fit(path: str | os.PathLike, frequency_hz, H, std, model_afc, *, ti
         fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return os.fspath(path)

@@ -1,6 +1,6 @@
 """The identification report (shared/spec/report-format.md, version 1), as a JSON document.
 
-:func:`build_report` turns an :class:`~vibid.identify.fit_result.IdentificationResult` (one
+:func:`build_report` turns an :class:`~vibid.identify.fit.result.IdentificationResult` (one
 loop stage: the declared model alone) into the report's dict; :func:`write_report` writes
 it. Extra keys the format allows: ``identification`` (status sentence, warnings,
 covariance, correlation, timings) and the signal stage's ``afc.diagnostics`` when given.
@@ -28,15 +28,13 @@ def _nums(a) -> list:
     return [_num(v) for v in np.asarray(a, dtype=float).ravel()]
 
 
-def unexplained(result, quantile: float = 0.999) -> bool:
-    """Whether the fit leaves a residual above the noise: chi2 beyond the ``quantile`` of
-    the chi-square distribution of its degrees of freedom. Without a known noise level
-    nothing can be said, and the answer is False (with a warning in the result)."""
-    if not result.noise_known or result.dof <= 0 or not math.isfinite(result.chi2):
-        return False
-    from scipy.stats import chi2
+def unexplained(result) -> bool:
+    """Whether the fit leaves a residual above the noise
+    (:func:`vibid.identify.fit.noise.fits_noise`). Without a known noise level nothing can
+    be said, and the answer is False (with a warning in the result)."""
+    from vibid.identify.fit.noise import fits_noise
 
-    return bool(result.chi2 > chi2.ppf(quantile, result.dof))
+    return fits_noise(result.chi2, result.dof, result.noise_known) is False
 
 
 def afc_block(result) -> dict[str, Any]:

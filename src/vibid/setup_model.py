@@ -22,15 +22,12 @@ from typing import Any
 
 from vibid.errors import VibidError
 
-#: Parameter names of each material model, in the order the identification uses.
-MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "isotropic": ("D", "nu", "beta"),
-    "orthotropic": ("D11", "D12", "D22", "D66", "beta"),
-    "monoclinic": ("D11", "D12", "D22", "D66", "D16", "D26", "beta"),
-}
+from vibid.identify.effects import EFFECT_PARAMETERS  # noqa: E402  (light: the catalogue)
+from vibid.identify.model.materials import MODELS, Material  # noqa: E402
 
-#: Parameters that must be strictly positive (their bounds too).
-POSITIVE_PARAMETERS = frozenset({"D", "D11", "D22", "D66"})
+#: Parameter names of each material model, in the order the identification uses (the
+#: catalogue itself is :mod:`vibid.identify.model.materials`).
+MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {m: Material(m).names for m in MODELS}
 
 
 class SetupError(VibidError, ValueError):
@@ -212,34 +209,23 @@ def _identification_problems(ident: Identification) -> list[str]:
             f"expected one of {', '.join(MODEL_PARAMETERS)}"
         ]
     out = []
-    expected = set(MODEL_PARAMETERS[ident.model])
+    material = Material(ident.model)
+    declared = {q.name: q for q in material.parameters} | EFFECT_PARAMETERS
     got = set(ident.bounds)
-    if missing := sorted(expected - got):
+    if missing := [n for n in material.names if n not in got]:
         out.append(
             f"setup.identification.bounds: model {ident.model!r} needs bounds for "
             f"{', '.join(missing)}"
         )
-    if extra := sorted(got - expected):
+    if extra := sorted(got - set(declared)):
         out.append(
             f"setup.identification.bounds: {', '.join(extra)} "
             f"{'is' if len(extra) == 1 else 'are'} not a parameter of model {ident.model!r} "
-            f"({', '.join(MODEL_PARAMETERS[ident.model])})"
+            f"({', '.join(material.names)}) nor of an effect ({', '.join(EFFECT_PARAMETERS)})"
         )
-    for name in MODEL_PARAMETERS[ident.model]:
-        if name not in ident.bounds:
-            continue
-        lo, hi = ident.bounds[name]
-        path = f"setup.identification.bounds.{name}"
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            out.append(f"{path}: bounds must be finite, got [{lo!r}, {hi!r}]")
-        elif not lo < hi:
-            out.append(f"{path}: low {lo!r} must be below high {hi!r}")
-        elif name in POSITIVE_PARAMETERS and lo <= 0:
-            out.append(f"{path}: {name} is a stiffness and must be positive, low is {lo!r}")
-        elif name == "nu" and not (-1.0 < lo and hi <= 0.5):
-            out.append(f"{path}: Poisson's ratio bounds must lie in (-1, 0.5], got [{lo!r}, {hi!r}]")
-        elif name == "beta" and lo < 0:
-            out.append(f"{path}: the loss factor cannot be negative, low is {lo!r}")
+    for name, (lo, hi) in ident.bounds.items():
+        if name in declared and (problem := declared[name].bounds_problem(lo, hi)):
+            out.append(f"setup.identification.bounds.{name}: {problem}")
     return out
 
 

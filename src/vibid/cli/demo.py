@@ -20,7 +20,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from vibid.cli.progress import search_progress
     from vibid.hardware_mocks.simulated_session import simulate_session
+    from vibid.identify import configure
     from vibid.identify.fit import identify
     from vibid.plots import plot_afc_fit
     from vibid.report import build_report, write_report
@@ -28,6 +30,7 @@ def run(args) -> int:
     from vibid.setup_model import example_setup
     from vibid.signal import afc_from_session
 
+    configure()
     truth = {"D": 17.97, "nu": 0.286, "beta": 0.003}
     os.makedirs(args.out, exist_ok=True)
     session_path = os.path.join(args.out, f"session-seed{args.seed}.h5")
@@ -42,8 +45,9 @@ def run(args) -> int:
         afc = afc_from_session(s)
     print(f"3/4 AFC: {int(afc.used.sum())} of {len(afc.used)} steps used")
     print("4/4 identifying (global search, then trust-region Newton) ...")
-    result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                      restarts=args.restarts, seed=args.seed, progress=True)
+    with search_progress() as progress:
+        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
+                          restarts=args.restarts, seed=args.seed, progress=progress)
     report = build_report(result, session_id=session_id, declared_model=setup.identification.model,
                           afc=afc.to_report_block())
     json_path = os.path.join(args.out, "report.json")

@@ -25,7 +25,9 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    from vibid.cli.progress import search_progress
     from vibid.errors import VibidError
+    from vibid.identify import configure
     from vibid.identify.fit import identify
     from vibid.report import build_report, write_report
     from vibid.session import read_session
@@ -37,9 +39,11 @@ def run(args) -> int:
         afc = _signal_stage(s)
     if afc is None:
         raise VibidError("the signal stage (vibid.signal.afc_from_session) is not available")
-    result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                      method=args.method, local=args.local, restarts=args.restarts,
-                      seed=args.seed, progress=not args.no_progress)
+    configure()
+    with search_progress(not args.no_progress) as progress:
+        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
+                          method=args.method, local=args.local, restarts=args.restarts,
+                          seed=args.seed, progress=progress)
     print(result.summary())
     if args.json:
         report = build_report(result, session_id=session_id,

@@ -5,7 +5,8 @@
 
 The material model follows from the parameter names (``D nu beta``: isotropic;
 ``D11 D12 D22 D66 beta``: orthotropic; plus ``D16 D26``: monoclinic; ``beta11`` ... for one
-loss factor per modulus). Prints a table; ``--json`` writes
+loss factor per modulus); any effect's parameters add that effect (e.g.
+``k_theta_N_per_rad=16000``: an elastic clamp). Prints a table; ``--json`` writes
 ``{"frequency_hz": [...], "decay_1_per_s": [...]}``.
 """
 
@@ -25,7 +26,8 @@ def add_parser(sub):
     p.add_argument("source", metavar="SETUP.json|SESSION.h5",
                    help="a setup JSON document or a session file")
     p.add_argument("--params", nargs="+", required=True, metavar="NAME=VALUE",
-                   help="material parameters, e.g. D=17.97 nu=0.286 beta=0.003 (D in N·m)")
+                   help="model parameters, e.g. D=17.97 nu=0.286 beta=0.003 (D in N·m); an "
+                   "effect's parameters add it, e.g. k_theta_N_per_rad=16000")
     p.add_argument("--n", type=int, default=6, help="number of modes (default 6)")
     p.add_argument("--accuracy", default="default", choices=("fast", "default", "fine"),
                    help="discretisation preset (default: default)")
@@ -75,14 +77,17 @@ def run(args) -> int:
         raise VibidError("--n must be at least 1")
     params = parse_params(args.params)
     setup = load_setup(args.source)
-    if "nu" in params and not -1.0 < params["nu"] < 0.5:
-        raise VibidError(f"--params: nu must lie in (-1, 0.5), got {params['nu']}")
-    for name in ("D", "D11", "D22", "D66"):
-        if name in params and params[name] <= 0:
-            raise VibidError(f"--params: {name} is a stiffness and must be positive")
+    from vibid.identify import configure
+    from vibid.identify.model.forward import natural_frequencies, plate_model_for
 
-    from vibid.identify.forward import natural_frequencies
-
+    model = plate_model_for(params)
+    for q in model.parameters:
+        if q.rule == "positive" and params[q.name] <= 0:
+            raise VibidError(f"--params: {q.name} is {q.noun or 'positive'} and must be positive")
+        if isinstance(q.rule, tuple) and not q.rule[1] < params[q.name] < q.rule[2]:
+            raise VibidError(f"--params: {q.name} must lie in ({q.rule[1]:g}, {q.rule[2]:g}), "
+                             f"got {params[q.name]}")
+    configure()
     freq, decay = natural_frequencies(setup, params, args.n, accuracy=args.accuracy)
     print(f"{'mode':>4}  {'frequency_hz':>14}  {'decay_1_per_s':>14}")
     for k, (f, g) in enumerate(zip(freq, decay), start=1):

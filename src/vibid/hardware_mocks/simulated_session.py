@@ -21,7 +21,10 @@ from datetime import datetime, timedelta, timezone
 import numpy as np
 
 from vibid.hardware_mocks.records import synthetic_step, true_frequency_hz
-from vibid.identify import build_forward_model
+from vibid.identify.model.assembly import Geometry, model_matrices
+from vibid.identify.model.forward import discretisation, plate_model_for
+from vibid.identify.model.full import model_afc_full
+from vibid.identify.model.terms import theta_from_dict
 from vibid.session import SessionWriter
 from vibid.setup_model import Setup
 
@@ -40,10 +43,17 @@ class StandConditions:
 
 
 def true_afc(setup: Setup, params: dict, frequencies_hz, *, accuracy: str = "default") -> np.ndarray:
-    """The plate's AFC at ``frequencies_hz`` (Hz) from the full FE model, for ``params``."""
-    fm = build_forward_model(setup, frequencies_hz, theta0=params, accuracy=accuracy)
-    theta = np.array([params[n] for n in fm.parameter_names])
-    return np.asarray(fm.afc_full(theta))
+    """The AFC at ``frequencies_hz`` (Hz) from the full FE model, for ``params``: a
+    material's parameters, and any effect's (e.g. ``k_theta_N_per_rad``, ``tau_s``), which
+    puts that effect into the data whatever the setup declares."""
+    model = plate_model_for(params)
+    theta = theta_from_dict(model, params)
+    geometry = Geometry.from_setup(setup)
+    D = np.asarray(model.moduli(theta), float)
+    disc = discretisation(geometry, accuracy, f_max_hz=float(np.max(frequencies_hz)),
+                          rigidity_n_m=float(min(D[0], D[3])))
+    mats = model_matrices(geometry, disc, tuple(model.effects))
+    return model_afc_full(mats, model, theta, frequencies_hz)
 
 
 def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,

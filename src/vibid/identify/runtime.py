@@ -1,7 +1,10 @@
-"""The JAX settings vibid relies on, in one place: 64-bit floats, and a compilation cache.
+"""The JAX settings vibid relies on, switched on explicitly by the program's entry points.
 
 64-bit: the AFC near a resonance of a lightly damped plate (beta ~ 1e-3) needs double
-precision; the whole identify/ package assumes it.
+precision. Importing vibid changes nothing in the process: the command line, the flows and
+the test suite call :func:`configure`; every function that needs 64 bits calls
+:func:`require_x64`, which raises a clear error instead of computing silently in 32 bits
+(a Dask worker or a script that forgot the set-up fails loudly).
 
 Compilation cache: every vibid process compiles the same few functions (the model's AFC,
 chi2, its gradient and Hessian, the batched chi2 of the global search), which takes a few
@@ -17,9 +20,7 @@ from __future__ import annotations
 
 import os
 
-import jax
-
-jax.config.update("jax_enable_x64", True)
+from vibid.errors import VibidError
 
 #: Functions that compile faster than this are not worth a disk entry.
 MIN_COMPILE_S = 0.2
@@ -36,6 +37,8 @@ def cache_dir() -> str | None:
 
 def enable_compilation_cache() -> str | None:
     """Turn on JAX's persistent compilation cache (see the module doc); returns the folder."""
+    import jax
+
     current = jax.config.jax_compilation_cache_dir
     if current:
         return current
@@ -51,4 +54,20 @@ def enable_compilation_cache() -> str | None:
     return path
 
 
-enable_compilation_cache()
+def configure(*, cache: bool = True) -> str | None:
+    """What an entry point calls once: 64-bit JAX, and the compilation cache unless
+    ``cache`` is False. Returns the cache folder (None if off)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    return enable_compilation_cache() if cache else None
+
+
+def require_x64() -> None:
+    """Raise :class:`VibidError` unless JAX computes in 64 bits."""
+    import jax
+
+    if not jax.config.jax_enable_x64:
+        raise VibidError("vibid's plate model needs 64-bit JAX: call "
+                         "vibid.identify.runtime.configure() (or set JAX_ENABLE_X64=1) "
+                         "before using it")

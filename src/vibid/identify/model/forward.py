@@ -2,8 +2,9 @@
 
 Interface (what :mod:`vibid.identify` re-exports)::
 
-    build_forward_model(setup, frequencies_hz, *, model=None, theta0=None, accuracy="default",
-                        per_modulus_loss=False, basis=None, post=None) -> ForwardModel
+    build_forward_model(setup, frequencies_hz, *, model=None, effects=(), theta0=None,
+                        bounds=None, accuracy="default", per_modulus_loss=False,
+                        basis=None) -> ForwardModel
     natural_frequencies(setup, params: dict, n=6, *, accuracy="default")
         -> (frequency_hz (n,), decay_1_per_s (n,))
 
@@ -22,17 +23,19 @@ Interface (what :mod:`vibid.identify` re-exports)::
         refresh(theta) -> ForwardModel     # local basis around theta unless this one is fine
         natural_frequencies(theta, n=6)    # full model, (frequency_hz, decay_1_per_s)
 
-Deviations from the brief: the extra keywords ``basis`` and ``post`` (below), and the extra
-methods ``check``, ``natural_frequencies`` and attribute ``afc_full_jax``.
+The model's physics is a :class:`~vibid.identify.model.terms.PlateModel` (``param``): the
+declared material and any effects (:mod:`vibid.identify.effects`), whose parameters follow
+the material's in ``theta``. Every evaluation below reads it: the reduced model, the full
+sparse model and the modal solver alike.
 
 Discretisation (``accuracy``): quintic C1 Argyris triangles on a uniform mesh refined
-around the clamped corners (:mod:`vibid.identify.mesh`). "default" converges the first six
+around the clamped corners (:mod:`vibid.identify.model.mesh`). "default" converges the first six
 natural frequencies of the paper's strip to better than 1e-6 (measured against a much finer
 mesh, ``benchmarks/plate.md``); "fast" to a few 1e-6; "fine" to 1e-7. A specimen larger
 than the strip gets cells sized by its bending wavelength at the top of the band instead
 (:func:`discretisation`), at a similar accuracy of the modes in the band.
 
-Reduced model (:mod:`vibid.identify.reduced`), two kinds of basis:
+Reduced model (:mod:`vibid.identify.model.reduced`), two kinds of basis:
 
 * ``"wide"`` (default when ``theta0`` is not given): modes at the centre of the prior box
   and at its faces, static corrections and parameter sensitivities, sized to keep the whole
@@ -54,14 +57,9 @@ signed difference to the next finer discretisation (whose own error is several t
 smaller: the strip's natural frequencies converge at about h^6), and the reduction error's
 standard uncertainty from the a-posteriori check (its largest relative error, times |H|).
 The identification splits the first into a parameter bias and a remainder
-(:mod:`vibid.identify.model_error`). ``model_error(theta)`` combines both into one
+(:mod:`vibid.identify.model.model_error`). ``model_error(theta)`` combines both into one
 magnitude per frequency (divided by √2: a standard uncertainty per real and imaginary
 part).
-
-Extension points for the closed loop: ``post(theta, omega, H) -> H`` maps the plate's AFC
-to the observed one (delay, gain, ...) and may use parameters appended to the
-parameterisation; extra stiffness terms enter as further projected matrices
-(:class:`vibid.identify.reduced.ReducedBasis` ``term_names``).
 """
 
 from __future__ import annotations
@@ -69,19 +67,19 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from functools import partial
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.identify.assembly import Geometry, assemble_plate
-from vibid.identify.fullmodel import afc_full, make_full_afc_jax
-from vibid.identify.materials import Parameterisation, infer_model, theta_from_dict
-from vibid.identify.mesh import Discretisation
-from vibid.identify.modes import complex_eigenvalues, frequencies_and_decays
-from vibid.identify.reduced import ReducedAFC, build_basis
+from vibid.identify.compiled import kernel_functions
+from vibid.identify.model.assembly import Geometry, model_matrices
+from vibid.identify.model.full import make_full_afc_jax, model_afc_full
+from vibid.identify.model.materials import Material, infer_material
+from vibid.identify.model.mesh import Discretisation
+from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
+from vibid.identify.model.reduced import ReducedAFC, build_basis, moving_parameters
+from vibid.identify.model.terms import PlateModel, theta_from_dict
+from vibid.identify.runtime import require_x64
 
 log = logging.getLogger(__name__)
 
@@ -95,12 +93,13 @@ ACCURACY = {
     "default": (0.0033334, 4, 12.0, 6),
     "fine": (0.0016667, 6, 24.0, 12),
 }
-#: Up to this many stiffness parameters (isotropic: D, nu) the wide basis is kept to
-#: rounding (about 1e-7 of max |H| over the whole box, some 90 unknowns). With more
-#: (orthotropic, monoclinic) that basis grows to some 440 unknowns and each global-search
-#: evaluation to an eigenproblem of that size, so it is truncated at a relative Gram
-#: eigenvalue of WIDE_TOL_MANY: about 140 unknowns and 1e-4 of max |H| over the box, enough
-#: to find the basin; the polish runs on local bases (``refresh``), accurate to 1e-6.
+#: Up to this many parameters that change the mode shapes or scale (isotropic: D, nu) the
+#: wide basis is kept to rounding (about 1e-7 of max |H| over the whole box, some 90
+#: unknowns). With more (orthotropic, monoclinic, effects) that basis grows to some 440
+#: unknowns and each global-search evaluation to an eigenproblem of that size, so it is
+#: truncated at a relative Gram eigenvalue of WIDE_TOL_MANY: about 140 unknowns and 1e-4 of
+#: max |H| over the box, enough to find the basin; the polish runs on local bases
+#: (``refresh``), accurate to 1e-6.
 WIDE_FEW_PARAMETERS = 2
 WIDE_TOL_MANY = 1e-6
 #: The a-posteriori check's tolerance (fraction of max |H|) below which refresh keeps a basis.
@@ -113,21 +112,6 @@ def bending_wavelength_m(rigidity_n_m: float, mass_per_area_kg_m2: float, f_hz: 
     """Free bending wavelength ``2 pi (D / (rho h))^(1/4) / sqrt(omega)`` of a thin plate, m."""
     omega = 2 * np.pi * max(f_hz, 1e-9)
     return float(2 * np.pi * (rigidity_n_m / mass_per_area_kg_m2) ** 0.25 / np.sqrt(omega))
-
-
-@partial(jax.jit, static_argnums=0)
-def _afc_jit(kernel, arrays, theta):
-    return kernel(arrays, theta)
-
-
-@partial(jax.jit, static_argnums=0)
-def _afc_batch_jit(kernel, arrays, thetas):
-    return jax.vmap(kernel, in_axes=(None, 0))(arrays, thetas)
-
-
-@partial(jax.jit, static_argnums=0)
-def _modes_batch_jit(kernel, arrays, thetas):
-    return jax.vmap(kernel.modes, in_axes=(None, 0))(arrays, thetas)
 
 
 def discretisation(geometry: Geometry, accuracy: str = "default", *, f_max_hz: float | None = None,
@@ -166,27 +150,40 @@ def _box_centre(bounds: dict, names) -> np.ndarray:
     return np.array(out)
 
 
+def _f64(x):
+    """``x`` as a float64 JAX array (JAX tracers pass through: the model is differentiable)."""
+    import jax.numpy as jnp
+
+    return jnp.asarray(x, jnp.float64)
+
+
+def covers(outer: dict, inner: dict, names) -> bool:
+    """Whether the box ``outer`` contains ``inner`` for every parameter in ``names``."""
+    return all(n in outer and n in inner and outer[n][0] <= inner[n][0] * (1 + 1e-12)
+               and inner[n][1] <= outer[n][1] * (1 + 1e-12) for n in names)
+
+
 @dataclass(eq=False)
 class ForwardModel:
     """Forward model of one setup on one frequency grid; see the module docstring."""
 
     geometry: Geometry
     frequencies_hz: np.ndarray
-    param: Parameterisation
+    param: PlateModel
     bounds: dict
     discretisation: Discretisation
     theta0: np.ndarray
     kind: str
-    post: object = None
     _reduced: ReducedAFC = field(init=False, repr=False)
 
     def __post_init__(self):
+        require_x64()
         self.frequencies_hz = np.asarray(self.frequencies_hz, float)
         self.theta0 = np.asarray(self.theta0, float)
-        self.mats = assemble_plate(self.geometry, self.discretisation)
+        self.mats = model_matrices(self.geometry, self.discretisation, tuple(self.param.effects))
         f_max = float(self.frequencies_hz.max())
         if self.kind == "wide":
-            many = len(self.param.stiffness_names) > WIDE_FEW_PARAMETERS
+            many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
             basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
                                 snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13)
         elif self.kind == "local":
@@ -195,7 +192,7 @@ class ForwardModel:
         else:
             raise ValueError(f"unknown basis kind {self.kind!r}")
         self.basis = basis
-        self._reduced = ReducedAFC(basis, self.param, 2 * np.pi * self.frequencies_hz, self.post)
+        self._reduced = ReducedAFC(basis, self.param, 2 * np.pi * self.frequencies_hz)
         self._full_jax = None
         self._finer = None
         self._last_check = None  # (theta, _check_points(theta))
@@ -215,40 +212,28 @@ class ForwardModel:
         """The reduced map's arrays (a pytree): models of one kernel and shape share code."""
         return self._reduced.arrays
 
-    def afc(self, theta) -> jax.Array:
+    def afc(self, theta):
         """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
-        return _afc_jit(self.kernel, self.arrays, jnp.asarray(theta, jnp.float64))
+        return kernel_functions(self.kernel).afc(self.arrays, _f64(theta))
 
-    def afc_batch(self, thetas) -> jax.Array:
+    def afc_batch(self, thetas):
         """(npop, nf) AFCs of a population of parameter vectors."""
-        return _afc_batch_jit(self.kernel, self.arrays, jnp.asarray(thetas, jnp.float64))
+        return kernel_functions(self.kernel).afc_batch(self.arrays, _f64(thetas))
 
     def modes_batch(self, thetas):
         """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
         the reduced model for a population of parameter vectors (proportional loss)."""
-        return _modes_batch_jit(self.kernel, self.arrays, jnp.asarray(thetas, jnp.float64))
+        return kernel_functions(self.kernel).modes_batch(self.arrays, _f64(thetas))
 
     def afc_full(self, theta) -> np.ndarray:
         """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""
-        theta = np.asarray(theta, float)
-        H = afc_full(self.mats, self.param.complex_moduli(theta), self.frequencies_hz)
-        if self.post is not None:
-            H = np.asarray(self.post(jnp.asarray(theta), 2 * np.pi * self.frequencies_hz, H))
-        return H
+        return model_afc_full(self.mats, self.param, theta, self.frequencies_hz)
 
     @property
     def afc_full_jax(self):
         """JAX ``theta -> H`` of the full model (first derivatives exact)."""
         if self._full_jax is None:
-            full = make_full_afc_jax(self.mats, self.frequencies_hz)
-            omega = 2 * np.pi * self.frequencies_hz
-
-            def fn(theta):
-                theta = jnp.asarray(theta, jnp.float64)
-                H = full(self.param.complex_moduli(theta, jnp))
-                return H if self.post is None else self.post(theta, omega, H)
-
-            self._full_jax = fn
+            self._full_jax = make_full_afc_jax(self.mats, self.param, self.frequencies_hz)
         return self._full_jax
 
     def check_frequencies(self, theta) -> np.ndarray:
@@ -268,9 +253,7 @@ class ForwardModel:
             return self._last_check[1]
         idx = self.check_frequencies(theta)
         Hr = np.asarray(self.afc(theta))
-        Hf = afc_full(self.mats, self.param.complex_moduli(theta), self.frequencies_hz[idx])
-        if self.post is not None:
-            Hf = np.asarray(self.post(jnp.asarray(theta), 2 * np.pi * self.frequencies_hz[idx], Hf))
+        Hf = model_afc_full(self.mats, self.param, theta, self.frequencies_hz[idx])
         self._last_check = (theta.copy(), (Hr, idx, Hf))
         return Hr, idx, Hf
 
@@ -300,7 +283,7 @@ class ForwardModel:
                 return self
             log.info("refresh: reduced error %.1e at theta; rebuilding the basis", err)
         return ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds,
-                            self.discretisation, theta, "local", self.post)
+                            self.discretisation, theta, "local")
 
     def model_error_parts(self, theta) -> tuple[np.ndarray, np.ndarray]:
         """``(d, reduction)``: the signed discretisation error ``H_finer − H`` (nf,)
@@ -311,7 +294,7 @@ class ForwardModel:
         if self._finer is None:
             self._finer = ForwardModel(self.geometry, self.frequencies_hz, self.param,
                                        self.bounds, finer_discretisation(self.discretisation),
-                                       theta, "local", self.post)
+                                       theta, "local")
         fine = self._finer.refresh(theta)
         self._finer = fine
         d = np.asarray(fine.afc(theta)) - np.asarray(self.afc(theta))
@@ -321,62 +304,96 @@ class ForwardModel:
         """(nf,) standard uncertainty of the model error per real and imaginary part:
         ``|d|`` and the reduction error of :meth:`model_error_parts` combined in quadrature
         and divided by √2 (the error is shared by the two parts). The identification
-        uses the parts instead (:mod:`vibid.identify.model_error`)."""
+        uses the parts instead (:mod:`vibid.identify.model.model_error`)."""
         d, red = self.model_error_parts(theta)
         return np.sqrt(np.abs(d) ** 2 / 2.0 + red**2)
 
     def natural_frequencies(self, theta, n: int = 6):
         """``(frequency_hz, decay_1_per_s)`` of the first ``n`` modes (full model)."""
-        theta = np.asarray(theta, float)
-        lam = complex_eigenvalues(self.mats, self.param.moduli(theta), self.param.losses(theta), n)
-        return frequencies_and_decays(lam)
+        return frequencies_and_decays(model_eigenvalues(self.mats, self.param, theta, n))
 
 
-def build_forward_model(setup, frequencies_hz=None, *, model=None, theta0=None,
-                        accuracy: str = "default", per_modulus_loss: bool = False,
-                        basis: str | None = None, post=None) -> ForwardModel:
+def plate_model(model: str, per_modulus_loss: bool = False, effects=()) -> PlateModel:
+    """The PlateModel of a material model name and effects (terms or report names)."""
+    from vibid.identify.effects import EFFECTS
+
+    try:
+        material = Material(model, per_modulus_loss)
+    except ValueError as exc:
+        raise VibidError(str(exc)) from None
+    terms = []
+    for e in effects:
+        if isinstance(e, str):
+            if e not in EFFECTS:
+                raise VibidError(f"unknown effect {e!r}, expected one of {', '.join(EFFECTS)}")
+            e = EFFECTS[e]
+        terms.append(e)
+    return PlateModel(material, tuple(terms))
+
+
+def plate_model_for(names) -> PlateModel:
+    """The PlateModel whose parameters are exactly ``names`` (material and effects)."""
+    from vibid.identify.effects import effects_for
+
+    try:
+        material = infer_material(names)
+    except KeyError as exc:
+        raise VibidError(str(exc.args[0])) from None
+    model = PlateModel(material, effects_for(names))
+    unknown = sorted(set(names) - set(model.names))
+    if unknown:
+        raise VibidError(f"{', '.join(unknown)}: not a parameter of model {material.model!r} "
+                         "nor of any effect")
+    return model
+
+
+def build_forward_model(setup, frequencies_hz=None, *, model=None, effects=(), theta0=None,
+                        bounds: dict | None = None, accuracy: str = "default",
+                        per_modulus_loss: bool = False, basis: str | None = None) -> ForwardModel:
     """Build the forward model of a declared setup.
 
     Parameters
     ----------
     setup : :class:`vibid.setup_model.Setup`.
     frequencies_hz : (nf,) frequencies in Hz (default: the setup's excitation frequencies).
-    model : ``"isotropic"``, ``"orthotropic"`` or ``"monoclinic"`` (default: the setup's).
+    model : ``"isotropic"``, ``"orthotropic"`` or ``"monoclinic"`` (default: the setup's),
+        or a ready :class:`~vibid.identify.model.terms.PlateModel` (then ``effects`` and
+        ``per_modulus_loss`` are its own).
+    effects : effect terms or their report names (:data:`vibid.identify.effects.EFFECTS`),
+        added to the material.
     theta0 : dict name -> value where the basis is built (default: the centre of the
-        setup's bounds, geometric for positive bounds).
+        prior box, geometric for positive bounds).
+    bounds : the prior box the basis must cover (default: the setup's, and each effect's
+        default box for effect parameters the setup does not name).
     accuracy : ``"fast"``, ``"default"`` or ``"fine"`` (see the module docstring).
     per_modulus_loss : one loss factor per modulus (``beta11``, ...) instead of ``beta``.
     basis : ``"wide"`` or ``"local"`` (default: wide without ``theta0``, local with it).
-    post : optional ``post(theta, omega_rad_s, H) -> H`` applied to every AFC.
     """
     if frequencies_hz is None:
         frequencies_hz = setup.excitation.frequencies_hz
     freqs = np.asarray(frequencies_hz, float)
     if freqs.ndim != 1 or freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs < 0):
         raise VibidError("frequencies_hz must be a non-empty list of finite frequencies >= 0 Hz")
-    model = model or setup.identification.model
-    try:
-        param = Parameterisation(model, per_modulus_loss)
-    except ValueError as exc:
-        raise VibidError(str(exc)) from None
-    bounds = param.default_bounds(dict(setup.identification.bounds))
+    if not isinstance(model, PlateModel):
+        model = plate_model(model or setup.identification.model, per_modulus_loss, effects)
+    box = model.default_bounds(dict(setup.identification.bounds if bounds is None else bounds))
     geometry = Geometry.from_setup(setup)
     if theta0 is None:
-        missing = [n for n in param.names if n not in bounds]
+        missing = [n for n in model.names if n not in box]
         if missing:
             raise VibidError(f"no bounds for {', '.join(missing)}: give theta0 or the bounds")
-        th0 = _box_centre(bounds, param.names)
+        th0 = _box_centre(box, model.names)
         kind = basis or "wide"
     else:
         try:
-            th0 = theta_from_dict(param, theta0)
+            th0 = theta_from_dict(model, theta0)
         except KeyError as exc:
             raise VibidError(str(exc.args[0])) from None
         kind = basis or "local"
-    D = np.asarray(param.moduli(th0), float)
+    D = np.asarray(model.moduli(th0), float)
     softest = float(min(D[0], D[3]))  # D11, D22: the shorter bending wavelength
     disc = discretisation(geometry, accuracy, f_max_hz=float(freqs.max()), rigidity_n_m=softest)
-    return ForwardModel(geometry, freqs, param, bounds, disc, th0, kind, post)
+    return ForwardModel(geometry, freqs, model, box, disc, th0, kind)
 
 
 def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default"):
@@ -387,20 +404,16 @@ def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "def
     setup : :class:`vibid.setup_model.Setup`.
     params : dict name -> value; the model follows from the names (``D, nu, beta`` is
         isotropic, ``D11, D12, D22, D66, beta`` orthotropic, ...; ``beta11`` ... for one loss
-        per modulus).
+        per modulus; any effect's parameters add that effect, e.g.
+        ``k_theta_N_per_rad``).
     n : how many modes.
 
     Returns
     -------
     (frequency_hz (n,), decay_1_per_s (n,)): ``√Λ = 2π f + i γ`` (paper eq. 4.1.13).
     """
-    try:
-        model, pml = infer_model(params)
-    except KeyError as exc:
-        raise VibidError(str(exc.args[0])) from None
-    param = Parameterisation(model, pml)
-    theta = theta_from_dict(param, params)
+    model = plate_model_for(params)
+    theta = theta_from_dict(model, params)
     geometry = Geometry.from_setup(setup)
-    mats = assemble_plate(geometry, discretisation(geometry, accuracy))
-    lam = complex_eigenvalues(mats, param.moduli(theta), param.losses(theta), n)
-    return frequencies_and_decays(lam)
+    mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))
+    return frequencies_and_decays(model_eigenvalues(mats, model, theta, n))

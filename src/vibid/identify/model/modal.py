@@ -1,18 +1,17 @@
 """Natural frequencies and decay factors: the complex eigenproblem of the full model.
 
-Paper eq. 4.1.13: ``(Σ D̂_α K_α − Λ M) u = 0`` with the clamped edge fixed; then
+Paper eq. 4.1.13: ``(Σ_k ŝ_k K_k − Λ M) u = 0`` with the clamp's fixed dofs removed; then
 ``ω_k = Re √Λ_k`` and ``γ_k = Im √Λ_k``, so that free vibrations decay as
-``exp((−γ_k + i ω_k) t)``. With one loss factor for all moduli the modes are real and
-``Λ = (1 + iβ) λ`` with ``λ`` from the real problem; otherwise the complex problem is solved
-by shift-invert Arnoldi.
+``exp((−γ_k + i ω_k) t)``. With one loss factor for all stiffness terms the modes are real
+and ``Λ = (1 + iβ) λ`` with ``λ`` from the real problem; otherwise the complex problem is
+solved by shift-invert Arnoldi. A loss law ``L(ω)`` (frequency-dependent loss) is applied
+at each mode's own frequency.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse.linalg as spla
-
-from vibid.identify.forms import MODULI
 
 
 def arpack_start(n: int) -> np.ndarray:
@@ -22,29 +21,44 @@ def arpack_start(n: int) -> np.ndarray:
     return np.random.default_rng(0).standard_normal(n)
 
 
-def complex_eigenvalues(mats, moduli, losses, n: int = 6) -> np.ndarray:
+def complex_eigenvalues(mats, moduli, losses, n: int = 6, inertia=None) -> np.ndarray:
     """The ``n`` smallest eigenvalues ``Λ`` (rad²/s², complex) of the plate.
 
     Parameters
     ----------
-    mats : :class:`vibid.identify.assembly.PlateMatrices`.
-    moduli, losses : six storage moduli (N·m) and loss factors in :data:`MODULI` order.
+    mats : :class:`vibid.identify.model.assembly.PlateMatrices`.
+    moduli, losses : storage coefficients (N·m for the moduli) and loss factors of
+        ``mats.stiffness``, in its order.
     n : how many.
+    inertia : dict name -> coefficient of ``mats.inertia`` (default all 1).
     """
+    names = list(mats.stiffness)
     moduli = np.asarray(moduli, float)
     losses = np.asarray(losses, float)
-    M = mats.inertia_matrix()
+    M = mats.inertia_matrix(inertia)
     n = int(min(n, mats.n_dof - 2))
     if np.allclose(losses, losses[0]):
-        K = mats.stiffness_matrix(dict(zip(MODULI, moduli)))
+        K = mats.stiffness_matrix(dict(zip(names, moduli)))
         lam = spla.eigsh(K, k=n, M=M, sigma=0.0, which="LM", return_eigenvectors=False,
                          v0=arpack_start(K.shape[0]))
         lam = np.sort(lam) * (1.0 + 1j * losses[0])
     else:
-        K = mats.stiffness_matrix(dict(zip(MODULI, moduli * (1.0 + 1j * losses))))
+        K = mats.stiffness_matrix(dict(zip(names, moduli * (1.0 + 1j * losses))))
         lam = spla.eigs(K, k=n, M=M.astype(complex), sigma=0.0, which="LM",
                         return_eigenvectors=False, v0=arpack_start(K.shape[0]).astype(complex))
         lam = lam[np.argsort(lam.real)]
+    return lam
+
+
+def model_eigenvalues(mats, model, theta, n: int = 6) -> np.ndarray:
+    """``Λ`` of a PlateModel at ``theta`` (its loss law applied at each mode's frequency)."""
+    theta = np.asarray(theta, float)
+    inertia = dict(zip(model.inertia_names, model.inertia(theta)))
+    lam = complex_eigenvalues(mats, model.moduli(theta), model.losses(theta), n, inertia)
+    law = model.loss_law(theta, np.sqrt(np.abs(lam.real)), np)
+    if law is not None:  # Λ = λ (1 + iβ L(ω)) with λ = Re Λ for proportional loss
+        beta = lam.imag / np.where(lam.real != 0, lam.real, 1.0)
+        lam = lam.real * (1.0 + 1j * beta * law)
     return lam
 
 

@@ -12,14 +12,13 @@ form ``κ(u)ᵀ D κ(v)`` splits into one form per modulus::
 
 The kinetic energy of the plate (mass per area ``ρ h``, rotary inertia ``ρ h³ / 12``) gives
 ``m(u, v) = ∫ ρh (u v + h²/12 ∇u·∇v)`` (paper eq. 4.1.1, with ``e = h / 2``). The forms
-below carry no coefficients; :mod:`vibid.identify.assembly` scales them.
+below carry no coefficients; :mod:`vibid.identify.model.assembly` scales them.
 """
 
 from skfem import BilinearForm
 from skfem.helpers import dd, dot, grad
 
-#: Modulus names in the order of the stiffness matrices.
-MODULI = ("D11", "D12", "D16", "D22", "D26", "D66")
+from vibid.identify.model.terms import MODULI  # noqa: E402  (the names of the six forms)
 
 
 @BilinearForm

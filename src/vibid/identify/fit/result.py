@@ -108,12 +108,12 @@ class IdentificationResult:
     status: Status of the final local run; ``message`` the sentence for the user.
     noise_known: whether the AFC's standard uncertainty was given (else it was estimated
         from the residual, and ``chi2_reduced`` is 1 by construction of that estimate's
-        scale: see vibid.identify.uncertainty).
+        scale: see vibid.identify.fit.uncertainty).
     global_result: the global search, if one ran.
     local_results: every local run (polishes of several candidates), best first.
     warnings: sentences about the data, bounds, identifiability.
     model_error_bias: (p,) the shift of the estimate that the forward model's own
-        discretisation error causes, to first order (:mod:`vibid.identify.model_error`);
+        discretisation error causes, to first order (:mod:`vibid.identify.model.model_error`);
         ``covariance`` includes it as the systematic term bias bias^T. None when the model
         gives no signed error estimate or the noise is unknown.
     chi2_reduced_data_weights: the reduced chi2 with the signal stage's standard

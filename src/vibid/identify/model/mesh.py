@@ -3,9 +3,9 @@
 A :class:`Discretisation` names the element and a uniform structured triangle mesh
 (``nx`` by ``ny`` rectangles, each cut into two triangles). Uniform meshes keep every cell
 well shaped and make the sensor's footprint independent of local refinement: the disc is
-integrated exactly (:mod:`vibid.identify.disc`) whatever cells it cuts.
+integrated exactly (:mod:`vibid.identify.model.disc`) whatever cells it cuts.
 
-The accuracy presets (cell size, corner levels) live in :mod:`vibid.identify.forward`.
+The accuracy presets (cell size, corner levels) live in :mod:`vibid.identify.model.forward`.
 """
 
 from __future__ import annotations

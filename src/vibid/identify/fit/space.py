@@ -17,9 +17,9 @@ normalisation chosen so that the prior box ``[low, high]`` of the setup maps ont
   limits (Poisson's ratio in (-1, 1/2)): no step of any optimiser can leave it;
 * ``linear`` for signed quantities without limits (D12, D16, D26, delays).
 
-New parameters (the closed loop's effects) slot in by adding a row to
-:data:`PARAMETER_KINDS`; an unknown name falls back to ``log`` for a positive box that
-spans more than a factor 10, else ``linear``.
+Each parameter's term declares its map (``Parameter.kind``,
+:mod:`vibid.identify.model.catalogue`); a name no term declares falls back to ``log`` for a
+positive box that spans more than a factor 10, else ``linear``.
 """
 
 from __future__ import annotations
@@ -33,25 +33,6 @@ import numpy as np
 import scipy.special
 
 from vibid.errors import VibidError
-
-#: How each known parameter is mapped: ("log",), ("logit", a, b) or ("linear",).
-PARAMETER_KINDS: dict[str, tuple] = {
-    "D": ("log",),
-    "D11": ("log",),
-    "D22": ("log",),
-    "D66": ("log",),
-    "D12": ("linear",),
-    "D16": ("linear",),
-    "D26": ("linear",),
-    "nu": ("logit", -1.0, 0.5),
-    "beta": ("log",),
-    # closed-loop effects (report-format.md, "Effect names")
-    "tau_s": ("linear",),
-    "gain": ("log",),
-    "k_theta_N_per_rad": ("log",),
-    "mass_kg": ("log",),
-    "alpha": ("linear",),
-}
 
 #: Fraction of a prior box kept away from a hard edge of the physical domain (a prior
 #: bound at 0 for a log parameter, or nu's bound at 1/2), so that its image is finite.
@@ -145,7 +126,10 @@ def make_transform(name: str, low: float, high: float, kind: tuple | None = None
     if not (math.isfinite(low) and math.isfinite(high) and low < high):
         raise VibidError(f"bounds of {name}: need finite low < high, got [{low!r}, {high!r}]")
     if kind is None:
-        kind = PARAMETER_KINDS.get(name)
+        from vibid.identify.model.catalogue import known_parameter
+
+        declared = known_parameter(name)
+        kind = None if declared is None else declared.kind
     if kind is None:
         kind = ("log",) if (low > 0 and high / low > 10) else ("linear",)
     a = b = math.nan

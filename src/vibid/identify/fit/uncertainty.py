@@ -1,6 +1,6 @@
 """Uncertainty of the estimate from the Fisher information at the optimum.
 
-With weighted residuals r(theta) (:mod:`vibid.identify.loss`) and J = dr/dtheta at the
+With weighted residuals r(theta) (:mod:`vibid.identify.fit.problem`) and J = dr/dtheta at the
 estimate, the Fisher information of Gaussian noise of the declared standard uncertainty
 is F = J^T J (the Gauss-Newton part of half the Hessian of chi2; the second-order term
 averages to zero at a correct model). The covariance of the estimate is F^-1 (the

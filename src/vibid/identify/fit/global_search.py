@@ -24,8 +24,8 @@ import logging
 
 import numpy as np
 
-from vibid.identify.fit_result import GlobalResult
-from vibid.identify.loss import LeastSquaresProblem
+from vibid.identify.fit.result import GlobalResult
+from vibid.identify.fit.problem import LeastSquaresProblem
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +59,7 @@ def differential_evolution(
     tol: float = 1e-2,
     max_generations: int = 60,
     rng: np.random.Generator | int | None = None,
-    progress: bool = False,
+    progress=None,
     score=None,
     label: str = "global search",
 ) -> GlobalResult:
@@ -74,10 +74,12 @@ def differential_evolution(
     popsize, mutation, recombination, tol, max_generations: scipy's settings (popsize per
         searched parameter).
     rng: seed or Generator; the same seed gives the same result.
-    progress: show a progress bar (tqdm, on stderr) over all generations of all restarts.
+    progress: ``progress(label, done, total, best)`` after every generation (``done`` of
+        ``total`` generations over all restarts; ``best`` the restart's best objective), or
+        None. The search itself prints nothing.
     score: another population score ``score(U (S, p)) -> (S,)`` to minimise instead of
-        chi2 (e.g. :func:`vibid.identify.peaks.peak_score`); ``loss`` then holds it.
-    label: the progress bar's and the log's name of this search.
+        chi2 (e.g. :func:`vibid.identify.fit.peaks.peak_score`); ``loss`` then holds it.
+    label: the progress report's and the log's name of this search.
 
     Returns
     -------
@@ -110,44 +112,35 @@ def differential_evolution(
         U = full(U_free)
         return problem.chi2_batch(U) if score is None else np.asarray(score(U))
 
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=restarts * max_generations, desc=label, unit="gen",
-                   leave=False, dynamic_ncols=True)
+    total = restarts * max_generations
+    done = [0]
     us, losses, messages = [], [], []
     n_pop = popsize * len(free)
-    try:
-        for r in range(restarts):
-            init = latin_hypercube_u(space, n_pop, rng, free)
-            gens = [0]
+    for r in range(restarts):
+        init = latin_hypercube_u(space, n_pop, rng, free)
+        gens = [0]
 
-            def callback(intermediate_result):
-                gens[0] += 1
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(restart=f"{r + 1}/{restarts}",
-                                    **{"chi2" if score is None else "score":
-                                       f"{intermediate_result.fun:.4g}"})
+        def callback(intermediate_result):
+            gens[0] += 1
+            done[0] += 1
+            if progress is not None:
+                progress(label, done[0], total, float(intermediate_result.fun))
 
-            sol = scipy_de(
-                objective, [(-1.0, 1.0)] * len(free), init=init, mutation=mutation,
-                recombination=recombination, tol=tol, maxiter=max_generations, polish=False,
-                vectorized=True, updating="deferred", rng=rng, callback=callback,
-            )
-            if bar is not None:
-                bar.update(max_generations - gens[0])
-            u = u_fixed.copy()
-            u[free] = sol.x
-            us.append(u)
-            losses.append(float(sol.fun))
-            messages.append(f"restart {r + 1}: {sol.message} ({sol.nit} generations)")
-            log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
-                     space.as_dict(space.theta(u)), sol.nit)
-    finally:
-        if bar is not None:
-            bar.close()
+        sol = scipy_de(
+            objective, [(-1.0, 1.0)] * len(free), init=init, mutation=mutation,
+            recombination=recombination, tol=tol, maxiter=max_generations, polish=False,
+            vectorized=True, updating="deferred", rng=rng, callback=callback,
+        )
+        done[0] += max_generations - gens[0]  # a restart that converged early
+        if progress is not None:
+            progress(label, done[0], total, float(sol.fun))
+        u = u_fixed.copy()
+        u[free] = sol.x
+        us.append(u)
+        losses.append(float(sol.fun))
+        messages.append(f"restart {r + 1}: {sol.message} ({sol.nit} generations)")
+        log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
+                 space.as_dict(space.theta(u)), sol.nit)
     order = np.argsort(losses)
     U = np.array(us)[order]
     return GlobalResult(U, space.theta(U), np.array(losses)[order], n_eval[0],

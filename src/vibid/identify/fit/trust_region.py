@@ -41,8 +41,8 @@ along it, and the valley bends):
 :func:`gauss_newton` is the Levenberg-Marquardt path: scipy.optimize.least_squares on the
 weighted residual vector with its exact JAX Jacobian.
 
-Both work on the coordinates ``u`` of a :class:`~vibid.identify.params.ParameterSpace`
-and return a :class:`~vibid.identify.fit_result.LocalResult` with their history and the
+Both work on the coordinates ``u`` of a :class:`~vibid.identify.fit.space.ParameterSpace`
+and return a :class:`~vibid.identify.fit.result.LocalResult` with their history and the
 reason they stopped.
 """
 
@@ -53,8 +53,8 @@ import math
 
 import numpy as np
 
-from vibid.identify.fit_result import HistoryEntry, LocalResult, Status
-from vibid.identify.loss import LeastSquaresProblem
+from vibid.identify.fit.result import HistoryEntry, LocalResult, Status
+from vibid.identify.fit.problem import LeastSquaresProblem
 
 log = logging.getLogger(__name__)
 

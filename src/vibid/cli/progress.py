@@ -1,0 +1,31 @@
+"""A progress bar on stderr for the identification's searches (the core only calls back)."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+
+@contextmanager
+def search_progress(enabled: bool = True):
+    """Yield a ``progress(label, done, total, best)`` callback drawing a tqdm bar per search
+    (or None when disabled); the bars are closed on exit."""
+    if not enabled:
+        yield None
+        return
+    from tqdm import tqdm
+
+    bars: dict = {}
+
+    def progress(label: str, done: int, total: int, best: float) -> None:
+        bar = bars.get(label)
+        if bar is None:
+            bar = bars[label] = tqdm(total=total, desc=label, unit="gen", leave=False,
+                                     dynamic_ncols=True)
+        bar.update(done - bar.n)
+        bar.set_postfix(best=f"{best:.4g}")
+
+    try:
+        yield progress
+    finally:
+        for bar in bars.values():
+            bar.close()

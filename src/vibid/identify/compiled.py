@@ -1,0 +1,54 @@
+"""The one cache of compiled functions: bounded, keyed by what the code depends on.
+
+A reduced model splits into a hashable kernel (its terms: the code) and arrays (its
+matrices), :class:`~vibid.identify.model.reduced.ReducedKernel`. Every model of one
+kernel (a model rebuilt around a new estimate, another restart's local model) shares the
+compiled functions built here, passing its own arrays. The caches are LRUs of a few
+entries: a long-running worker that replays hundreds of sessions keeps only the code of
+the last few model structures, and an evicted entry frees its compiled code.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Callable
+
+#: How many model structures (kernels) and fitted problems keep their compiled code.
+MAX_KERNELS = 8
+MAX_PROBLEMS = 16
+
+
+@dataclass(frozen=True)
+class KernelFunctions:
+    """jit-compiled evaluations of one kernel, each ``f(arrays, theta or thetas)``."""
+
+    afc: Callable
+    afc_batch: Callable
+    modes_batch: Callable
+
+
+@functools.lru_cache(maxsize=MAX_KERNELS)
+def kernel_functions(kernel) -> KernelFunctions:
+    import jax
+
+    return KernelFunctions(
+        afc=jax.jit(kernel),
+        afc_batch=jax.jit(jax.vmap(kernel, in_axes=(None, 0))),
+        modes_batch=jax.jit(jax.vmap(kernel.modes, in_axes=(None, 0))),
+    )
+
+
+@functools.lru_cache(maxsize=MAX_PROBLEMS)
+def problem_functions(kernel, model_idx: tuple, space):
+    """The least-squares functions of a kernel on the fitted points ``model_idx`` in the
+    coordinates of ``space`` (:func:`vibid.identify.fit.problem.compile_problem`)."""
+    from vibid.identify.fit.problem import compile_problem
+
+    return compile_problem(kernel, space, model_idx)
+
+
+def clear() -> None:
+    """Drop every compiled function vibid holds (JAX's own caches are left alone)."""
+    kernel_functions.cache_clear()
+    problem_functions.cache_clear()

@@ -1,0 +1,37 @@
+"""Effects: physical terms a declared model may lack, one module each.
+
+Each module of this package defines one :class:`~vibid.identify.model.terms.Term` as its
+``EFFECT``, with its parameters (names and units as in the report format's "Effect names"
+table), default prior box and a null value at which it vanishes exactly. Adding an effect
+is adding a module here: it is found by name, and every evaluator (full, modal, reduced)
+reads it through the term interface.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+
+def _discover() -> dict:
+    found = {}
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        term = importlib.import_module(f"{__name__}.{info.name}").EFFECT
+        found[term.name] = term
+    return found
+
+
+#: Every effect by its report name.
+EFFECTS: dict = _discover()
+
+#: Every effect parameter by name (the setup's bounds may name them).
+EFFECT_PARAMETERS: dict = {q.name: q for term in EFFECTS.values() for q in term.parameters}
+
+
+def effects_for(names) -> tuple:
+    """The effects whose parameters appear in ``names``, in :data:`EFFECTS` order."""
+    names = set(names)
+    return tuple(t for t in EFFECTS.values() if set(t.names) & names)
+
+
+__all__ = ["EFFECTS", "EFFECT_PARAMETERS", "effects_for"]

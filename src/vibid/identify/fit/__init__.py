@@ -1,0 +1,5 @@
+"""The inverse problem: fit a PlateModel's parameters to a measured AFC (:func:`identify`)."""
+
+from vibid.identify.fit.strategy import identify
+
+__all__ = ["identify"]

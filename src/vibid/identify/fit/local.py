@@ -1,0 +1,128 @@
+"""Local fits: the local methods by name, and the polish by continuation in the loss factor.
+
+From a start, the loss factor (which smooths the landscape when large) is released step by
+step: the other parameters are fitted with beta held at a decreasing ladder of values
+(half a decade apart), and from each rung all parameters are fitted freely, until the free
+fit's beta lies above the rung; the lowest chi2 of all free fits wins. The local method is
+the paper's trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Marquardt,
+:mod:`~vibid.identify.fit.trust_region`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.result import LocalResult
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.trust_region import gauss_newton, trust_region
+
+log = logging.getLogger(__name__)
+
+#: Local methods by name.
+LOCAL_METHODS: dict[str, Callable[..., LocalResult]] = {
+    "newton": lambda problem, u0, max_iter=200: trust_region(problem, u0, hessian="exact",
+                                                             max_iter=max_iter),
+    "bfgs": lambda problem, u0, max_iter=200: trust_region(problem, u0, hessian="bfgs",
+                                                           max_iter=2 * max_iter),
+    "lm": lambda problem, u0, max_iter=200: gauss_newton(problem, u0,
+                                                         max_evaluations=2 * max_iter),
+}
+#: Iteration limit of each rung of the continuation (the winner is then run to the end).
+RUNG_MAX_ITER = 30
+
+#: The parameter that smooths the landscape when large (the loss factor).
+SMOOTHING_PARAMETER = "beta"
+#: Ratio between rungs of the continuation ladder (half a decade).
+LADDER_RATIO = 10**-0.5
+
+
+
+# -- a problem with some coordinates held --------------------------------------------------
+class _HeldSpace:
+    def __init__(self, space: ParameterSpace, free: np.ndarray, u_base: np.ndarray):
+        self._space, self._free, self._base = space, free, u_base
+
+    def full(self, u_free):
+        u = self._base.copy()
+        u[self._free] = u_free
+        return u
+
+    def theta(self, u_free):
+        return self._space.theta(self.full(np.asarray(u_free, float)))
+
+
+class HeldProblem:
+    """``problem`` with the coordinates not in ``free`` held at ``u_base``; same interface
+    as LeastSquaresProblem for the local optimisers (derivatives sliced from the full ones,
+    so nothing is recompiled)."""
+
+    def __init__(self, problem: LeastSquaresProblem, free, u_base):
+        self.problem = problem
+        self.free = np.asarray(free, dtype=int)
+        self.space = _HeldSpace(problem.space, self.free, np.asarray(u_base, float).copy())
+        self.n_points = problem.n_points
+
+    def value_and_grad(self, u_free):
+        f, g = self.problem.value_and_grad(self.space.full(u_free))
+        return f, g[self.free]
+
+    def hessian(self, u_free):
+        H = self.problem.hessian(self.space.full(u_free))
+        return H[np.ix_(self.free, self.free)]
+
+    def chi2(self, u_free):
+        return self.problem.chi2(self.space.full(u_free))
+
+    def residuals(self, u_free):
+        return self.problem.residuals(self.space.full(u_free))
+
+    def jacobian(self, u_free):
+        return self.problem.jacobian(self.space.full(u_free))[:, self.free]
+
+
+def polish_by_continuation(problem: LeastSquaresProblem, u_start, local: str = "newton",
+                           ) -> list[LocalResult]:
+    """Local fits from ``u_start`` with the loss factor released step by step.
+
+    Returns every free fit, best (lowest chi2) first. Without a loss-factor parameter, one
+    local run from ``u_start``.
+    """
+    run = LOCAL_METHODS[local]
+    space = problem.space
+    u = np.asarray(u_start, dtype=float).copy()
+    if SMOOTHING_PARAMETER not in space.names:
+        return [run(problem, u)]
+    ib = space.names.index(SMOOTHING_PARAMETER)
+    t = space.transforms[ib]
+    beta = float(space.theta(u)[ib])
+    low = max(t.low, 1e-6) if t.kind == "log" else t.low
+    ladder = []
+    b = beta
+    while b > low * 1.0001:
+        ladder.append(b)
+        b *= LADDER_RATIO
+    ladder.append(low)
+    free = np.array([i for i in range(space.size) if i != ib], dtype=int)
+    results: list[LocalResult] = []
+    for b in ladder:
+        u[ib] = float(t.to_u(b))
+        held = HeldProblem(problem, free, u)
+        r_held = run(held, u[free], RUNG_MAX_ITER)
+        u = held.space.full(r_held.u)
+        r_free = run(problem, u, RUNG_MAX_ITER)
+        results.append(r_free)
+        log.debug("continuation beta=%.3g: held chi2 %.6g, free chi2 %.6g beta %.3g",
+                  b, r_held.loss, r_free.loss, r_free.theta[ib])
+        if r_free.theta[ib] >= b * math.sqrt(LADDER_RATIO):
+            break  # the free fit's loss factor lies above the rung: lower rungs are useless
+    results.sort(key=lambda r: (not np.isfinite(r.loss), r.loss))
+    if not results[0].converged:  # finish the best rung's free fit
+        results.insert(0, run(problem, results[0].u))
+    return results
+
+

@@ -1,0 +1,216 @@
+"""Weighted least squares on the complex AFC, as a function of the coordinates ``u``.
+
+With H_k the measured AFC at frequency f_k (k over the points kept), H(theta)_k the
+model's, sigma_m,k the standard uncertainty of each of Re H_k and Im H_k from the signal
+stage and sigma_f,k the forward model's own error estimate there (the part of it that no
+parameter change explains, :mod:`vibid.identify.model.model_error`),
+
+    r_k = (H(theta)_k - H_k) / sigma_k,     sigma_k^2 = sigma_m,k^2 + sigma_f,k^2,
+    chi2(theta) = sum_k |r_k|^2 = sum_k (Re r_k)^2 + (Im r_k)^2,
+
+so that for a correct model chi2 / (2 n - p) (the reduced chi-square, n points, p
+parameters) is near 1. When the measurement uncertainty is not known, every sigma_k is
+the RMS of |H| (the paper's plain mean square error, eq. (5.1), made dimensionless): the
+minimiser is the same, and the uncertainty module then estimates the noise from the
+residual instead.
+
+The optimisers see ``chi2(theta(u))`` (:mod:`vibid.identify.fit.space`); all derivatives
+are exact (JAX). A :class:`LeastSquaresProblem` is an immutable value: other weights or
+other data make a new problem (:meth:`~LeastSquaresProblem.with_sigma`,
+:meth:`~LeastSquaresProblem.with_data`) that shares the compiled functions.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from vibid.errors import VibidError
+from vibid.identify.fit.data import FitData
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.runtime import require_x64
+
+log = logging.getLogger(__name__)
+
+
+@runtime_checkable
+class ForwardModel(Protocol):
+    """What the identification needs of a forward model (vibid.identify.model.forward)."""
+
+    parameter_names: tuple[str, ...]
+    frequencies_hz: np.ndarray
+
+    def afc(self, theta):
+        """(nf,) complex AFC at the sensor for physical parameters ``theta`` (jit-able)."""
+
+    def afc_batch(self, thetas):
+        """(npop, nf) complex AFC of a population of parameter vectors."""
+
+    def model_error(self, theta) -> np.ndarray:
+        """(nf,) standard deviation of the model's own error, per Re/Im part. A model may
+        also offer ``model_error_parts(theta) -> (signed complex error (nf,), reduction
+        std)``, which the identification then splits (:mod:`vibid.identify.model.model_error`)."""
+
+    def refresh(self, theta) -> "ForwardModel":
+        """The model rebuilt around ``theta`` if it moved far from its expansion point."""
+
+
+def compile_problem(afc, space, model_idx):
+    """jit-compiled residuals, Jacobians, chi2, its value and gradient, its Hessian, batch
+    chi2, each a function of (u or theta, arrays, H, sig) with ``afc(arrays, theta) -> H``."""
+    import jax
+    import jax.numpy as jnp
+
+    idx = jnp.asarray(np.asarray(model_idx, int))
+
+    def residuals_theta(theta, arrays, H, sig):
+        r = (afc(arrays, theta)[idx] - H) / sig
+        return jnp.concatenate([r.real, r.imag])
+
+    def residuals_u(u, arrays, H, sig):
+        return residuals_theta(space.from_u(u), arrays, H, sig)
+
+    def chi2_u(u, arrays, H, sig):
+        r = residuals_u(u, arrays, H, sig)
+        return jnp.sum(r * r)
+
+    def chi2_batch(U, arrays, H, sig):
+        A = jax.vmap(afc, in_axes=(None, 0))(arrays, space.from_u(U))[:, idx]
+        r = (A - H[None, :]) / sig[None, :]
+        c = jnp.sum(r.real**2 + r.imag**2, axis=1)
+        return jnp.where(jnp.isfinite(c), c, jnp.inf)
+
+    return (jax.jit(residuals_u), jax.jit(jax.jacfwd(residuals_u)),
+            jax.jit(jax.jacfwd(residuals_theta)), jax.jit(chi2_u),
+            jax.jit(jax.value_and_grad(chi2_u)), jax.jit(jax.hessian(chi2_u)),
+            jax.jit(chi2_batch))
+
+
+def _functions(model, space, model_idx):
+    """``(compiled functions, arrays)`` for any ForwardModel: shared through
+    :mod:`vibid.identify.compiled` for models with a kernel, else compiled for this model."""
+    from vibid.identify.compiled import problem_functions
+
+    kernel = getattr(model, "kernel", None)
+    if kernel is not None:
+        return problem_functions(kernel, tuple(int(i) for i in model_idx), space), model.arrays
+    return compile_problem(lambda _arrays, theta: model.afc(theta), space, model_idx), {}
+
+
+def _model_points(model, data: FitData) -> np.ndarray:
+    """Indices into the model's frequencies of the fitted points."""
+    fm_f = np.asarray(model.frequencies_hz, dtype=float)
+    used_f = data.frequency_hz[data.used]
+    if fm_f.shape == used_f.shape and np.allclose(fm_f, used_f, rtol=1e-9, atol=1e-9):
+        return np.arange(used_f.size)  # model built on the kept points only
+    if fm_f.shape == data.frequency_hz.shape and np.allclose(
+            fm_f[data.used], used_f, rtol=1e-9, atol=1e-9):
+        return np.flatnonzero(data.used)
+    raise VibidError("the forward model was built for other frequencies than the data")
+
+
+def data_sigma(data: FitData, point_error=None) -> np.ndarray:
+    """sigma_k on the fitted points from the data's std and the model's error estimate
+    ``point_error`` (n_points,) (see the module doc and
+    :mod:`vibid.identify.model.model_error`)."""
+    H = data.H[data.used]
+    if data.std is None:
+        scale = float(np.sqrt(np.mean(np.abs(H) ** 2))) or 1.0
+        return np.full(H.size, scale)
+    sigma = data.std[data.used].astype(float)
+    if point_error is not None:
+        me = np.asarray(point_error, dtype=float).ravel()
+        sigma = np.sqrt(sigma**2 + np.where(np.isfinite(me), me, 0.0) ** 2)
+    return sigma
+
+
+class LeastSquaresProblem:
+    """chi2(u) of a forward model against :class:`FitData`, with exact derivatives.
+
+    Immutable once built: all methods take and return numpy arrays; the compiled functions
+    are shared by every problem of the same model structure, points and parameter space.
+    """
+
+    def __init__(self, model: ForwardModel, data: FitData, space: ParameterSpace,
+                 sigma: np.ndarray | None = None):
+        require_x64()
+        if tuple(model.parameter_names) != space.names:
+            raise VibidError(
+                f"the forward model's parameters {model.parameter_names} differ from the "
+                f"fitted ones {space.names}"
+            )
+        self._model_idx = _model_points(model, data)
+        self.model, self.data, self.space = model, data, space
+        self.n_points = int(data.used.sum())
+        self.n_params = space.size
+        self.sigma = data_sigma(data) if sigma is None else np.asarray(sigma, float).copy()
+        self.sigma.setflags(write=False)
+        (self._res_u, self._jac_u, self._jac_theta, self._chi2, self._vg, self._hess,
+         self._batch), self._arrays = _functions(model, space, self._model_idx)
+        self._H = np.asarray(data.H[data.used], complex)
+
+    # -- other weights, data or model: new problems ---------------------------------------
+    def with_sigma(self, sigma) -> "LeastSquaresProblem":
+        """The same problem weighted with ``sigma`` (n_points,)."""
+        if np.array_equal(sigma, self.sigma):
+            return self
+        return LeastSquaresProblem(self.model, self.data, self.space, sigma)
+
+    def with_weights(self, point_error=None) -> "LeastSquaresProblem":
+        """The problem weighted with the data's std and the model error ``point_error``."""
+        return self.with_sigma(data_sigma(self.data, point_error))
+
+    def with_model(self, model: ForwardModel) -> "LeastSquaresProblem":
+        """The same data and weights on another model (one rebuilt around an estimate)."""
+        return self if model is self.model else LeastSquaresProblem(model, self.data,
+                                                                    self.space, self.sigma)
+
+    def with_data(self, H, std=None) -> "LeastSquaresProblem":
+        """The same problem (same compiled functions) on other measured values, same points."""
+        d = self.data
+        data = FitData(d.frequency_hz, np.asarray(H, complex), None if std is None else
+                       np.asarray(std, float), d.used, d.warnings)
+        return LeastSquaresProblem(self.model, data, self.space)
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom: 2 real numbers per point minus the parameters."""
+        return 2 * self.n_points - self.n_params
+
+    # -- public evaluations (numpy in, numpy out) ---------------------------------------
+    def _args(self):
+        return self._arrays, self._H, self.sigma
+
+    def residuals(self, u) -> np.ndarray:
+        return np.asarray(self._res_u(np.asarray(u, float), *self._args()))
+
+    def jacobian(self, u) -> np.ndarray:
+        return np.asarray(self._jac_u(np.asarray(u, float), *self._args()))
+
+    def jacobian_theta(self, theta) -> np.ndarray:
+        """d residuals / d theta (physical units), for the Fisher information."""
+        return np.asarray(self._jac_theta(np.asarray(theta, float), *self._args()))
+
+    def chi2(self, u) -> float:
+        v = float(self._chi2(np.asarray(u, float), *self._args()))
+        return v if np.isfinite(v) else np.inf
+
+    def value_and_grad(self, u) -> tuple[float, np.ndarray]:
+        v, g = self._vg(np.asarray(u, float), *self._args())
+        return float(v), np.asarray(g)
+
+    def hessian(self, u) -> np.ndarray:
+        return np.asarray(self._hess(np.asarray(u, float), *self._args()))
+
+    def chi2_batch(self, U) -> np.ndarray:
+        """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
+        return np.asarray(self._batch(np.asarray(U, float), *self._args()))
+
+    def on_points(self, model_values) -> np.ndarray:
+        """The fitted points' entries of an array over the model's frequencies."""
+        return np.asarray(model_values)[self._model_idx]
+
+    def model_afc(self, theta) -> np.ndarray:
+        return np.asarray(self.model.afc(np.asarray(theta, float)))

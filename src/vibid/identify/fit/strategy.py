@@ -1,0 +1,367 @@
+"""Identify the parameters of a plate model from a measured AFC: :func:`identify`.
+
+The strategy is a pipeline of small steps over immutable values, each a list of
+:class:`Fit` (a local run and the problem it ran on) in, a list out (paper sections 5-6,
+with the changes that make it work from a vague prior):
+
+1. the data are checked and weighted (:mod:`~vibid.identify.fit.problem`); the parameters
+   are mapped to coordinates ``u`` in which the prior box is [-1, 1]
+   (:mod:`~vibid.identify.fit.space`);
+2. :func:`search`: differential evolution over the whole prior box, several restarts
+   (:mod:`~vibid.identify.fit.global_search`), on chi2, and the polish of every restart's
+   best point, each on a model rebuilt around it, by continuation in the loss factor
+   (:mod:`~vibid.identify.fit.local`); if the best of those does not fit the data
+   (:func:`vibid.identify.fit.noise.fits`), and the model gives its modes, a second search
+   on the match of the measured resonance peaks (:mod:`~vibid.identify.fit.peaks`), which
+   finds the basin where chi2's needle-like minima defeat the search (orthotropic plates);
+   or, with ``method="local"``, one local run from the caller's start;
+3. :func:`walk_valley`: local fits from steps along the flattest direction of chi2 at the
+   best minimum (:mod:`~vibid.identify.fit.minima`), which find a lower one the search
+   missed, or rivals the std must cover; :func:`prefer_inside_prior`: a best minimum
+   outside the prior box gives way to the best inside it unless it fits significantly
+   better;
+4. :func:`polish_on_local_model`: the best polished once more on a model rebuilt around it;
+   :func:`weigh_model_error`: the forward model's own error at the estimate is split
+   (:mod:`~vibid.identify.model.model_error`): the part no parameter change explains
+   enters the weights (and the polish is repeated if that changed them); the part the
+   parameters absorb is a bias that enters the covariance as a systematic term;
+5. :func:`~vibid.identify.fit.summary.summarise`: the covariance from the Fisher
+   information (:mod:`~vibid.identify.fit.uncertainty`), every minimum compared under the
+   final weights, and warnings.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from vibid.errors import VibidError
+from vibid.identify.fit.data import FitData, fit_data
+from vibid.identify.fit.global_search import differential_evolution
+from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_by_continuation
+from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
+from vibid.identify.fit.noise import fits
+from vibid.identify.fit.peaks import measured_peaks, peak_score
+from vibid.identify.fit.problem import ForwardModel, LeastSquaresProblem
+from vibid.identify.fit.result import IdentificationResult, LocalResult
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.summary import summarise
+from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
+
+log = logging.getLogger(__name__)
+
+#: Weight of ln chi2 in the peak-matching score: a change of chi2 by a factor e counts as
+#: much as a 0.3 % mismatch of one peak frequency.
+PEAK_CHI2_WEIGHT = 1e-5
+#: A change of the weights by more than this (relative) calls for one more polish.
+REWEIGH_TOL = 1e-3
+
+#: ``progress(label, done, total, best)``: how far a search is (generations), and its best.
+Progress = Callable[[str, int, int, float], None]
+
+
+@dataclass(frozen=True)
+class Fit:
+    """One local run and the problem (model, data, weights) it ran on."""
+
+    run: LocalResult
+    problem: LeastSquaresProblem
+
+    @property
+    def loss(self) -> float:
+        return self.run.loss
+
+
+def _by_loss(fits_: list[Fit]) -> list[Fit]:
+    return sorted(fits_, key=lambda f: (not np.isfinite(f.loss), f.loss))
+
+
+@dataclass(frozen=True)
+class Options:
+    """How to identify: the local method, global-search restarts and seed, refreshes."""
+
+    local: str = "newton"
+    restarts: int = 5
+    refresh: bool = True
+    rng: np.random.Generator | None = None
+    progress: Progress | None = None
+
+
+# -- the steps ------------------------------------------------------------------------------
+def polish(problem: LeastSquaresProblem, starts, opts: Options, *,
+           continuation: bool = True) -> list[Fit]:
+    """Local fits from each start, each on a model rebuilt around its start (the search's
+    model only has to find basins; models of one shape share their compiled functions)."""
+    out = []
+    for u0 in starts:
+        p = refreshed(problem, problem.space.theta(u0)) if opts.refresh else problem
+        runs = (polish_by_continuation(p, u0, opts.local) if continuation
+                else [LOCAL_METHODS[opts.local](p, u0)])
+        out += [Fit(r, p) for r in runs]
+    return out
+
+
+def refreshed(problem: LeastSquaresProblem, theta) -> LeastSquaresProblem:
+    """``problem`` on its model rebuilt around ``theta`` (itself if the model stays)."""
+    return problem.with_model(problem.model.refresh(theta))
+
+
+def search(problem: LeastSquaresProblem, opts: Options):
+    """Global search on chi2 and the polish of each restart's best, then, if the best does
+    not fit the data, a search on the resonance peaks. Returns (GlobalResult, fits)."""
+    global_result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,
+                                           progress=opts.progress)
+    found = _by_loss(polish(problem, distinct(global_result.u), opts))
+    best = found[0]
+    if fits(best.loss, best.problem.dof, best.problem.n_points, problem.data.noise_known):
+        return global_result, found
+    # the chi2 search missed the basin (its minima are needles when beta is small and there
+    # are several stiffnesses): search on the resonance peaks too
+    starts = peak_starts(problem, opts)
+    if starts and SMOOTHING_PARAMETER in problem.space.names:
+        # the peak frequencies say little about the loss factor, which the chi2 search's
+        # narrow peaks pin down well: the polish starts from that estimate (starting higher,
+        # at 10x, led the orthotropic plate into wrong basins)
+        ib = problem.space.names.index(SMOOTHING_PARAMETER)
+        for u in starts:
+            u[ib] = global_result.u[0][ib]
+    found += polish(problem, distinct(starts, against=global_result.u), opts)
+    return global_result, _by_loss(found)
+
+
+def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]:
+    """Starts from a global search that matches the measured resonance peaks
+    (:mod:`vibid.identify.fit.peaks`); none when the model cannot give its modes or the AFC
+    shows no peak."""
+    model, data, space = problem.model, problem.data, problem.space
+    if not hasattr(model, "modes_batch") or not model.param.proportional:
+        return []
+    u = data.used
+    peaks = measured_peaks(data.frequency_hz[u], data.H[u],
+                           None if data.std is None else data.std[u])
+    if peaks.count == 0:
+        return []
+
+    def score(U):
+        # peak matching first; among parameter sets that match the peaks equally well
+        # (fewer peaks in the band than stiffness parameters leave a family of them) the
+        # AFC's chi2 decides, through a term too small to outweigh a visible mismatch
+        f_hz, height = model.modes_batch(space.theta(U))
+        chi2 = np.maximum(problem.chi2_batch(U), 1e-300)
+        return np.asarray(peak_score(f_hz, height, peaks)) + PEAK_CHI2_WEIGHT * np.log(chi2)
+
+    result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,
+                                    progress=opts.progress, score=score, label="peak matching")
+    log.info("peak matching: %d measured peaks, best score %.3g", peaks.count, result.loss[0])
+    return list(result.u)
+
+
+def walk_valley(found: list[Fit], opts: Options) -> list[Fit]:
+    """The neighbouring minima along the valley the data leave open: a lower one (the
+    global search missed it) or one about as low (then the std must cover both)."""
+    best = found[0]
+    walk = valley_starts(best.problem, best.run)
+    more = polish(best.problem, walk, opts, continuation=False)
+    log.info("valley walk: %d starts, best chi2 %.6g -> %.6g", len(walk), best.loss,
+             min((f.loss for f in more), default=best.loss))
+    return _by_loss(found + more)
+
+
+def prefer_inside_prior(found: list[Fit]) -> list[Fit]:
+    """The best minimum inside the prior box first, where the data do not insist on one
+    outside it (:func:`vibid.identify.fit.minima.best_inside_prior`)."""
+    best = found[0]
+    noise_var = 1.0 if best.problem.data.noise_known else best.loss / max(best.problem.dof, 1)
+    inside = best_inside_prior([f.run for f in found], best.problem.space, noise_var)
+    if inside is None or inside is best.run:
+        return found
+    log.info("prior box: chi2 %.6g inside it against %.6g outside", inside.loss, best.loss)
+    first = next(f for f in found if f.run is inside)
+    return [first] + [f for f in found if f is not first]
+
+
+def polish_on_local_model(found: list[Fit], opts: Options) -> list[Fit]:
+    """The best polished once more on a model rebuilt around it (if it moved)."""
+    best = found[0]
+    problem = refreshed(best.problem, best.run.theta) if opts.refresh else best.problem
+    if problem is best.problem:
+        return found
+    return [Fit(LOCAL_METHODS[opts.local](problem, best.run.u), problem)] + found
+
+
+def weigh_model_error(found: list[Fit], opts: Options) -> tuple[list[Fit], ModelErrorSplit | None]:
+    """Put the model's own error where it belongs (:mod:`vibid.identify.model.model_error`):
+    its unexplained part into the weights (then polish again if they changed), the part the
+    parameters absorb into a systematic covariance term, taken with the final weights.
+    Returns the fits (a new best first if polished again) and the split (None if the model
+    estimates no signed error)."""
+    best = found[0]
+    problem, model = best.problem, best.problem.model
+
+    def again(p: LeastSquaresProblem) -> list[Fit]:
+        return [Fit(LOCAL_METHODS[opts.local](p, best.run.u), p)] + found
+
+    if not hasattr(model, "model_error_parts"):
+        me = problem.on_points(np.asarray(model.model_error(best.run.theta), dtype=float))
+        return (again(problem.with_weights(me)) if np.any(me > 0) else found), None
+    d, red = model.model_error_parts(best.run.theta)
+    d, red = problem.on_points(d), problem.on_points(red)
+    if not (np.any(d != 0) or np.any(red > 0)):
+        return found, None
+    plain = problem.with_weights()
+    split = split_model_error(plain.jacobian_theta(best.run.theta), d, red, plain.sigma)
+    weighted = problem.with_weights(split.point_std)
+    if np.max(np.abs(weighted.sigma / plain.sigma - 1)) <= REWEIGH_TOL:
+        return [Fit(best.run, weighted)] + found[1:], split
+    found = again(weighted)
+    best = found[0]
+    split = split_model_error(weighted.jacobian_theta(best.run.theta), d, red, weighted.sigma)
+    return found, split
+
+
+def on_final_weights(found: list[Fit]) -> list[LocalResult]:
+    """Every run with its chi2 under the best's final weights, on its own model (minima
+    found under other weights or models are compared under the final ones)."""
+    sigma = found[0].problem.sigma
+    out = [found[0].run]
+    for f in found[1:]:
+        same = np.array_equal(f.problem.sigma, sigma)
+        out.append(f.run if same else replace(f.run, loss=f.problem.with_sigma(sigma).chi2(f.run.u)))
+    return out
+
+
+# -- the entry point ----------------------------------------------------------------------
+def identify(
+    setup,
+    frequency_hz,
+    H,
+    std=None,
+    *,
+    model: str | None = None,
+    forward_model: ForwardModel | None = None,
+    bounds: dict | None = None,
+    method: str = "global",
+    local: str = "newton",
+    start: dict | np.ndarray | None = None,
+    restarts: int = 5,
+    seed: int | np.random.Generator | None = None,
+    used=None,
+    progress: Progress | None = None,
+    refresh: bool = True,
+    throw: bool = False,
+) -> IdentificationResult:
+    """Identify the parameters of a material model from a measured AFC.
+
+    Parameters
+    ----------
+    setup: the declared :class:`~vibid.setup_model.Setup` (specimen, sensor, bounds).
+    frequency_hz: (n,) frequencies of the AFC points, Hz.
+    H: (n,) complex AFC (response over base acceleration).
+    std: (n,) standard uncertainty of Re H and Im H per point, or None if unknown (then
+        the fit is the paper's plain mean square error and the noise is estimated from
+        the residual).
+    model: material model (default ``setup.identification.model``).
+    forward_model: a ready ForwardModel for exactly these frequencies (or the used ones);
+        by default one is built with ``vibid.identify.build_forward_model`` on the searched
+        box. A wide model must have been built on a box that covers the searched one.
+    bounds: prior box per parameter (default ``setup.identification.bounds``).
+    method: ``"global"`` (differential evolution over the box, then polish by
+        continuation) or ``"local"`` (one run of the local method from ``start``).
+    local: the local method: ``"newton"`` (trust region, exact Hessian), ``"bfgs"``
+        (trust region, BFGS) or ``"lm"`` (Levenberg-Marquardt).
+    start: start values for ``method="local"`` (dict by name or array in model order;
+        default the centre of the prior box).
+    restarts: restarts of the global search.
+    seed: seed (or Generator) of the global search: same seed, same result.
+    used: (n,) bool mask of the points to fit (default all finite points).
+    progress: ``progress(label, done, total, best)`` called after every generation of a
+        global search (a progress bar's update; the core prints nothing).
+    refresh: rebuild the forward model around the estimate (``ForwardModel.refresh``) and
+        polish once more on it; off, the model that searched also polishes.
+    throw: raise VibidError if the final local run did not converge (else it is reported
+        in ``status``/``message``/``warnings``).
+    """
+    t0 = time.perf_counter()
+    model = model or setup.identification.model
+    if method not in ("global", "local"):
+        raise VibidError(f"unknown identification method {method!r}: use 'global' or 'local'")
+    if local not in LOCAL_METHODS:
+        raise VibidError(f"unknown local method {local!r}: use one of {', '.join(LOCAL_METHODS)}")
+    data = fit_data(frequency_hz, H, std, used)
+    box = dict(setup.identification.bounds if bounds is None else bounds)
+    if forward_model is None:
+        from vibid.identify.model.forward import build_forward_model
+
+        forward_model = build_forward_model(setup, data.frequency_hz[data.used], model=model,
+                                            bounds=box)
+    names = tuple(forward_model.parameter_names)
+    _check_point_count(data, len(names), model)
+    warnings = list(data.warnings)
+    if data.n_used < 3 * len(names):
+        warnings.append(f"only {data.n_used} usable AFC points for {len(names)} parameters: "
+                        "the estimate and its uncertainty are fragile")
+    param = getattr(forward_model, "param", None)  # a PlateModel fills derived boxes
+    if param is not None:
+        box = param.default_bounds(box)
+    _check_basis_covers(forward_model, box, names)
+    space = ParameterSpace.from_bounds(names, box)
+    problem = LeastSquaresProblem(forward_model, data, space)
+    opts = Options(local, restarts, refresh, np.random.default_rng(seed), progress)
+
+    if method == "global":
+        global_result, found = search(problem, opts)
+        found = prefer_inside_prior(walk_valley(found, opts))
+    else:
+        global_result = None
+        found = [Fit(LOCAL_METHODS[local](problem, _start_u(space, start)), problem)]
+    found = polish_on_local_model(found, opts)
+    split = None
+    if data.noise_known:
+        found, split = weigh_model_error(found, opts)
+    best = found[0]
+    return summarise(best.problem, data, model, best.run, tuple(f.run for f in found),
+                     global_result, warnings, t0, throw, split, on_final_weights(found))
+
+
+def _check_point_count(data: FitData, p: int, model: str) -> None:
+    if 2 * data.n_used <= p:
+        raise VibidError(
+            f"too few AFC points: {data.n_used} usable point(s) give {2 * data.n_used} real "
+            f"numbers, fewer than needed to fit the {p} parameters of model {model!r} and "
+            "estimate their uncertainty"
+        )
+
+
+def _check_basis_covers(forward_model, box: dict, names) -> None:
+    """A wide reduced basis is accurate only over the box it was built for."""
+    built = getattr(forward_model, "bounds", None)
+    if getattr(forward_model, "kind", None) != "wide" or built is None:
+        return
+    from vibid.identify.model.forward import covers
+
+    if not covers(built, box, names):
+        raise VibidError(
+            "the forward model's reduced basis was built for the prior box "
+            f"{ {n: tuple(built[n]) for n in names if n in built} }, which does not cover the "
+            f"searched box { {n: tuple(box[n]) for n in names} }: build it with the same bounds")
+
+
+def _start_u(space: ParameterSpace, start) -> np.ndarray:
+    if start is None:
+        return np.zeros(space.size)
+    if isinstance(start, dict):
+        missing = [n for n in space.names if n not in start]
+        if missing:
+            raise VibidError(f"start values missing for {', '.join(missing)}")
+        theta = np.array([float(start[n]) for n in space.names])
+    else:
+        theta = np.asarray(start, dtype=float).ravel()
+        if theta.size != space.size:
+            raise VibidError(f"start has {theta.size} values for {space.size} parameters")
+    if not space.inside_domain(theta):
+        raise VibidError(f"start values {space.as_dict(theta)} are outside the physical range")
+    return space.to_u(theta)

@@ -1,0 +1,92 @@
+"""The answer of an identification: estimate, covariance, warnings, model AFC."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from vibid.errors import VibidError
+from vibid.identify.fit.data import FitData
+from vibid.identify.fit.minima import rival_minima
+from vibid.identify.fit.noise import fits_noise
+from vibid.identify.fit.result import IdentificationResult, LocalResult
+from vibid.identify.fit.uncertainty import fisher_uncertainty
+from vibid.identify.model.model_error import ModelErrorSplit
+
+
+def summarise(problem, data: FitData, model: str, best: LocalResult, runs, global_result,
+              warnings: list, t0: float, throw: bool, systematic: ModelErrorSplit | None,
+              compared: list) -> IdentificationResult:
+    """The IdentificationResult of the best run on its final ``problem``: covariance
+    (Fisher, widened by rival minima and the model's systematic error), warnings, the
+    model AFC. ``compared`` holds every run with its chi2 under the final weights."""
+    space = problem.space
+    theta = best.theta
+    if not np.all(np.isfinite(theta)):  # cannot happen for finite u; never report NaN
+        raise VibidError("the identification produced non-finite parameters")
+    r = problem.residuals(best.u)
+    chi2 = float(r @ r)
+    dof = problem.dof
+    chi2_red = chi2 / dof if dof > 0 else math.nan
+    unc = fisher_uncertainty(problem.jacobian_theta(theta), space.names,
+                             chi2_reduced=chi2_red, noise_known=data.noise_known)
+    warnings.extend(unc.warnings)
+    cov, note = rival_minima(compared, best, unc.covariance, chi2_red, data.noise_known,
+                              space.names)
+    if systematic is not None:
+        cov = cov + systematic.covariance
+    if note:
+        warnings.append(note)
+    std = np.sqrt(np.abs(np.diag(cov)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(std, std)
+    corr[~np.isfinite(corr)] = np.nan
+    np.fill_diagonal(corr, 1.0)
+    Hm_used = problem.model_afc(theta)
+    if Hm_used.size != data.n_used:
+        Hm_used = problem.on_points(Hm_used)
+    H_used = data.H[data.used]
+    rel_rms = float(np.sqrt(np.mean(np.abs(Hm_used - H_used) ** 2) / np.mean(np.abs(H_used) ** 2)))
+    chi2_red_data = math.nan
+    if data.noise_known and dof > 0:
+        rd = (Hm_used - H_used) / data.std[data.used]
+        chi2_red_data = float(np.sum(rd.real**2 + rd.imag**2)) / dof
+    model_afc = np.full(data.H.shape, np.nan + 1j * np.nan)
+    model_afc[data.used] = Hm_used
+
+    status, message = best.status, f"{best.method} {best.message}"
+    if not status.ok:
+        warnings.append(f"the local optimisation {message}")
+    for name in space.out_of_bounds(theta):
+        t = space.transforms[space.names.index(name)]
+        v = theta[space.names.index(name)]
+        warnings.append(
+            f"{name} = {v:.6g} lies on or outside its prior bounds [{t.low:g}, {t.high:g}]: "
+            "the bounds may exclude the true value; widen them and identify again"
+        )
+    for name, v, s in zip(space.names, theta, std):
+        if np.isfinite(s) and abs(v) > 0 and s > 0.3 * abs(v):
+            warnings.append(
+                f"{name} is poorly determined by these data (std {s:.2g} = "
+                f"{100 * s / abs(v):.0f} % of its value)"
+            )
+    if fits_noise(chi2, dof, data.noise_known) is False:
+        warnings.append(
+            f"the model does not fit the data to their noise level (reduced chi2 = "
+            f"{chi2_red:.3g}): the standard deviations understate the error"
+        )
+    if throw and not status.ok:
+        raise VibidError(f"identification of model {model!r}: {message}")
+    return IdentificationResult(
+        model=model, parameter_names=space.names, values=np.asarray(theta, float),
+        std=std, covariance=cov, correlation=corr, chi2=chi2,
+        chi2_reduced=chi2_red, dof=dof, rel_rms_residual=rel_rms, status=status,
+        message=message, noise_known=data.noise_known, frequency_hz=data.frequency_hz,
+        H=data.H, H_std=data.std, used=data.used, model_afc=model_afc,
+        global_result=global_result, local_results=tuple(runs), warnings=tuple(warnings),
+        model_error_bias=None if systematic is None else systematic.bias,
+        chi2_reduced_data_weights=chi2_red_data,
+        seconds=time.perf_counter() - t0,
+    )

@@ -1,0 +1,1 @@
+"""The forward model: discretisation, model terms, and the full, modal and reduced solvers."""

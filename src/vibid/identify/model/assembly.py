@@ -1,0 +1,239 @@
+"""Assembled plate matrices for one geometry, discretisation and set of model terms.
+
+For the clamped plate under base excitation (relative motion ``u = 1 + u_rel``, see
+:mod:`vibid.identify.model.full`) the model needs, on the free degrees of freedom:
+
+* one stiffness matrix per name of :attr:`PlateModel.stiffness_names
+  <vibid.identify.model.terms.PlateModel.stiffness_names>`: the six bending matrices
+  ``K_α`` (N·m → N/m per unit modulus), then the effects' own (an edge spring, ...), so
+  that ``K(θ) = Σ s_k (1 + i β_k) K_k``;
+* one inertia matrix per name of ``inertia_names``: ``"plate"``, ``ρh ∫ u v + ρh h²/12 ∫
+  ∇u·∇v`` (kg), ``"sensor"``, the sensor disc's ``m/(π r²) ∫_disc (u v + h²/12 ∇u·∇v)``,
+  then the effects' own;
+* the rigid-translation load of each inertia matrix, ``(M_full · 1)[free]``;
+* the probe ``c`` with ``u(x_s, y_s) = c · u`` at the sensor centre.
+
+The plate's own matrices are assembled once per (geometry, discretisation) on all degrees
+of freedom (:func:`assemble_all`); a model's terms then choose the free degrees of freedom
+(the clamp fixes displacement and slope along ``x = 0``; a term may release some) and add
+their matrices (:func:`model_matrices`). Both are kept in small LRU caches.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from vibid.identify.model.disc import assemble_disc
+from vibid.identify.model.elements import ElementTriArgyrisLocal
+from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, rotary_inertia,
+                                        translational_inertia)
+from vibid.identify.model.mesh import Discretisation, plate_mesh
+
+log = logging.getLogger(__name__)
+
+#: Degrees of freedom fixed by the clamp (displacement and slope zero along x = 0).
+CLAMPED_DOFS = ("u", "u_x", "u_y", "u_xy", "u_yy", "u_n")
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """What the matrices depend on: the specimen and the sensor disc (SI units)."""
+
+    length_m: float
+    width_m: float
+    thickness_m: float
+    density_kg_m3: float
+    sensor_x_m: float
+    sensor_y_m: float
+    sensor_mass_kg: float
+    sensor_radius_m: float
+
+    @classmethod
+    def from_setup(cls, setup) -> "Geometry":
+        sp_, r = setup.specimen, setup.sensors.response
+        return cls(sp_.length_m, sp_.width_m, sp_.thickness_m, sp_.density_kg_m3,
+                   r.x_m, r.y_m, r.mass_kg, r.radius_m)
+
+    @property
+    def mass_per_area_kg_m2(self) -> float:
+        return self.density_kg_m3 * self.thickness_m
+
+
+@dataclass(frozen=True, eq=False)
+class AssemblyContext:
+    """What a term needs to assemble its own matrices (on all degrees of freedom)."""
+
+    geometry: Geometry
+    discretisation: Discretisation
+    basis: object  # skfem CellBasis
+    probe: np.ndarray  # (N,) displacement at the sensor centre
+
+    def edge_rotation_matrix(self) -> sp.csr_matrix:
+        """``∫_{x=0} ∂u/∂x ∂v/∂x dy`` (a rotational spring along the clamp, N·m/rad per
+        metre of edge per unit stiffness)."""
+        from skfem import FacetBasis
+
+        mesh = self.basis.mesh
+        facets = mesh.facets_satisfying(lambda x: np.isclose(x[0], 0.0), boundaries_only=True)
+        fb = FacetBasis(mesh, self.basis.elem, facets=facets,
+                        intorder=_intorder(self.discretisation.element))
+        return edge_rotation.assemble(fb).tocsr()
+
+
+@dataclass(frozen=True, eq=False)
+class PlateMatrices:
+    """Matrices on the free degrees of freedom (see the module docstring).
+
+    Attributes
+    ----------
+    stiffness : dict name -> (n, n) CSR, one per stiffness term.
+    inertia : dict name -> (n, n) CSR, one per inertia term.
+    load : dict name -> (n,) the rigid unit translation's inertia load of each inertia term.
+    probe : (n,) displacement at the sensor centre; ``probe_rigid`` its value on the rigid
+        unit translation (1 up to round-off).
+    n_dof : number of free degrees of freedom; ``n_dof_total`` all of them.
+    sensor_area_m2 : the integrated area of the sensor disc.
+    rigid_mass_kg : dict name -> ``1ᵀ M 1`` of each inertia term on all dofs (the mass the
+        rigid translation carries: ``ρ h L W`` for the plate, ``m`` for the sensor).
+    """
+
+    geometry: Geometry
+    discretisation: Discretisation
+    stiffness: dict
+    inertia: dict
+    load: dict
+    probe: np.ndarray
+    probe_rigid: float
+    n_dof: int
+    n_dof_total: int
+    sensor_area_m2: float
+    rigid_mass_kg: dict
+    free: np.ndarray = field(repr=False)
+
+    def stiffness_matrix(self, coefficients: dict) -> sp.csr_matrix:
+        """``Σ c_k K_k`` for a dict of (possibly complex) coefficients by name."""
+        out = None
+        for name, value in coefficients.items():
+            term = value * self.stiffness[name]
+            out = term if out is None else out + term
+        return out.tocsr()
+
+    def inertia_matrix(self, coefficients: dict | None = None) -> sp.csr_matrix:
+        """``Σ m_k M_k`` (default: every inertia matrix with coefficient 1)."""
+        c = coefficients or {k: 1.0 for k in self.inertia}
+        return functools.reduce(lambda a, b: a + b, (v * self.inertia[k] for k, v in c.items())).tocsr()
+
+    def inertia_load(self, coefficients: dict | None = None) -> np.ndarray:
+        c = coefficients or {k: 1.0 for k in self.inertia}
+        return sum(v * self.load[k] for k, v in c.items())
+
+
+def make_element(kind: str):
+    """A fresh element instance (scikit-fem caches each global element's basis on it)."""
+    from skfem import ElementTriArgyris, ElementTriMorley
+
+    if kind == "argyris":
+        return ElementTriArgyrisLocal()
+    if kind == "argyris-global":
+        return ElementTriArgyris()
+    if kind == "morley":
+        return ElementTriMorley()
+    raise ValueError(f"unknown element {kind!r}")
+
+
+def _intorder(kind: str) -> int:
+    return 4 if kind == "morley" else 10
+
+
+@dataclass(frozen=True, eq=False)
+class _AllDofs:
+    """The plate's own matrices on every degree of freedom, and what restricting needs."""
+
+    context: AssemblyContext
+    stiffness: dict
+    inertia: dict
+    one: np.ndarray
+    sensor_area_m2: float
+
+
+@functools.lru_cache(maxsize=4)
+def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs:
+    """Assemble the plate's bending and inertia matrices on all degrees of freedom."""
+    from skfem import Basis
+
+    g, d = geometry, discretisation
+    mesh = plate_mesh(g.length_m, g.width_m, d)
+    basis = Basis(mesh, make_element(d.element), intorder=_intorder(d.element))
+    h = g.thickness_m
+    stiffness = {name: BENDING_FORMS[name].assemble(basis) for name in MODULI}
+    plate = g.mass_per_area_kg_m2 * (translational_inertia.assemble(basis)
+                                     + h**2 / 12.0 * rotary_inertia.assemble(basis))
+    centre = np.array([g.sensor_x_m, g.sensor_y_m])
+    disc_uv, disc_grad, area = assemble_disc(basis, centre, g.sensor_radius_m)
+    sensor = g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2) * (disc_uv + h**2 / 12.0 * disc_grad)
+    one = np.zeros(basis.N)
+    one[basis.nodal_dofs[0]] = 1.0  # the rigid unit translation: 'u' is the first nodal dof
+    probe = np.asarray(basis.probes(centre[:, None]).todense()).ravel()
+    ctx = AssemblyContext(g, d, basis, probe)
+    return _AllDofs(ctx, stiffness, {"plate": plate, "sensor": sensor}, one, area)
+
+
+def plate_basis(geometry: Geometry, discretisation: Discretisation):
+    """The scikit-fem basis of a discretisation (for post-processing and extra terms)."""
+    return assemble_all(geometry, discretisation).context.basis
+
+
+def _clamped_dofs(basis, names) -> np.ndarray:
+    dofs = basis.get_dofs(lambda x: np.isclose(x[0], 0.0))
+    present = [n for n in names if n in basis.elem.dofnames]
+    return np.unique(dofs.all(present)) if present else np.zeros(0, int)
+
+
+@functools.lru_cache(maxsize=8)
+def model_matrices(geometry: Geometry, discretisation: Discretisation,
+                   effects: tuple = ()) -> PlateMatrices:
+    """The matrices of a plate with the given effect terms, on its free degrees of freedom
+    (see the module docstring); ``effects`` is ``PlateModel.effects``."""
+    full = assemble_all(geometry, discretisation)
+    basis = full.context.basis
+    released = {dof for t in effects for dof in t.released}
+    clamped = _clamped_dofs(basis, [n for n in CLAMPED_DOFS if n not in released])
+    free = np.setdiff1d(np.arange(basis.N), clamped)
+    stiffness, inertia = dict(full.stiffness), dict(full.inertia)
+    for t in effects:
+        for name, matrix in t.assemble(full.context).items():
+            (stiffness if name in t.stiffness_matrices else inertia)[name] = matrix
+
+    def restrict(a):
+        return a[free][:, free].tocsr()
+
+    one = full.one
+    mats = PlateMatrices(
+        geometry=geometry, discretisation=discretisation,
+        stiffness={k: restrict(a) for k, a in stiffness.items()},
+        inertia={k: restrict(a) for k, a in inertia.items()},
+        load={k: (a @ one)[free] for k, a in inertia.items()},
+        probe=full.context.probe[free], probe_rigid=float(full.context.probe @ one),
+        n_dof=free.size, n_dof_total=basis.N, sensor_area_m2=full.sensor_area_m2,
+        rigid_mass_kg={k: float(one @ (a @ one)) for k, a in inertia.items()}, free=free,
+    )
+    log.info("assembled %s %dx%d%s: %d free dof", discretisation.element, discretisation.nx,
+             discretisation.ny, "".join(f" +{t.name}" for t in effects), free.size)
+    return mats
+
+
+def assemble_plate(geometry: Geometry, discretisation: Discretisation) -> PlateMatrices:
+    """The clamped plate's matrices (no effect terms)."""
+    return model_matrices(geometry, discretisation, ())
+
+
+def edge_rotation_matrix(geometry: Geometry, discretisation: Discretisation) -> sp.csr_matrix:
+    """The clamp spring's matrix on all degrees of freedom
+    (:meth:`AssemblyContext.edge_rotation_matrix`)."""
+    return assemble_all(geometry, discretisation).context.edge_rotation_matrix()

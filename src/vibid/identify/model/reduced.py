@@ -1,0 +1,420 @@
+"""Reduced model: a Galerkin projection of the full model on a small parameter-aware basis.
+
+Basis (built once around ``theta0``, from the full matrices of one discretisation and the
+model's terms, :class:`~vibid.identify.model.terms.PlateModel`):
+
+* the real modes of ``K0 = Σ s_k(θ0) K_k`` with ``M0``, up to a cut-off frequency chosen so
+  that the band ``[0, f_max]`` stays covered, with margin, for the softest parameters in
+  the prior box;
+* the static correction ``K0⁻¹ M 1`` (the quasi-static response to the base motion, which
+  carries the truncated modes' share) and its Krylov successors, and the same for the probe;
+* parameter-sensitivity vectors ``K0⁻¹ (∂K/∂θ_j) φ`` (and ``K0⁻¹ (∂M/∂θ_j) φ``) for every
+  parameter that moves a stiffness or inertia coefficient, which span the first-order
+  changes of the mode shapes;
+* with ``snapshots``, the same at the faces of the prior box for every parameter that
+  changes the mode shapes (not a pure scale of the stiffness).
+
+The basis is made orthonormal in an energy norm (directions below a relative tolerance
+dropped) and every term's matrix is projected once: ``K_k → Vᵀ K_k V``, ``M_k → Vᵀ M_k V``,
+loads ``Vᵀ M_k 1``, probe ``Vᵀ c``.
+
+Evaluation (JAX, float64, pure, jit-able, differentiable to any order), by
+:class:`ReducedKernel`:
+
+* ``modal`` path, when every stiffness term shares one loss factor β: with ``A = Σ s_k K̃_k``
+  and ``M̃ = Σ m_k M̃_k``, ``A = Q Λ Qᵀ`` (generalised ``eigh``),
+  ``H(ω) = 1 + Σ_j (cᵀq_j)(q_jᵀ f) ω² / ((1 + iβ L(ω)) λ_j − ω²)``;
+* ``direct`` path (one loss per modulus): a batched dense solve of
+  ``(Σ ŝ_k K̃_k − ω² M̃) q = ω² f`` per frequency;
+
+then the terms' maps on H (delay, gain).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse.linalg as spla
+
+from vibid.identify.model.modal import arpack_start
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedBasis:
+    """An orthonormal basis and the projected matrices.
+
+    Attributes
+    ----------
+    V : (N, n) basis on the free dofs of the full model, orthonormal in the energy norm
+        ``K(θ0) + ω_max² M`` (so that the projected matrices are well conditioned).
+    K : (T, n, n) projected stiffness per stiffness term (``PlateModel.stiffness_names``).
+    M : (S, n, n) projected inertia per inertia term (``PlateModel.inertia_names``).
+    load : (S, n) projected inertia loads ``Vᵀ M_k 1``; probe : (n,) projected probe ``Vᵀ c``.
+    probe_rigid : value of the probe on the rigid translation (1).
+    n_modes : how many modes it holds; f_top_hz : the highest of them at ``theta0``.
+    theta0 : where it was built; moduli0 : (T,) and inertia0 : (S,) the coefficients there.
+    """
+
+    V: np.ndarray
+    K: np.ndarray
+    M: np.ndarray
+    load: np.ndarray
+    probe: np.ndarray
+    probe_rigid: float
+    n_modes: int
+    f_top_hz: float
+    theta0: np.ndarray
+    moduli0: np.ndarray
+    inertia0: np.ndarray
+
+    @property
+    def size(self) -> int:
+        return self.V.shape[1]
+
+
+def _coefficients(model, theta):
+    return np.asarray(model.moduli(theta), float), np.asarray(model.inertia(theta), float)
+
+
+def stiffness_scale_ratio(model, theta0, bounds) -> float:
+    """How much softer than at ``theta0`` the plate may get inside ``bounds`` (>= 1): the
+    largest ratio of a positive stiffness parameter at ``theta0`` to its lower bound."""
+    ratios = [1.0]
+    for i, q in enumerate(model.parameters):
+        if q.rule == "positive" and q.name in bounds and bounds[q.name][0] > 0:
+            ratios.append(float(theta0[i]) / bounds[q.name][0])
+    return max(ratios)
+
+
+def moving_parameters(model, theta0) -> list[int]:
+    """Indices of the parameters that change a stiffness or inertia coefficient."""
+    s0, m0 = _coefficients(model, theta0)
+    out = []
+    for i in range(len(theta0)):
+        t = np.array(theta0, float)
+        t[i] = t[i] * 1.1 + (0.01 if t[i] == 0 else 0.0)
+        s, m = _coefficients(model, t)
+        if not (np.allclose(s, s0, rtol=0, atol=0) and np.allclose(m, m0, rtol=0, atol=0)):
+            out.append(i)
+    return out
+
+
+def _pure_scale(model, theta0, i) -> bool:
+    """Whether parameter ``i`` only scales every stiffness coefficient (mode shapes stay)."""
+    t = np.array(theta0, float)
+    t[i] *= 2.0
+    s0, m0 = _coefficients(model, theta0)
+    s, m = _coefficients(model, t)
+    return bool(np.allclose(s, 2 * s0, rtol=1e-12, atol=0) and np.allclose(m, m0, rtol=0, atol=0))
+
+
+def snapshot_points(model, theta0, bounds) -> list[np.ndarray]:
+    """``theta0`` and, for each parameter that changes the mode shapes (not the overall
+    scale), the two points where it sits at its bounds, the others at ``theta0``. Points
+    whose moduli matrix is not positive definite are skipped."""
+    theta0 = np.asarray(theta0, float)
+    pts = [theta0]
+    for i in moving_parameters(model, theta0):
+        n = model.names[i]
+        if n not in bounds or _pure_scale(model, theta0, i):
+            continue
+        for v in bounds[n]:
+            t = theta0.copy()
+            t[i] = v
+            if np.isclose(v, theta0[i]) or not _positive_definite(model.moduli(t)):
+                continue
+            pts.append(t)
+    return pts
+
+
+def _positive_definite(m) -> bool:
+    d11, d12, d16, d22, d26, d66 = np.asarray(m, float)[:6]
+    D = np.array([[d11, d12, d16], [d12, d22, d26], [d16, d26, d66]])
+    return bool(np.linalg.eigvalsh(D).min() > 1e-12 * np.abs(D).max())
+
+
+def _coefficient_jacobians(model, theta0):
+    """(T, p) and (S, p) derivatives of the stiffness and inertia coefficients."""
+    import jax
+    import jax.numpy as jnp
+
+    th = jnp.asarray(theta0, jnp.float64)
+    Js = jax.jacfwd(lambda t: model.moduli(t, jnp))(th)
+    Jm = jax.jacfwd(lambda t: model.inertia(t, jnp))(th)
+    return np.asarray(Js), np.asarray(Jm)
+
+
+def _modes(K, M, lu, n_min, n_max, f_top):
+    opinv = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
+    k = min(max(n_min, 16), n_max, K.shape[0] - 2)
+    while True:
+        lam, Phi = spla.eigsh(K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM",
+                              v0=arpack_start(K.shape[0]))
+        order = np.argsort(lam)
+        lam, Phi = lam[order], Phi[:, order]
+        freqs = np.sqrt(np.abs(lam)) / (2 * np.pi)
+        if freqs[-1] >= f_top or k >= n_max or k >= K.shape[0] - 2:
+            break
+        k = min(2 * k, n_max, K.shape[0] - 2)
+    n_keep = min(k, int(max(n_min, np.searchsorted(freqs, f_top, side="right") + 1)))
+    return Phi[:, :n_keep], freqs[:n_keep]
+
+
+def _orthonormal(V, E, tol):
+    """An E-orthonormal basis of span(V), dropping directions below ``tol`` (relative).
+
+    Columns are scaled to unit E-norm, then orthonormalised twice through the Gram matrix
+    (the second pass restores the digits the first loses to its squared conditioning).
+    ``E`` should be an energy norm (stiffness plus mass): judging rank by the mass alone
+    would drop curvature-rich directions that matter to the stiffness."""
+    V = V / np.sqrt(np.einsum("ij,ij->j", V, E @ V))
+    for k in range(2):
+        G = V.T @ (E @ V)
+        s, U = np.linalg.eigh(0.5 * (G + G.T))
+        keep = s > (tol * s.max() if k == 0 else 0.0)
+        V = V @ (U[:, keep] / np.sqrt(s[keep]))
+    return V
+
+
+def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
+                max_modes: int = 40, min_modes: int = 6, krylov: int = 2,
+                snapshots: bool = True, tol: float = 1e-13,
+                scale_ratio: float | None = None) -> ReducedBasis:
+    """Build the reduced basis around ``theta0`` (see the module docstring).
+
+    Parameters
+    ----------
+    mats : :class:`vibid.identify.model.assembly.PlateMatrices` of ``model``'s terms.
+    model : :class:`vibid.identify.model.terms.PlateModel`.
+    theta0 : (p,) parameters where the modes are computed.
+    bounds : dict name -> (lo, hi), the prior box the basis must cover.
+    f_max_hz : highest frequency of the AFC.
+    margin : modes are kept up to ``margin * f_max * sqrt(stiffness ratio)``.
+    max_modes, min_modes : limits on the number of modes per snapshot.
+    krylov : number of static-correction vectors ``(K⁻¹M)^k K⁻¹ M 1`` (and the same for
+        the probe, the adjoint load), k = 0 .. krylov - 1.
+    snapshots : also take modes at :func:`snapshot_points` (the box's faces).
+    tol : relative Gram eigenvalue below which directions are dropped.
+    scale_ratio : how much softer than ``theta0`` the plate may get (default: from
+        ``bounds`` by :func:`stiffness_scale_ratio`).
+    """
+    theta0 = np.asarray(theta0, float)
+    names, inertia_names = list(mats.stiffness), list(mats.inertia)
+    ratio = stiffness_scale_ratio(model, theta0, bounds) if scale_ratio is None else scale_ratio
+    f_top = margin * f_max_hz * np.sqrt(ratio)
+    points = snapshot_points(model, theta0, bounds) if snapshots else [theta0]
+    moving = moving_parameters(model, theta0)
+
+    cols = []
+    n_modes, f_reached = 0, 0.0
+    for j, th in enumerate(points):
+        s, m = _coefficients(model, th)
+        K = mats.stiffness_matrix(dict(zip(names, s))).tocsc()
+        M = mats.inertia_matrix(dict(zip(inertia_names, m))).tocsc()
+        f = mats.inertia_load(dict(zip(inertia_names, m)))
+        lu = spla.splu(K)
+        # frequencies at this point scale like those at theta0 (same cut in mode count)
+        Phi, freqs = _modes(K, M, lu, min_modes if j == 0 else n_modes, max_modes,
+                            f_top if j == 0 else np.inf)
+        if j == 0:
+            n_modes, f_reached = Phi.shape[1], float(freqs[-1])
+            if f_reached < f_top:
+                log.warning("reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted",
+                            n_modes, f_reached, f_top)
+        Phi = Phi[:, :n_modes]
+        statics = []
+        for rhs in (f, mats.probe):
+            v = lu.solve(rhs)
+            for _ in range(krylov):
+                statics.append(v)
+                v = lu.solve(M @ v)
+        S = np.column_stack(statics)
+        cols += [Phi, S]
+        Js, Jm = _coefficient_jacobians(model, th)
+        for i in moving:
+            if np.any(Js[:, i] != 0):
+                Kd = mats.stiffness_matrix(dict(zip(names, Js[:, i])))
+                cols.append(lu.solve(np.column_stack([Kd @ Phi, Kd @ S[:, :1]])))
+            if np.any(Jm[:, i] != 0):
+                Md = mats.inertia_matrix(dict(zip(inertia_names, Jm[:, i])))
+                cols.append(lu.solve(np.column_stack([Md @ Phi, Md @ S[:, :1]])))
+    V = np.column_stack(cols)
+    n_candidates = V.shape[1]
+    s0, m0 = _coefficients(model, theta0)
+    energy = (mats.stiffness_matrix(dict(zip(names, s0)))
+              + (2 * np.pi * f_max_hz) ** 2 * mats.inertia_matrix(dict(zip(inertia_names, m0))))
+    V = _orthonormal(V, energy, tol)
+
+    def project(a):
+        r = V.T @ (a @ V)
+        return 0.5 * (r + r.T)
+
+    basis = ReducedBasis(
+        V=V, K=np.array([project(mats.stiffness[k]) for k in names]),
+        M=np.array([project(mats.inertia[k]) for k in inertia_names]),
+        load=np.array([V.T @ mats.load[k] for k in inertia_names]), probe=V.T @ mats.probe,
+        probe_rigid=mats.probe_rigid, n_modes=n_modes, f_top_hz=f_reached, theta0=theta0,
+        moduli0=s0, inertia0=m0,
+    )
+    log.info("reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
+             n_modes, f_reached, len(points), basis.size, n_candidates)
+    return basis
+
+
+#: Reduced bases are padded to a multiple of this size, so that models rebuilt around new
+#: estimates (``ForwardModel.refresh``) mostly share one shape and one compilation.
+PAD_MULTIPLE = 16
+
+
+@dataclass(frozen=True)
+class ReducedKernel:
+    """The reduced forward map's code, apart from its arrays: ``kernel(arrays, theta) -> H``.
+
+    Hashable and static (the model's terms), so that every jitted function of the
+    identification takes a model's arrays as arguments and is compiled once per kernel and
+    array shape, not once per model (Equinox's split of a module into static fields and
+    array leaves).
+    """
+
+    model: object  # PlateModel
+
+    def __call__(self, arrays: dict, theta):
+        import jax.numpy as jnp
+
+        a, model = arrays, self.model
+        theta = jnp.asarray(theta, jnp.float64)
+        s = model.moduli(theta, jnp)
+        Mr, load = self._inertia(a, theta)
+        w2 = a["w2"]
+        omega = jnp.sqrt(w2)
+        law = model.loss_law(theta, omega, jnp)
+        if model.proportional:
+            beta = model.common_loss(theta, jnp)
+            mu, weight = self._modal(a, s, Mr, load)
+            loss = 1.0 + 1j * beta * (1.0 if law is None else law)
+            denom = loss[..., None] * jnp.ones((w2.shape[0], 1)) - w2[:, None] * mu[None, :]
+            H = a["probe_rigid"] + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
+        else:
+            b = model.losses(theta, jnp)
+            c = s[None, :] * (1.0 + 1j * b[None, :] * (1.0 if law is None else law[:, None]))
+            c = c * jnp.ones((w2.shape[0], 1))
+            A = jnp.einsum("ft,tij->fij", c, a["K"].astype(jnp.complex128)) + a["pad"]
+            sys = A - w2[:, None, None] * Mr[None]
+            rhs = (w2[:, None] * load[None, :]).astype(jnp.complex128)
+            q = jnp.linalg.solve(sys, rhs[..., None])[..., 0]
+            H = a["probe_rigid"] + q @ a["probe"]
+        return model.afc_map(theta, omega, H, jnp)
+
+    def _inertia(self, a: dict, theta):
+        import jax.numpy as jnp
+
+        m = self.model.inertia(theta, jnp)
+        return jnp.tensordot(m, a["M"], axes=1) + a["M_pad"], m @ a["load"]
+
+    @staticmethod
+    def _modal(a: dict, s, Mr, load):
+        """``(mu, weight)``: inverse eigenvalues ``mu = 1/λ`` (s²/rad², ascending) of the
+        real pencil ``(Σ s_k K_k, M)`` and each mode's weight (probe x load) in H.
+
+        (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z: well
+        conditioned whatever the spread of λ (μ is bounded by 1/λ_min)."""
+        import jax
+        import jax.numpy as jnp
+
+        L = jnp.linalg.cholesky(jnp.tensordot(s, a["K"], axes=1) + a["pad"])
+        solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
+        B = solve(solve(Mr).T)
+        mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
+        return mu, (Z.T @ solve(a["probe"])) * (Z.T @ solve(load))
+
+    def modes(self, arrays: dict, theta):
+        """Natural frequencies (Hz, ascending) of the reduced model and the height of each
+        mode's resonance peak in |H| (``|weight| / (mu beta)``, the modal term at
+        resonance); padding modes have zero height. Proportional loss only."""
+        import jax.numpy as jnp
+
+        theta = jnp.asarray(theta, jnp.float64)
+        beta = self.model.common_loss(theta, jnp)
+        Mr, load = self._inertia(arrays, theta)
+        mu, weight = self._modal(arrays, self.model.moduli(theta, jnp), Mr, load)
+        mu, weight = mu[::-1], weight[::-1]  # largest mu = lowest frequency first
+        f_hz = 1.0 / jnp.sqrt(jnp.abs(mu)) / (2 * jnp.pi)
+        return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)
+
+
+def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> dict:
+    """The kernel's arrays for ``basis`` on angular frequencies ``omega`` (rad/s), the basis
+    padded with decoupled dummy unknowns up to a multiple of ``multiple``.
+
+    A dummy unknown has no load and no probe (it adds exactly nothing to H), unit inertia
+    and a constant stiffness far above the basis's highest eigenvalue, each a different one
+    so that the eigenvalue derivatives stay finite."""
+    import jax.numpy as jnp
+
+    n = basis.size
+    n_pad = (-n) % multiple
+    m = n + n_pad
+    K = np.zeros((basis.K.shape[0], m, m))
+    K[:, :n, :n] = basis.K
+    M = np.zeros((basis.M.shape[0], m, m))
+    M[:, :n, :n] = basis.M
+    M_pad = np.zeros((m, m))
+    M_pad[n:, n:] = np.eye(n_pad)
+    pad = np.zeros((m, m))
+    if n_pad:
+        lam_max = float(abs(sla.eigh(np.tensordot(basis.moduli0, basis.K, axes=1),
+                                     np.tensordot(basis.inertia0, basis.M, axes=1),
+                                     eigvals_only=True)).max())
+        pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
+    load = np.zeros((basis.load.shape[0], m))
+    load[:, :n] = basis.load
+    probe = np.zeros(m)
+    probe[:n] = basis.probe
+    return {"K": jnp.asarray(K), "M": jnp.asarray(M), "M_pad": jnp.asarray(M_pad),
+            "pad": jnp.asarray(pad), "load": jnp.asarray(load), "probe": jnp.asarray(probe),
+            "probe_rigid": jnp.asarray(float(basis.probe_rigid)),
+            "w2": jnp.asarray(np.asarray(omega, float) ** 2)}
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedAFC:
+    """The reduced forward map as a pure JAX function of the parameter vector.
+
+    Attributes
+    ----------
+    basis : the projected matrices.
+    model : the PlateModel (names, coefficients, maps).
+    omega : (nf,) angular frequencies in rad/s.
+    kernel, arrays : the same map split into static code and array leaves
+        (``self(theta) == self.kernel(self.arrays, theta)``).
+    """
+
+    basis: ReducedBasis
+    model: object
+    omega: np.ndarray
+    kernel: ReducedKernel = field(init=False, repr=False)
+    arrays: dict = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "kernel", ReducedKernel(self.model))
+        object.__setattr__(self, "arrays", padded_arrays(self.basis, self.omega))
+
+    def __call__(self, theta):
+        return self.kernel(self.arrays, theta)
+
+    def eigenvalues(self, theta):
+        """Reduced eigenvalues ``Λ`` (rad²/s², complex), smallest first (numpy)."""
+        theta = np.asarray(theta, float)
+        s, m = _coefficients(self.model, theta)
+        losses = np.asarray(self.model.losses(theta), float)
+        K = np.tensordot(s, self.basis.K, axes=1)
+        M = np.tensordot(m, self.basis.M, axes=1)
+        if self.model.proportional:
+            return np.sort(sla.eigh(K, M, eigvals_only=True)) * (1.0 + 1j * losses[0])
+        lam = sla.eigvals(np.tensordot(s * (1.0 + 1j * losses), self.basis.K, axes=1), M)
+        return lam[np.argsort(lam.real)]

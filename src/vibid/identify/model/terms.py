@@ -1,0 +1,259 @@
+"""Model terms: the plate model as a composable list of physical terms.
+
+A term is one physical ingredient of the forward model: the material law (its moduli and
+loss factors), an elastic clamp, a point mass, a delay between the channels, ... A term
+declares its :class:`Parameter` s (name, unit, transform, default prior box, null value)
+and what it contributes, any of:
+
+* ``stiffness(p, xp) -> {matrix name: (storage coefficient, loss factor or None)}``: the
+  term scales stiffness matrices affinely, ``K = Σ s_k (1 + i β_k) K_k``; a loss factor
+  of None is the material's common one (the term dissipates like the plate, so the
+  modes stay real);
+* ``inertia(p, xp) -> {matrix name: coefficient}``: the same for inertia matrices (their
+  rigid-translation load follows);
+* ``assemble(ctx) -> {matrix name: sparse matrix on all dofs}``: its own matrices,
+  assembled once with scikit-fem (:class:`~vibid.identify.model.assembly.AssemblyContext`);
+* ``released``: names of the clamp's degrees of freedom that it frees;
+* ``loss_law(p, omega, xp) -> (nf,)``: a frequency law multiplying every loss factor;
+* ``afc_map(p, omega, H, xp) -> H``: a map applied to the plate's AFC (delay, gain).
+
+``p`` is the dict of every parameter of the model by name (values or JAX tracers) and
+``xp`` the array namespace (numpy or jax.numpy), so one definition serves the full sparse
+solver, the modal solver and the reduced JAX model alike.
+
+:class:`PlateModel` composes a material with effects into one immutable (hashable) value:
+the parameter vector ``theta`` is the material's parameters followed by each effect's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter of a term.
+
+    Attributes
+    ----------
+    name : as in the session format and the report, e.g. ``"D"``, ``"tau_s"``.
+    unit : SI unit, e.g. ``"N m"``, ``"s"``, ``"1"``.
+    kind : how the optimisers map it onto the real line (:mod:`vibid.identify.fit.space`):
+        ``("log",)``, ``("logit", a, b)`` or ``("linear",)``.
+    bounds : default prior box ``(low, high)`` for an effect (None: the setup must give it).
+    null : the value at which the term vanishes exactly (None for material parameters;
+        may be ``inf``, e.g. a rigid clamp's stiffness).
+    rule : what a prior box must respect: ``"positive"``, ``"non-negative"``,
+        ``("interval", a, b)`` (open at a, closed at b) or None.
+    noun : what the parameter is, for messages (``"a stiffness"``, ``"the loss factor"``).
+    """
+
+    name: str
+    unit: str
+    kind: tuple = ("linear",)
+    bounds: tuple[float, float] | None = None
+    null: float | None = None
+    rule: object = None
+    noun: str = ""
+
+    def bounds_problem(self, low: float, high: float) -> str | None:
+        """Why ``[low, high]`` cannot be this parameter's prior box, or None."""
+        if not (math.isfinite(low) and math.isfinite(high)):
+            return f"bounds must be finite, got [{low!r}, {high!r}]"
+        if not low < high:
+            return f"low {low!r} must be below high {high!r}"
+        if self.rule == "positive" and low <= 0:
+            return f"{self.name} is {self.noun or 'positive'} and must be positive, low is {low!r}"
+        if self.rule == "non-negative" and low < 0:
+            return f"{self.noun or self.name} cannot be negative, low is {low!r}"
+        if isinstance(self.rule, tuple) and self.rule[0] == "interval":
+            a, b = self.rule[1], self.rule[2]
+            if not (a < low and high <= b):
+                return f"{self.noun} bounds must lie in ({a:g}, {b:g}], got [{low!r}, {high!r}]"
+        return None
+
+
+class Term:
+    """Base of every term: contributes nothing. Subclasses are frozen dataclasses (hashable:
+    a model's compiled code is shared by every model of the same terms)."""
+
+    name = ""
+    parameters: tuple[Parameter, ...] = ()
+    #: names of the stiffness and inertia matrices it scales (keys of its contributions)
+    stiffness_matrices: tuple[str, ...] = ()
+    inertia_matrices: tuple[str, ...] = ()
+    released: tuple[str, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    def stiffness(self, p: dict, xp) -> dict:
+        return {}
+
+    def inertia(self, p: dict, xp) -> dict:
+        return {}
+
+    def assemble(self, ctx) -> dict:
+        return {}
+
+    def loss_law(self, p: dict, omega, xp):
+        return None
+
+    def afc_map(self, p: dict, omega, H, xp):
+        return H
+
+
+#: The six bending moduli (N·m), names of the plate's bending stiffness matrices
+#: (:mod:`vibid.identify.model.forms`), in the order of the session format.
+MODULI = ("D11", "D12", "D16", "D22", "D26", "D66")
+
+#: The inertia matrices every plate has (coefficient 1): the plate's own, and the
+#: declared sensor's (:mod:`vibid.identify.model.assembly`).
+BASE_INERTIA = ("plate", "sensor")
+
+
+@dataclass(frozen=True)
+class PlateModel:
+    """The parameterised plate: a material term and effect terms, immutable.
+
+    Attributes
+    ----------
+    material : the material term (:mod:`vibid.identify.model.materials`).
+    effects : effect terms (:mod:`vibid.identify.effects`), in the order added.
+    """
+
+    material: Term
+    effects: tuple = field(default=())
+
+    # -- the catalogue ------------------------------------------------------------------
+    @property
+    def terms(self) -> tuple:
+        return (self.material,) + tuple(self.effects)
+
+    @property
+    def parameters(self) -> tuple[Parameter, ...]:
+        return tuple(q for t in self.terms for q in t.parameters)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(q.name for q in self.parameters)
+
+    @property
+    def model(self) -> str:
+        """The material model's name (``"isotropic"``, ...)."""
+        return self.material.model
+
+    @property
+    def effect_names(self) -> tuple[str, ...]:
+        return tuple(t.name for t in self.effects)
+
+    @property
+    def proportional(self) -> bool:
+        """True when every stiffness term shares one loss factor (real modes exist)."""
+        return self.material.proportional
+
+    def with_effect(self, term: Term) -> "PlateModel":
+        """This model with one more effect (a new value; this one is unchanged)."""
+        if term.name in self.effect_names:
+            return self
+        return PlateModel(self.material, tuple(self.effects) + (term,))
+
+    # -- matrices and their coefficients at theta ------------------------------------------
+    @property
+    def stiffness_names(self) -> tuple[str, ...]:
+        """Stiffness matrices in the order of :meth:`moduli`: the material's six bending
+        matrices, then the effects' own."""
+        return tuple(dict.fromkeys(k for t in self.terms for k in t.stiffness_matrices))
+
+    @property
+    def inertia_names(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(BASE_INERTIA + tuple(
+            k for t in self.effects for k in t.inertia_matrices)))
+
+    def values(self, theta) -> dict:
+        """``{name: theta[i]}`` (entries of a numpy or JAX vector)."""
+        return {n: theta[i] for i, n in enumerate(self.names)}
+
+    def _stiffness_terms(self, theta, xp):
+        p = self.values(theta)
+        common = self.material.common_loss(p)
+        entries = {}
+        for t in self.terms:
+            for k, (s, b) in t.stiffness(p, xp).items():
+                entries[k] = (s, common if b is None else b)
+        zero = 0.0 * theta[0]
+        names = self.stiffness_names
+        s = xp.stack([xp.asarray(entries[k][0]) + zero for k in names])
+        b = xp.stack([xp.asarray(entries[k][1]) + zero for k in names])
+        return s, b
+
+    def moduli(self, theta, xp=np):
+        """(T,) storage coefficients of :attr:`stiffness_names` (N·m for the moduli)."""
+        return self._stiffness_terms(theta, xp)[0]
+
+    def losses(self, theta, xp=np):
+        """(T,) loss factors of :attr:`stiffness_names` (at the loss law's reference)."""
+        return self._stiffness_terms(theta, xp)[1]
+
+    def complex_moduli(self, theta, xp=np):
+        """``s_k (1 + i β_k)``, the complex coefficients of the stiffness matrices."""
+        s, b = self._stiffness_terms(theta, xp)
+        return s * (1.0 + 1j * b)
+
+    def common_loss(self, theta, xp=np):
+        """The loss factor shared by every term of a proportional model."""
+        return self.material.common_loss(self.values(theta)) + 0.0 * theta[0]
+
+    def inertia(self, theta, xp=np):
+        """(S,) coefficients of :attr:`inertia_names` (1 for the plate and the sensor)."""
+        p = self.values(theta)
+        entries = {k: 1.0 for k in BASE_INERTIA}
+        for t in self.effects:
+            entries.update(t.inertia(p, xp))
+        zero = 0.0 * theta[0]
+        return xp.stack([xp.asarray(entries[k]) + zero for k in self.inertia_names])
+
+    def loss_law(self, theta, omega, xp=np):
+        """(nf,) multiplier of every loss factor at ``omega`` (rad/s), or None (1)."""
+        p = self.values(theta)
+        law = None
+        for t in self.terms:
+            m = t.loss_law(p, omega, xp)
+            if m is not None:
+                law = m if law is None else law * m
+        return law
+
+    def afc_map(self, theta, omega, H, xp=np):
+        """The observed AFC from the plate's: each term's map in turn."""
+        p = self.values(theta)
+        for t in self.terms:
+            H = t.afc_map(p, omega, H, xp)
+        return H
+
+    # -- priors -----------------------------------------------------------------------------
+    def default_bounds(self, bounds: dict) -> dict:
+        """Prior boxes for every parameter: the given ones, else the material's rule
+        (:meth:`Material.bounds_from`), else the effect's default."""
+        out = dict(self.material.bounds_from(bounds))
+        for q in self.parameters[len(self.material.parameters):]:
+            if q.name in bounds:
+                out[q.name] = tuple(bounds[q.name])
+            elif q.bounds is not None:
+                out[q.name] = tuple(q.bounds)
+        return out
+
+    def null_values(self) -> dict:
+        """The effects' null values (where each vanishes), by name."""
+        return {q.name: q.null for t in self.effects for q in t.parameters}
+
+
+def theta_from_dict(model: PlateModel, values: dict) -> np.ndarray:
+    """The parameter vector in ``model.names`` order; KeyError naming what is missing."""
+    missing = [n for n in model.names if n not in values]
+    if missing:
+        raise KeyError(f"model {model.model!r} needs {', '.join(missing)}")
+    return np.array([float(values[n]) for n in model.names])

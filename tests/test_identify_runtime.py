@@ -1,0 +1,85 @@
+"""No hidden global state: importing vibid changes nothing in the process; a model used
+without 64-bit JAX fails loudly; the forward model covers the box the search explores."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from plate_helpers import PAPER_THETA, strip_model, strip_setup
+
+from vibid.errors import VibidError
+from vibid.identify.fit import identify
+
+
+def _run(code: str, tmp_path) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "VIBID_"))}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_importing_vibid_changes_nothing_and_a_32_bit_process_fails_loudly(tmp_path):
+    code = (
+        "import jax, matplotlib\n"
+        "backend = matplotlib.get_backend()\n"
+        "import vibid.identify, vibid.identify.fit, vibid.identify.model.forward, vibid.plots\n"
+        "from vibid.identify import build_forward_model\n"
+        "from vibid.setup_model import example_setup\n"
+        "print(jax.config.jax_enable_x64, matplotlib.get_backend() == backend)\n"
+        "try:\n"
+        "    build_forward_model(example_setup(), [100.0, 200.0])\n"
+        "except Exception as exc:\n"
+        "    print(type(exc).__name__, exc)\n"
+    )
+    out = _run(code, tmp_path)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == "False True"
+    assert lines[1].startswith("VibidError") and "64-bit JAX" in lines[1]
+    assert not (tmp_path / "cache" / "vibid").exists()  # no cache folder made on import
+
+
+def test_configure_switches_on_64_bits_and_the_cache(tmp_path):
+    out = _run("from vibid.identify import configure\nimport jax\n"
+               "print(configure(), jax.config.jax_enable_x64)", tmp_path)
+    assert out.returncode == 0, out.stderr
+    folder, x64 = out.stdout.split()
+    assert x64 == "True" and folder == str(tmp_path / "cache" / "vibid" / "jax")
+    assert os.path.isdir(folder)
+
+
+def test_the_forward_model_is_built_on_the_box_the_search_explores(monkeypatch):
+    """identify(..., bounds=...) built its wide basis on the setup's box and searched the
+    caller's, so the basis need not cover what was searched."""
+    import vibid.identify.model.forward as forward
+
+    built = []
+    real = forward.build_forward_model
+
+    def spy(*args, **kwargs):
+        built.append(kwargs.get("bounds"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(forward, "build_forward_model", spy)
+    setup = strip_setup()
+    f = np.linspace(10.0, 600.0, 40)
+    H = np.ones(f.size, complex)  # what is fitted does not matter here
+    box = {"D": (5.0, 50.0), "nu": (0.1, 0.45), "beta": (1e-3, 1e-2)}
+    identify(setup, f, H, bounds=box, method="local", refresh=False,
+             start={"D": 17.0, "nu": 0.3, "beta": 0.003})
+    assert built == [box]
+
+
+def test_a_wide_model_built_for_a_smaller_box_is_refused():
+    fm = strip_model("wide", "fast", 200)
+    f = fm.frequencies_hz
+    H = np.asarray(fm.afc(PAPER_THETA))
+    box = {"D": (0.5, 200.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
+    with pytest.raises(VibidError, match="does not cover the searched box"):
+        identify(strip_setup(), f, H, forward_model=fm, bounds=box)
+    # the box it was built for is fine
+    res = identify(strip_setup(), f, H, forward_model=fm, method="local", refresh=False,
+                   start={"D": 18.0, "nu": 0.29, "beta": 0.003})
+    np.testing.assert_allclose(res.values, PAPER_THETA, rtol=1e-6)
