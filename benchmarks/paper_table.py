@@ -69,7 +69,8 @@ def make_model(setup, freqs, toy: bool):
 def paper_start_problem(toy: bool = False):
     """``(problem, u0)``: the least-squares problem of the noiseless 0-600 Hz strip (data
     from the full model) and the paper's start in its coordinates, for the local run."""
-    from vibid.identify.loss import LeastSquaresProblem, fit_data
+    from vibid.identify.fit.data import fit_data
+    from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
 
     setup = strip_setup(600)

@@ -11,11 +11,17 @@ missing.
 Without a known noise level nothing can be tested against the noise: :func:`fits_noise`
 then says None, and the strategy falls back on the relative RMS residual
 (:data:`MAX_REL_RMS_UNKNOWN_NOISE`).
+
+chi2 alone misses a residual that is small but structured (a slow phase drift from a
+delay, a resonance slightly off): the normalised residual ordered by frequency is then not
+white. :func:`ljung_box_p` and :func:`runs_test_p` test that, for the closed loop.
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 #: A chi2 beyond this quantile of its distribution does not fit the noise (one false alarm
 #: in a thousand correct fits).
@@ -49,3 +55,46 @@ def fits(chi2: float, dof: int, n_points: int, noise_known: bool) -> bool:
     if verdict is not None:
         return verdict
     return bool(math.isfinite(chi2) and chi2 / (2 * max(n_points, 1)) <= MAX_REL_RMS_UNKNOWN_NOISE**2)
+
+
+def ljung_box_p(residual, lags: int | None = None) -> float:
+    """p-value of the Ljung-Box test that ``residual`` (real, ordered by frequency; for a
+    complex AFC pass Re and Im of the normalised residual one after the other per point)
+    is white: ``Q = n (n + 2) Σ_k ρ_k² / (n - k)`` over ``lags`` lags (default
+    ``min(20, n // 5)``), chi-square with ``lags`` degrees of freedom under the null
+    (Ljung & Box, Biometrika 65, 1978). A residual that is structured along the
+    frequency axis (a missing effect) gives p near 0 even when chi2 is borderline."""
+    from scipy.stats import chi2
+
+    r = np.asarray(residual, float).ravel()
+    r = r[np.isfinite(r)]
+    n = r.size
+    lags = min(20, n // 5) if lags is None else int(lags)
+    if n < 3 or lags < 1:
+        return math.nan
+    r = r - r.mean()
+    denom = float(r @ r)
+    if denom == 0:
+        return 1.0
+    rho = np.array([float(r[k:] @ r[:-k]) / denom for k in range(1, lags + 1)])
+    q = n * (n + 2) * float(np.sum(rho**2 / (n - np.arange(1, lags + 1))))
+    return float(chi2.sf(q, lags))
+
+
+def runs_test_p(residual) -> float:
+    """Two-sided p-value of the Wald-Wolfowitz runs test on the signs of ``residual``
+    (ordered by frequency): too few runs means neighbouring points err alike."""
+    from scipy.stats import norm
+
+    r = np.asarray(residual, float).ravel()
+    s = np.sign(r[np.isfinite(r) & (r != 0)])
+    n_pos, n_neg = int((s > 0).sum()), int((s < 0).sum())
+    n = n_pos + n_neg
+    if n_pos == 0 or n_neg == 0:
+        return 0.0 if n > 10 else math.nan
+    runs = 1 + int(np.sum(s[1:] != s[:-1]))
+    mean = 2.0 * n_pos * n_neg / n + 1.0
+    var = (mean - 1.0) * (mean - 2.0) / (n - 1.0)
+    if var <= 0:
+        return math.nan
+    return float(2.0 * norm.sf(abs(runs - mean) / math.sqrt(var)))

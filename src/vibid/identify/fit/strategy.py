@@ -160,12 +160,13 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
     return list(result.u)
 
 
-def walk_valley(found: list[Fit], opts: Options) -> list[Fit]:
+def walk_valley(problem: LeastSquaresProblem, found: list[Fit], opts: Options) -> list[Fit]:
     """The neighbouring minima along the valley the data leave open: a lower one (the
-    global search missed it) or one about as low (then the std must cover both)."""
+    global search missed it) or one about as low (then the std must cover both). Each
+    start is polished, like the search's, on a model built around it from ``problem``."""
     best = found[0]
     walk = valley_starts(best.problem, best.run)
-    more = polish(best.problem, walk, opts, continuation=False)
+    more = polish(problem, walk, opts, continuation=False)
     log.info("valley walk: %d starts, best chi2 %.6g -> %.6g", len(walk), best.loss,
              min((f.loss for f in more), default=best.loss))
     return _by_loss(found + more)
@@ -314,7 +315,7 @@ def identify(
 
     if method == "global":
         global_result, found = search(problem, opts)
-        found = prefer_inside_prior(walk_valley(found, opts))
+        found = prefer_inside_prior(walk_valley(problem, found, opts))
     else:
         global_result = None
         found = [Fit(LOCAL_METHODS[local](problem, _start_u(space, start)), problem)]
