@@ -6,6 +6,13 @@ the test suite call :func:`configure`; every function that needs 64 bits calls
 :func:`require_x64`, which raises a clear error instead of computing silently in 32 bits
 (a Dask worker or a script that forgot the set-up fails loudly).
 
+One BLAS thread: JAX's LAPACK kernels (the Cholesky and eigh of every reduced-model
+evaluation) call scipy's OpenBLAS, whose default two threads on two cores stall whenever
+another process holds a core. A lab PC runs other programs beside vibid: with one other
+CPU-bound process, a row of the paper's Table 2 took 40-240 s on two threads and 12-15 s
+on one (BENCHMARKS.md). The matrices are small (16-140 unknowns), so one thread loses
+nothing on an idle machine either.
+
 Compilation cache: every vibid process compiles the same few functions (the model's AFC,
 chi2, its gradient and Hessian, the batched chi2 of the global search), which takes a few
 seconds for seconds of work. JAX's persistent cache keeps the compiled code on disk, so a
@@ -54,12 +61,24 @@ def enable_compilation_cache() -> str | None:
     return path
 
 
-def configure(*, cache: bool = True) -> str | None:
-    """What an entry point calls once: 64-bit JAX, and the compilation cache unless
-    ``cache`` is False. Returns the cache folder (None if off)."""
+def limit_blas_threads(threads: int = 1) -> None:
+    """Limit the BLAS libraries loaded in this process (numpy's, scipy's, which JAX's
+    LAPACK kernels use) to ``threads`` threads each."""
+    import scipy.linalg  # noqa: F401  (load scipy's OpenBLAS, so that the limit reaches it)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=int(threads), user_api="blas")
+
+
+def configure(*, cache: bool = True, blas_threads: int | None = 1) -> str | None:
+    """What an entry point calls once: 64-bit JAX, the compilation cache unless ``cache``
+    is False, and ``blas_threads`` BLAS threads (None leaves them as they are). Returns the
+    cache folder (None if off)."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    if blas_threads is not None:
+        limit_blas_threads(blas_threads)
     return enable_compilation_cache() if cache else None
 
 
