@@ -1,0 +1,33 @@
+"""``frequency_dependent_loss``: a loss factor that varies with frequency.
+
+Polymer matrices and coatings dissipate more at some frequencies than others; over a band
+the power law ``β(f) = β (f / f_ref)^α`` with ``f_ref = 1000 Hz`` (report format: ``beta``
+is then the loss factor at 1 kHz) covers it. It multiplies every loss factor of the model,
+so the modes stay real and the modal solver applies it at each frequency. Null ``α = 0``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from vibid.identify.model.terms import Parameter, Term
+
+#: The reference frequency of the law (report format).
+F_REF_HZ = 1000.0
+ALPHA = Parameter("alpha", "1", ("linear",), bounds=(-1.0, 1.0), null=0.0,
+                  noun="the loss exponent")
+
+
+@dataclass(frozen=True)
+class FrequencyDependentLoss(Term):
+    """Loss factors times ``(f / 1 kHz)^alpha``."""
+
+    name = "frequency_dependent_loss"
+    parameters = (ALPHA,)
+
+    def loss_law(self, p: dict, omega, xp):
+        return (omega / (2 * math.pi * F_REF_HZ)) ** p["alpha"]
+
+
+EFFECT = FrequencyDependentLoss()
