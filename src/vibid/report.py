@@ -50,9 +50,43 @@ def afc_block(result) -> dict[str, Any]:
     }
 
 
+def _stage_block(added, result) -> dict[str, Any]:
+    return {
+        "added": added,
+        "chi2_reduced": _num(result.chi2_reduced),
+        "rel_rms_residual": _num(result.rel_rms_residual),
+        "parameters": {n: _num(v) for n, v in zip(result.parameter_names, result.values)},
+    }
+
+
+def _loop_block(loop) -> tuple[list, dict]:
+    """(effects, loop block) of a :class:`vibid.identify.loop.LoopResult`."""
+    final = loop.final
+    std = dict(zip(final.parameter_names, final.std))
+    from vibid.identify.effects import EFFECTS
+
+    effects = [{"name": name, "parameters": {
+        q.name: {"value": _num(final.parameters[q.name]), "std": _num(std[q.name])}
+        for q in EFFECTS[name].parameters}} for name in loop.effects if name in EFFECTS]
+    stages = []
+    for st in loop.stages:
+        block = _stage_block(st.added, st.result)
+        block["ljung_box_p"] = _num(st.ljung_box_p)
+        stages.append(block)
+    rounds = [[{"candidate": sc.name, "score": _num(sc.score), "dof": sc.dof,
+                "p_value": _num(sc.p_value), "collinearity": _num(sc.collinearity),
+                "delta_chi2": _num(sc.delta_chi2), "kept": sc.kept, "note": sc.note}
+               for sc in rnd] for rnd in loop.rounds]
+    return effects, {"stages": stages, "unexplained_residual": bool(loop.unexplained_residual),
+                     "rounds": rounds, "seconds": _num(loop.seconds)}
+
+
 def build_report(result, *, session_id: str = "", declared_model: str | None = None,
-                 afc: dict | None = None) -> dict[str, Any]:
-    """The report of one identification (a loop with its first stage only).
+                 afc: dict | None = None, loop=None, setup=None) -> dict[str, Any]:
+    """The report of one identification: with ``loop`` (a
+    :class:`~vibid.identify.loop.LoopResult`) every stage of the closed loop and the
+    effects it added, ``result`` then being its final stage; without, the declared model
+    alone (a loop of one stage).
 
     Parameters
     ----------
@@ -61,30 +95,54 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     declared_model: ``setup.identification.model`` (default ``result.model``).
     afc: the signal stage's report block (``AfcTable.to_report_block()``); default built
         from the points in ``result``.
+    setup: the declared setup; with it the report gains the ``engineering`` block (E, nu,
+        G from the stiffnesses and the declared thickness and its uncertainty).
     """
+    if loop is not None:
+        result = loop.final
+    effect_params = set()
+    if loop is not None:
+        from vibid.identify.effects import EFFECTS
+
+        effect_params = {q.name for n in loop.effects if n in EFFECTS
+                         for q in EFFECTS[n].parameters}
     params = {n: {"value": _num(v), "std": _num(s)}
-              for n, v, s in zip(result.parameter_names, result.values, result.std)}
-    warnings = list(result.warnings)
+              for n, v, s in zip(result.parameter_names, result.values, result.std)
+              if n not in effect_params}
+    warnings = list(result.warnings) + (list(loop.warnings) if loop is not None else [])
     if not result.noise_known:
         warnings.append("the AFC's uncertainty is unknown: the fit cannot be tested against "
                         "the noise (unexplained_residual is false by default)")
-    stage = {
-        "added": None,
-        "chi2_reduced": _num(result.chi2_reduced),
-        "rel_rms_residual": _num(result.rel_rms_residual),
-        "parameters": {n: _num(v) for n, v in zip(result.parameter_names, result.values)},
-    }
+    if loop is None:
+        effects = []
+        loop_block = {"stages": [_stage_block(None, result)],
+                      "unexplained_residual": unexplained(result)}
+    else:
+        effects, loop_block = _loop_block(loop)
+    model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
     g = result.global_result
-    return {
+    extra = {}
+    if setup is not None:
+        from vibid.identify.engineering import engineering_constants
+
+        sp = setup.specimen
+        block = engineering_constants(model, result.parameter_names, result.values,
+                                      result.covariance, sp.thickness_m,
+                                      sp.thickness_std_m or 0.0)
+        if block:
+            extra["engineering"] = {k: {"value": _num(v["value"]),
+                                        "std": None if v["std"] is None else _num(v["std"])}
+                                    for k, v in block.items()}
+    return extra | {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "session_id": session_id,
         "declared_model": declared_model or result.model,
-        "model": result.model,
+        "model": model,
         "afc": afc if afc is not None else afc_block(result),
         "parameters": params,
-        "effects": [],
-        "loop": {"stages": [stage], "unexplained_residual": unexplained(result)},
+        "effects": effects,
+        "loop": loop_block,
         "identification": {
             "status": result.status.value,
             "converged": result.converged,

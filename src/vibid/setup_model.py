@@ -47,6 +47,7 @@ class Specimen:
     width_m: float
     thickness_m: float
     density_kg_m3: float
+    thickness_std_m: float | None = None  # optional: the thickness's standard uncertainty
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,7 @@ class Setup:
     specimen: Specimen
     sensors: Sensors
     daq: Daq
-    excitation: Excitation
+    excitation: Excitation | None  # None: an AFC measured elsewhere (no time records)
     identification: Identification
 
     # -- conversion ---------------------------------------------------------------
@@ -128,7 +129,12 @@ class Setup:
 
     def to_dict(self) -> dict[str, Any]:
         doc = asdict(self)
-        doc["excitation"]["frequencies_hz"] = list(self.excitation.frequencies_hz)
+        if self.specimen.thickness_std_m is None:
+            del doc["specimen"]["thickness_std_m"]
+        if self.excitation is None:
+            del doc["excitation"]
+        else:
+            doc["excitation"]["frequencies_hz"] = list(self.excitation.frequencies_hz)
         doc["identification"]["bounds"] = {
             k: [float(lo), float(hi)] for k, (lo, hi) in self.identification.bounds.items()
         }
@@ -163,6 +169,10 @@ def setup_problems(s: Setup) -> list[str]:
     sp = s.specimen
     for name in ("length_m", "width_m", "thickness_m", "density_kg_m3"):
         positive(f"specimen.{name}", getattr(sp, name))
+    if sp.thickness_std_m is not None and not (math.isfinite(sp.thickness_std_m)
+                                               and sp.thickness_std_m >= 0):
+        out.append(f"setup.specimen.thickness_std_m: must be zero or positive, got "
+                   f"{sp.thickness_std_m!r}")
 
     positive("sensors.base.sensitivity_mV_per_g", s.sensors.base.sensitivity_mV_per_g)
     r = s.sensors.response
@@ -184,6 +194,14 @@ def setup_problems(s: Setup) -> list[str]:
         )
 
     positive("daq.sample_rate_hz", s.daq.sample_rate_hz)
+    if s.excitation is not None:
+        out.extend(_excitation_problems(s))
+    out.extend(_identification_problems(s.identification))
+    return out
+
+
+def _excitation_problems(s: Setup) -> list[str]:
+    out = []
     freqs = s.excitation.frequencies_hz
     if not freqs:
         out.append("setup.excitation.frequencies_hz: must list at least one frequency")
@@ -197,8 +215,6 @@ def setup_problems(s: Setup) -> list[str]:
             )
     if not (math.isfinite(s.excitation.settle_s) and s.excitation.settle_s >= 0):
         out.append(f"setup.excitation.settle_s: must be zero or positive, got {s.excitation.settle_s!r}")
-
-    out.extend(_identification_problems(s.identification))
     return out
 
 
@@ -268,7 +284,8 @@ class _Reader:
         base = self._section(sen, "base", "setup.sensors") if sen else {}
         resp = self._section(sen, "response", "setup.sensors") if sen else {}
         daq = self._section(root, "daq", "setup")
-        exc = self._section(root, "excitation", "setup")
+        # an imported AFC's setup has no excitation (session-format.md)
+        exc = self._section(root, "excitation", "setup") if "excitation" in root else None
         ide = self._section(root, "identification", "setup")
 
         p = "setup.specimen"
@@ -278,6 +295,8 @@ class _Reader:
             width_m=self._num(sp, "width_m", p) if sp else math.nan,
             thickness_m=self._num(sp, "thickness_m", p) if sp else math.nan,
             density_kg_m3=self._num(sp, "density_kg_m3", p) if sp else math.nan,
+            thickness_std_m=(self._num(sp, "thickness_std_m", p)
+                             if sp and "thickness_std_m" in sp else None),
         )
         p = "setup.sensors.response"
         sensors = Sensors(
@@ -288,7 +307,7 @@ class _Reader:
             ),
         )
         daq_ = Daq(self._num(daq, "sample_rate_hz", "setup.daq") if daq else math.nan)
-        excitation = Excitation(
+        excitation = None if exc is None else Excitation(
             frequencies_hz=self._frequencies(exc) if exc else (),
             settle_s=self._num(exc, "settle_s", "setup.excitation") if exc else math.nan,
         )

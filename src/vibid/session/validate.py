@@ -113,10 +113,13 @@ def _setup_problems(raw) -> Iterator[Problem]:
         yield Problem("/@setup", f"not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})")
         return
     try:
-        parse_setup(doc)
+        setup = parse_setup(doc)
     except SetupError as exc:
         for problem in exc.problems:
             yield Problem(f"/@{problem.split(': ', 1)[0]}", problem.split(": ", 1)[1])
+        return
+    if setup.excitation is None:  # only an imported AFC's setup may leave it out
+        yield Problem("/@setup.excitation", "missing: a session file records a stepped sine")
 
 
 def steps_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Problem]:

@@ -47,6 +47,9 @@ class SessionWriter:
         self.path = os.fspath(path)
         if os.path.exists(self.path):
             raise VibidError(f"{self.path}: already exists; a session file is never overwritten")
+        if setup.excitation is None:
+            raise VibidError("a session needs the setup's excitation (the stepped sine it "
+                             "records); only an imported AFC's setup leaves it out")
         self.setup = setup
         self.session_id = session_id or str(uuid.uuid4())
         self.n_steps = 0

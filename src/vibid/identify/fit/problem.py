@@ -186,6 +186,12 @@ class LeastSquaresProblem:
     def residuals(self, u) -> np.ndarray:
         return np.asarray(self._res_u(np.asarray(u, float), *self._args()))
 
+    def residuals_theta(self, theta) -> np.ndarray:
+        """The weighted residuals (real parts, then imaginary) at physical ``theta`` (also
+        where ``u`` is not finite: a null value on a log parameter's edge)."""
+        r = (self.on_points(self.model_afc(theta)) - self._H) / self.sigma
+        return np.concatenate([r.real, r.imag])
+
     def jacobian(self, u) -> np.ndarray:
         return np.asarray(self._jac_u(np.asarray(u, float), *self._args()))
 

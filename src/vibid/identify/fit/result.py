@@ -121,6 +121,10 @@ class IdentificationResult:
         unexplained error); nan when they are unknown.
     model_afc: (n,) the model AFC at the estimate on all given frequencies (nan where a
         point was not used).
+    weights: (n_used,) the standard uncertainties chi2 was weighted with on the used points
+        (the data's, with the model's unexplained error).
+    plate_model: the :class:`~vibid.identify.model.terms.PlateModel` fitted (None for a
+        forward model that has none).
     """
 
     model: str
@@ -147,6 +151,8 @@ class IdentificationResult:
     seconds: float = float("nan")
     model_error_bias: np.ndarray | None = None
     chi2_reduced_data_weights: float = float("nan")
+    weights: np.ndarray | None = None
+    plate_model: object = None
 
     @property
     def converged(self) -> bool:

@@ -88,5 +88,6 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
         global_result=global_result, local_results=tuple(runs), warnings=tuple(warnings),
         model_error_bias=None if systematic is None else systematic.bias,
         chi2_reduced_data_weights=chi2_red_data,
-        seconds=time.perf_counter() - t0,
+        seconds=time.perf_counter() - t0, weights=np.asarray(problem.sigma, float).copy(),
+        plate_model=getattr(problem.model, "param", None),
     )

@@ -172,7 +172,8 @@ def _orthonormal(V, E, tol):
     (the second pass restores the digits the first loses to its squared conditioning).
     ``E`` should be an energy norm (stiffness plus mass): judging rank by the mass alone
     would drop curvature-rich directions that matter to the stiffness."""
-    V = V / np.sqrt(np.einsum("ij,ij->j", V, E @ V))
+    norm2 = np.einsum("ij,ij->j", V, E @ V)
+    V = V[:, norm2 > 0] / np.sqrt(norm2[norm2 > 0])  # a zero column (a null sensitivity)
     for k in range(2):
         G = V.T @ (E @ V)
         s, U = np.linalg.eigh(0.5 * (G + G.T))

@@ -1,0 +1,354 @@
+"""The closed loop: residual → the effect the model lacks → add it → refit → error before
+and after.
+
+1. Fit the declared model (:func:`vibid.identify.fit.identify`) and test its residual
+   against the noise (:mod:`vibid.identify.fit.noise`): chi2 below its 0.999 quantile and a
+   white normalised residual along frequency (Ljung-Box). A fit to the noise ends the loop:
+   no effect is ever added to data the model already explains.
+2. Otherwise score every candidate at the current fit with a score (Lagrange-multiplier)
+   test: with ``r`` the weighted residual and ``J`` the Jacobian of the model extended by the
+   candidate, at the current estimate and the candidate's null value,
+   ``LM = rᵀ (P_ext − P) r``, ``P`` the projector onto the current parameters' sensitivities
+   (χ² with as many degrees of freedom as the candidate adds, under the null). Its
+   collinearity is how much of its sensitivity the current parameters already explain.
+3. Refit the best few candidates from the current fit (several starts along the new
+   parameter), keep the one whose likelihood-ratio ``Δχ²`` (same weights) passes the 99 %
+   quantile and is largest; repeat until the residual fits the noise or nothing helps
+   (``unexplained_residual``).
+
+A candidate is an effect of :mod:`vibid.identify.effects`, or ``anisotropy`` (the isotropic
+material replaced by the orthotropic one, started from the isotropic fit).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vibid.errors import VibidError
+from vibid.identify.fit.data import fit_data
+from vibid.identify.fit.local import LOCAL_METHODS
+from vibid.identify.fit.noise import QUANTILE, fits_noise, ljung_box_p
+from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.result import IdentificationResult
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.strategy import identify
+from vibid.identify.model.materials import Material
+from vibid.identify.model.terms import PlateModel
+
+log = logging.getLogger(__name__)
+
+#: A residual whose Ljung-Box p-value is below this is structured (not white).
+WHITENESS_P = 1e-3
+#: Candidates refitted per round (the highest scores that pass the score test).
+REFITS_PER_ROUND = 3
+#: A candidate's score must pass this quantile of chi-square to be refitted, and its
+#: refit's likelihood ratio the same to be kept.
+KEEP_QUANTILE = 0.99
+#: Starts of a refit along the new parameter, in the coordinates u of its prior box.
+REFIT_STARTS_U = (-0.75, -0.25, 0.25, 0.75)
+
+
+# -- candidates ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Candidate:
+    """One way to extend a model: an effect term, or the anisotropic material."""
+
+    name: str
+
+    def applies(self, model: PlateModel) -> bool:
+        if self.name == "anisotropy":
+            return model.material.model == "isotropic"
+        return self.name not in model.effect_names
+
+    def extend(self, model: PlateModel) -> PlateModel:
+        if self.name == "anisotropy":
+            return PlateModel(Material("orthotropic", model.material.per_modulus_loss),
+                              model.effects)
+        from vibid.identify.effects import EFFECTS
+
+        return model.with_effect(EFFECTS[self.name])
+
+    def at_null(self, values: dict, box: dict) -> dict:
+        """The extended model's parameters where it equals the current model: the null
+        value (a stand-in far beyond the prior box for a null at infinity)."""
+        if self.name == "anisotropy":
+            D, nu = values["D"], values["nu"]
+            out = {k: v for k, v in values.items() if k not in ("D", "nu")}
+            return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D}
+        from vibid.identify.effects import EFFECTS
+
+        out = dict(values)
+        own = self.bounds(box)
+        for q in EFFECTS[self.name].parameters:
+            out[q.name] = 100.0 * own[q.name][1] if math.isinf(q.null) else q.null
+        return out
+
+    def bounds(self, box: dict) -> dict:
+        """The prior box of the new parameters (the setup's if it names them)."""
+        if self.name == "anisotropy":
+            lo, hi = box["D"]
+            return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
+                    "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
+        from vibid.identify.effects import EFFECTS
+
+        return {q.name: tuple(box.get(q.name, q.bounds)) for q in EFFECTS[self.name].parameters}
+
+
+def all_candidates() -> tuple[Candidate, ...]:
+    from vibid.identify.effects import EFFECTS
+
+    return tuple(Candidate(n) for n in EFFECTS) + (Candidate("anisotropy"),)
+
+
+# -- what the loop reports ----------------------------------------------------------------
+@dataclass(frozen=True)
+class Score:
+    """A candidate scored at the current fit (and refitted if it scored high enough)."""
+
+    name: str
+    score: float  # LM statistic
+    dof: int
+    p_value: float
+    collinearity: float  # 0: orthogonal to the current parameters, 1: indistinguishable
+    delta_chi2: float = math.nan  # the refit's likelihood ratio (same weights), if refitted
+    kept: bool = False
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Stage:
+    """The model after one step of the loop: ``added`` is None for the declared model."""
+
+    added: str | None
+    result: IdentificationResult
+    ljung_box_p: float
+
+    @property
+    def fits_noise(self) -> bool:
+        return bool(fits_noise(self.result.chi2, self.result.dof, self.result.noise_known)
+                    and not self.ljung_box_p < WHITENESS_P)
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    stages: tuple[Stage, ...]
+    rounds: tuple[tuple[Score, ...], ...]
+    unexplained_residual: bool
+    warnings: tuple[str, ...] = field(default=())
+    seconds: float = math.nan
+
+    @property
+    def final(self) -> IdentificationResult:
+        return self.stages[-1].result
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        return tuple(s.added for s in self.stages[1:])
+
+    def summary(self) -> str:
+        """The error before and after, stage by stage, then the final model's summary."""
+        lines = ["closed loop:"]
+        for st in self.stages:
+            r = st.result
+            what = "declared model" if st.added is None else f"+ {st.added}"
+            lines.append(f"  {what:<28} chi2_reduced {r.chi2_reduced:10.4g}  rel_rms_residual "
+                         f"{r.rel_rms_residual:.3g}  whiteness p {st.ljung_box_p:.2g}")
+        lines.append("  the residual " + ("still holds an effect no candidate explains "
+                                          "(unexplained_residual)" if self.unexplained_residual
+                                          else "is at the noise level"))
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines) + "\n" + self.final.summary()
+
+
+# -- the loop -------------------------------------------------------------------------------
+def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_rounds: int = 4,
+               restarts: int = 5, seed=0, progress=None, local: str = "newton",
+               declared: IdentificationResult | None = None) -> LoopResult:
+    """Fit the declared model, then add the effects the residual asks for (module doc).
+
+    ``candidates``: names to consider (default: every effect and ``anisotropy``);
+    ``declared``: the declared model's result when already computed.
+    """
+    t0 = time.perf_counter()
+    pool = all_candidates()
+    if candidates is not None:
+        names = {c.name for c in pool}
+        unknown = sorted(set(candidates) - names)
+        if unknown:
+            raise VibidError(f"unknown candidate {', '.join(unknown)}: expected some of "
+                             f"{', '.join(sorted(names))}")
+        pool = tuple(c for c in pool if c.name in set(candidates))
+    if declared is None:
+        declared = identify(setup, frequency_hz, H, std, used=used, restarts=restarts,
+                            seed=seed, progress=progress, local=local)
+    stages = [_stage(None, declared)]
+    warnings = []
+    if not declared.noise_known:
+        warnings.append("the AFC's uncertainty is unknown: the loop cannot test the residual "
+                        "against the noise, so no effect was looked for")
+        return LoopResult(tuple(stages), (), False, tuple(warnings), time.perf_counter() - t0)
+    data = fit_data(frequency_hz, H, std, used)
+    box = dict(setup.identification.bounds)
+    rounds = []
+    for _ in range(max_rounds):
+        current = stages[-1]
+        if current.fits_noise:
+            break
+        model = current.result.plate_model
+        todo = [c for c in pool if c.applies(model)]
+        if not todo:
+            break
+        scores, best = _round(setup, data, current, todo, box, local)
+        rounds.append(tuple(scores))
+        if best is None:
+            break
+        stages.append(best)
+    final = stages[-1]
+    unexplained = not final.fits_noise
+    for s in rounds[-1] if rounds else ():
+        if s.kept and s.collinearity > 0.9:
+            warnings.append(
+                f"{s.name} is nearly collinear with the declared parameters (cosine "
+                f"{s.collinearity:.5f}): the data separate them only through the "
+                f"{100 * math.sqrt(max(1 - s.collinearity**2, 0)):.2g} % of its sensitivity "
+                "the others cannot mimic; its std and theirs include that")
+    return LoopResult(tuple(stages), tuple(rounds), unexplained, tuple(warnings),
+                      time.perf_counter() - t0)
+
+
+def _stage(added, result: IdentificationResult) -> Stage:
+    u = result.used
+    r = (result.model_afc[u] - result.H[u]) / result.weights
+    return Stage(added, result, ljung_box_p(np.concatenate([r.real, r.imag])))
+
+
+def _round(setup, data, current: Stage, todo, box, local):
+    """Score every candidate, refit the best few, and return (scores, the new stage or
+    None)."""
+    res = current.result
+    values = res.parameters
+    scores = []
+    for cand in todo:
+        try:
+            scores.append(_score(setup, data, res, cand, values, box))
+        except Exception as exc:  # noqa: BLE001 - a candidate that fails is reported, not fatal
+            scores.append(Score(cand.name, math.nan, 0, math.nan, math.nan,
+                                note=f"could not be scored: {exc}"))
+    from scipy.stats import chi2 as chi2_dist
+
+    ranked = sorted((s for s in scores if np.isfinite(s.score)
+                     and s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof)),
+                    key=lambda s: -s.score)[:REFITS_PER_ROUND]
+    best, best_gain = None, 0.0
+    done = {}
+    for s in ranked:
+        cand = next(c for c in todo if c.name == s.name)
+        try:
+            stage, gain = _refit(setup, data, res, cand, values, box, local)
+        except Exception as exc:  # noqa: BLE001
+            done[s.name] = (math.nan, False, f"refit failed: {exc}")
+            continue
+        passes = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof)
+        done[s.name] = (gain, False, "" if passes else "the refit does not improve chi2 "
+                        "significantly")
+        if passes and gain > best_gain:
+            best, best_gain = stage, gain
+    out = []
+    for s in scores:
+        if s.name in done:
+            gain, _, note = done[s.name]
+            s = Score(s.name, s.score, s.dof, s.p_value, s.collinearity, gain,
+                      best is not None and best.added == s.name, note)
+        out.append(s)
+    return out, best
+
+
+def _extended_problem(setup, data, res, cand, values, box, weights):
+    from vibid.identify.model.forward import build_forward_model
+
+    model = cand.extend(res.plate_model)
+    start = cand.at_null(values, box)
+    ext_box = model.default_bounds(box | cand.bounds(box))
+    fm = build_forward_model(setup, data.frequency_hz[data.used], model=model, theta0=start,
+                             bounds=ext_box)
+    space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
+                                       {q.name: q.kind for q in model.parameters})
+    return LeastSquaresProblem(fm, data, space, weights), start, ext_box
+
+
+def _score(setup, data, res, cand, values, box) -> Score:
+    problem, start, _ = _extended_problem(setup, data, res, cand, values, box, res.weights)
+    names = problem.space.names
+    theta = np.array([start[n] for n in names])
+    J = problem.jacobian_theta(theta)
+    r = problem.residuals_theta(theta)
+    J_small, new = _current_directions(cand, J, names, values, res.parameter_names)
+    lm = max(_projected(J, r) - _projected(J_small, r), 0.0)
+    dof = len(names) - len(res.parameter_names)
+    from scipy.stats import chi2 as chi2_dist
+
+    return Score(cand.name, float(lm), dof, float(chi2_dist.sf(lm, dof)),
+                 _collinearity(J_small, J[:, new]))
+
+
+def _current_directions(cand, J, names, values, current_names):
+    """The current model's sensitivities inside the extended model's (its tangent space at
+    the null), and the indices of the extension's new directions."""
+    i = {n: k for k, n in enumerate(names)}
+    shared = [i[n] for n in current_names if n in i]
+    if cand.name != "anisotropy":
+        return J[:, shared], [k for k in range(len(names)) if k not in shared]
+    D, nu = values["D"], values["nu"]  # d(D11, D12, D22, D66) / d(D, nu) at the null
+    jD = J[:, i["D11"]] + nu * J[:, i["D12"]] + J[:, i["D22"]] + 0.5 * (1 - nu) * J[:, i["D66"]]
+    jnu = D * J[:, i["D12"]] - 0.5 * D * J[:, i["D66"]]
+    return np.column_stack([jD, jnu] + [J[:, k] for k in shared]), [i["D22"], i["D66"]]
+
+
+def _projected(J, r) -> float:
+    """``rᵀ P r``, P the projector onto the columns of J (scale-invariant, rank-safe)."""
+    scale = np.linalg.norm(J, axis=0)
+    Jn = J / np.where(scale > 0, scale, 1.0)
+    Q, s, _ = np.linalg.svd(Jn, full_matrices=False)
+    Q = Q[:, s > 1e-10 * s.max()]
+    return float(np.sum((Q.T @ r) ** 2))
+
+
+def _collinearity(J_old, J_new) -> float:
+    """How much of the extension the current parameters can mimic: the cosine between a
+    new direction and the span of the current ones (the smallest over the new directions:
+    the data see the extension through its least mimicked direction)."""
+    Q, s, _ = np.linalg.svd(J_old / np.linalg.norm(J_old, axis=0), full_matrices=False)
+    Q = Q[:, s > 1e-10 * s.max()]
+    cos = [np.linalg.norm(Q.T @ v) / np.linalg.norm(v) for v in J_new.T if np.linalg.norm(v) > 0]
+    return float(min(cos)) if cos else math.nan
+
+
+def _refit(setup, data, res, cand, values, box, local):
+    """Local fits of the extended model from the current estimate (several starts along the
+    new parameters), then the full identification from the best; returns (stage, Δχ²)."""
+    problem, start, ext_box = _extended_problem(setup, data, res, cand, values, box, res.weights)
+    space = problem.space
+    names = space.names
+    with np.errstate(divide="ignore"):  # a null on a log parameter's edge: u = -inf
+        u0 = space.to_u(np.array([start[n] for n in names]))
+    new = [i for i, n in enumerate(names) if n not in res.parameter_names]
+    starts = [np.clip(u0, -5, 5)]
+    for v in REFIT_STARTS_U:
+        u = u0.copy()
+        u[new] = v
+        starts.append(u)
+    run = LOCAL_METHODS[local]
+    runs = [run(problem.with_model(problem.model.refresh(space.theta(u))), u) for u in starts]
+    best = min(runs, key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
+    gain = res.chi2 - best.loss
+    fm = problem.model.refresh(best.theta)
+    result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
+                      model=fm.param.model, forward_model=fm, method="local",
+                      start=dict(zip(names, best.theta)), bounds=ext_box, local=local)
+    log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, best.loss)
+    return _stage(cand.name, result), float(gain)
