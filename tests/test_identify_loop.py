@@ -65,13 +65,21 @@ def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect
 
 
 def test_the_session_path_reports_the_loop(tmp_path):
-    """session (undeclared delay on the virtual stand) -> vibid identify -> report."""
+    """vibid simulate (an undeclared delay on the virtual stand) -> vibid identify -> report."""
     from vibid.cli import main
-    from vibid.hardware_mocks.simulated_session import simulate_session
+    from vibid.session import read_session
 
     freqs = tuple(22.5 * k for k in range(1, 41))
+    setup_path = tmp_path / "setup.json"
+    setup_path.write_text(_setup(freqs).to_json())
     path = tmp_path / "session.h5"
-    simulate_session(path, _setup(freqs), TRUTH | {"tau_s": 3e-5}, seed=2, accuracy="fine")
+    assert main(["simulate", str(setup_path), "--out", str(path), "--params", "D=17.97",
+                 "nu=0.286", "beta=0.003", "--effect", "channel_delay:tau_s=3e-5",
+                 "--seed", "2"]) == 0
+    with read_session(path) as r:  # the effect is in the data, not in the declared setup
+        assert "tau_s" not in r.setup.to_json()
+    truth = json.loads((tmp_path / "session.truth.json").read_text())
+    assert truth["parameters"]["tau_s"] == 3e-5
     report = tmp_path / "report.json"
     assert main(["identify", str(path), "--json", str(report), "--no-progress",
                  "--restarts", "2"]) == 0

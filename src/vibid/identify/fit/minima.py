@@ -111,7 +111,10 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
         rivals.append((r, d))
     if not rivals:
         return cov, None
-    w = np.array([1.0] + [np.exp(-(r.loss - best.loss) / (2 * noise_var)) for r, _ in rivals])
+    # weights relative to the lowest chi2 (under the final weights a rival may lie lower
+    # than the best, which was chosen under earlier ones): no overflow
+    losses = np.array([best.loss] + [r.loss for r, _ in rivals])
+    w = np.exp(-(losses - losses.min()) / (2 * noise_var))
     second = np.zeros_like(cov)
     for wi, (_, d) in zip(w[1:], rivals):
         second += wi * np.outer(d, d)

@@ -1,0 +1,89 @@
+"""`vibid simulate SETUP.json --out S.h5 [--params D=17.97 nu=0.286 beta=0.003]
+[--effect channel_delay:tau_s=2e-5 ...] [--noise 0.003] [--seed N]`: a whole session from
+the virtual stand.
+
+The virtual specimen is the full FE model of the declared plate plus any effect of the
+library (:mod:`vibid.identify.effects`), which goes into the data and nowhere into the
+file's declared setup; the truth goes to a sidecar ``S.truth.json``. ``--noise`` is each
+channel's noise standard deviation relative to the base acceleration amplitude. No
+real-time waiting.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+from vibid.errors import VibidError
+
+
+def add_parser(sub):
+    p = sub.add_parser("simulate", help="record a session on the virtual stand",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("setup", metavar="SETUP.json", help="the declared setup (with excitation)")
+    p.add_argument("--out", required=True, metavar="S.h5", help="the session file to write")
+    p.add_argument("--params", nargs="+", metavar="NAME=VALUE",
+                   help="the plate's true material parameters (default: the middle of the "
+                   "setup's bounds)")
+    p.add_argument("--effect", nargs="+", default=[], metavar="NAME:PARAM=VALUE",
+                   help="effects in the data, e.g. channel_delay:tau_s=2e-5")
+    p.add_argument("--noise", type=float, default=0.0004,
+                   help="noise std of each channel relative to the base amplitude "
+                   "(default 0.0004)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise")
+    p.set_defaults(run=run)
+
+
+def _effects(items) -> dict[str, float]:
+    from vibid.cli.modes import parse_params
+    from vibid.identify.effects import EFFECTS
+
+    out = {}
+    for item in items:
+        name, sep, rest = item.partition(":")
+        if name not in EFFECTS:
+            raise VibidError(f"--effect: unknown effect {name!r}, expected one of "
+                             f"{', '.join(EFFECTS)}")
+        values = parse_params(rest.split(",")) if sep and rest else {}
+        own = {q.name for q in EFFECTS[name].parameters}
+        if set(values) != own:
+            raise VibidError(f"--effect {name}: give {', '.join(sorted(own))} "
+                             f"(e.g. {name}:{sorted(own)[0]}=...)")
+        out |= values
+    return out
+
+
+def run(args) -> int:
+    from vibid.cli.modes import load_setup, parse_params
+    from vibid.hardware_mocks.simulated_session import StandConditions, simulate_session
+    from vibid.identify import configure
+    from vibid.identify.model.forward import plate_model_for
+
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        raise VibidError("--noise must be zero or positive")
+    setup = load_setup(args.setup)
+    if setup.excitation is None:
+        raise VibidError(f"{args.setup}: the setup has no excitation to play")
+    if args.params:
+        params = parse_params(args.params)
+    else:
+        params = {n: math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
+                  for n, (lo, hi) in setup.identification.bounds.items()
+                  if n in setup.identification.parameter_names}
+    truth = params | _effects(args.effect)
+    plate_model_for(truth)  # every name known, one-line error otherwise
+    out = Path(args.out)
+    if out.exists():
+        raise VibidError(f"{out}: already exists; a session file is never overwritten")
+    configure()
+    base = StandConditions()
+    conditions = dataclasses.replace(
+        base, noise_std_m_s2=(args.noise * base.base_amplitude_m_s2,) * 2)
+    simulate_session(out, setup, truth, conditions=conditions, seed=args.seed)
+    sidecar = out.with_name(out.stem + ".truth.json")
+    sidecar.write_text(json.dumps({"parameters": truth, "noise": args.noise, "seed": args.seed},
+                                  indent=1) + "\n")
+    print(f"{out}: {len(setup.excitation.frequencies_hz)} steps; truth in {sidecar}")
+    return 0
