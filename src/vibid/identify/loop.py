@@ -208,6 +208,7 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
         if best is None:
             break
         stages.append(best)
+        box = box | next(c for c in todo if c.name == best.added).bounds(box)
     final = stages[-1]
     unexplained = not final.fits_noise
     for s in rounds[-1] if rounds else ():
@@ -253,9 +254,11 @@ def _round(setup, data, current: Stage, todo, box, local):
         except Exception as exc:  # noqa: BLE001
             done[s.name] = (math.nan, False, f"refit failed: {exc}")
             continue
-        passes = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof)
-        done[s.name] = (gain, False, "" if passes else "the refit does not improve chi2 "
-                        "significantly")
+        passes = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and stage.result.converged
+        note = "" if passes else ("the refit does not improve chi2 significantly"
+                                  if stage.result.converged else
+                                  f"the refit did not converge ({stage.result.message})")
+        done[s.name] = (gain, False, note)
         if passes and gain > best_gain:
             best, best_gain = stage, gain
     out = []
