@@ -47,6 +47,7 @@ def test_clean_data_get_nothing_added(seed):
     assert loop.rounds == ()  # the declared model fits the noise: nothing is even scored
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect, value", [("channel_delay", {"tau_s": 2e-5}),
                                            ("clamp_compliance", {"k_theta_N_per_rad": 1.6e4})])
 def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect, value):
@@ -64,6 +65,7 @@ def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect
     assert scores[effect].kept and scores[effect].score > 100
 
 
+@pytest.mark.slow
 def test_the_session_path_reports_the_loop(tmp_path):
     """vibid simulate (an undeclared delay on the virtual stand) -> vibid identify -> report."""
     from vibid.cli import main
