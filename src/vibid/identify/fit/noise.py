@@ -59,7 +59,7 @@ def fits(chi2: float, dof: int, n_points: int, noise_known: bool) -> bool:
 
 def ljung_box_p(residual, lags: int | None = None) -> float:
     """p-value of the Ljung-Box test that ``residual`` (real, ordered by frequency; for a
-    complex AFC pass Re and Im of the normalised residual one after the other per point)
+    complex AFC pass the normalised residual's real parts, then its imaginary parts)
     is white: ``Q = n (n + 2) Σ_k ρ_k² / (n - k)`` over ``lags`` lags (default
     ``min(20, n // 5)``), chi-square with ``lags`` degrees of freedom under the null
     (Ljung & Box, Biometrika 65, 1978). A residual that is structured along the
