@@ -56,6 +56,10 @@ REFITS_PER_ROUND = 3
 #: A candidate's score must pass this quantile of chi-square to be refitted, and its
 #: refit's likelihood ratio the same to be kept.
 KEEP_QUANTILE = 0.99
+#: A kept effect must lie this many standard deviations from its null value (Wald): a
+#: refit that lowers chi2 while its effect stays at the null (a different reduced basis
+#: fitting the mesh error a little better) adds nothing physical.
+KEEP_Z = 3.0
 #: Starts of a refit along the new parameter, in the coordinates u of its prior box.
 REFIT_STARTS_U = (-0.75, -0.25, 0.25, 0.75)
 
@@ -94,6 +98,35 @@ class Candidate:
         for q in EFFECTS[self.name].parameters:
             out[q.name] = 100.0 * own[q.name][1] if math.isinf(q.null) else q.null
         return out
+
+    def distance_from_null(self, result) -> float:
+        """How many standard deviations the fitted extension lies from its null (Wald z;
+        for a null at infinity, in the compliance 1/k: z = k / std k)."""
+        p, sd = result.parameters, result.parameter_std
+        if self.name == "anisotropy":
+            names = list(result.parameter_names)
+            C = np.asarray(result.covariance)
+            z = []
+            for combo in ({"D22": 1.0, "D11": -1.0}, {"D66": 2.0, "D11": -1.0, "D12": 1.0}):
+                g = np.zeros(len(names))
+                for n, c in combo.items():
+                    g[names.index(n)] = c
+                theta = np.asarray(result.values)
+                var = float(g @ C @ g)
+                z.append(abs(float(g @ theta)) / math.sqrt(var) if var > 0 else math.inf)
+            return max(z)
+        from vibid.identify.effects import EFFECTS
+
+        z = []
+        for q in EFFECTS[self.name].parameters:
+            v, s = p[q.name], sd[q.name]
+            if not (np.isfinite(s) and s > 0):
+                z.append(math.inf)
+            elif math.isinf(q.null):
+                z.append(abs(v) / s)
+            else:
+                z.append(abs(v - q.null) / s)
+        return max(z)
 
     def bounds(self, box: dict) -> dict:
         """The prior box of the new parameters (the setup's if it names them)."""
@@ -261,17 +294,24 @@ def _round(setup, data, current: Stage, todo, box, local):
     for s in ranked:
         cand = next(c for c in todo if c.name == s.name)
         try:
-            stage, gain = _refit(setup, data, res, cand, values, box, local)
+            stage, gain = _refit(setup, data, res, cand, values, box, local,
+                                 search=s is ranked[0])
         except Exception as exc:  # noqa: BLE001
             done[s.name] = (math.nan, False, f"refit failed: {exc}")
             continue
         # significant under the current weights, and lower under the stage's own (the
         # extended model's error re-estimated): an effect must explain data, not mesh error
+        z = cand.distance_from_null(stage.result)
         passes = (gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and stage.result.converged
-                  and stage.result.chi2 < res.chi2)
-        note = "" if passes else ("the refit does not improve chi2 significantly"
-                                  if stage.result.converged else
-                                  f"the refit did not converge ({stage.result.message})")
+                  and stage.result.chi2 < res.chi2 and z > KEEP_Z)
+        if passes:
+            note = ""
+        elif not stage.result.converged:
+            note = f"the refit did not converge ({stage.result.message})"
+        elif z <= KEEP_Z:
+            note = f"the refit leaves it at its null value ({z:.2g} std from it)"
+        else:
+            note = "the refit does not improve chi2 significantly"
         done[s.name] = (gain, False, note)
         if passes and gain > best_gain:
             best, best_gain = stage, gain
@@ -345,9 +385,13 @@ def _collinearity(J_old, J_new) -> float:
     return float(min(cos)) if cos else math.nan
 
 
-def _refit(setup, data, res, cand, values, box, local):
+def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     """Local fits of the extended model from the current estimate (several starts along the
-    new parameters), then the full identification from the best; returns (stage, Δχ²)."""
+    new parameters), then the full identification from the best; returns (stage, Δχ²).
+    With ``search``, when the local refit does not fit the noise (the current estimate may
+    lie in a wrong basin of the extended model: an orthotropic plate fitted as isotropic),
+    also a global search of the extended model over its prior box, and the better of the
+    two (chi2 under the current weights)."""
     problem, start, ext_box = _extended_problem(setup, data, res, cand, values, box, res.weights)
     space = problem.space
     names = space.names
@@ -362,10 +406,24 @@ def _refit(setup, data, res, cand, values, box, local):
     run = LOCAL_METHODS[local]
     runs = [run(problem.with_model(problem.model.refresh(space.theta(u))), u) for u in starts]
     best = min(runs, key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
-    gain = res.chi2 - best.loss
     fm = problem.model.refresh(best.theta)
     result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                       model=fm.param.model, forward_model=fm, method="local",
                       start=dict(zip(names, best.theta)), bounds=ext_box, local=local)
-    log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, best.loss)
-    return _stage(cand.name, result), float(gain)
+    loss = best.loss
+    if search and not fits_noise(loss, problem.dof, True):
+        from vibid.identify.model.forward import build_forward_model
+
+        wide = build_forward_model(setup, data.frequency_hz[data.used], model=fm.param,
+                                   bounds=ext_box)
+        found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
+                         model=fm.param.model, forward_model=wide, bounds=ext_box,
+                         restarts=3, seed=0, local=local)
+        local_model = problem.model.refresh(found.values)
+        found_loss = problem.with_model(local_model).chi2(space.to_u(found.values))
+        log.info("loop: %s searched globally, chi2 %.6g (local refit %.6g)", cand.name,
+                 found_loss, loss)
+        if found.converged and found_loss < loss:
+            result, loss = found, found_loss
+    log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
+    return _stage(cand.name, result), float(res.chi2 - loss)

@@ -159,8 +159,12 @@ def _f64(x):
 
 def covers(outer: dict, inner: dict, names) -> bool:
     """Whether the box ``outer`` contains ``inner`` for every parameter in ``names``."""
-    return all(n in outer and n in inner and outer[n][0] <= inner[n][0] * (1 + 1e-12)
-               and inner[n][1] <= outer[n][1] * (1 + 1e-12) for n in names)
+    def inside(n):
+        (a, b), (c, d) = outer[n], inner[n]
+        tol = 1e-12 * max(abs(a), abs(b), abs(c), abs(d))
+        return a <= c + tol and d <= b + tol
+
+    return all(n in outer and n in inner and inside(n) for n in names)
 
 
 @dataclass(eq=False)
