@@ -411,7 +411,7 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
                       model=fm.param.model, forward_model=fm, method="local",
                       start=dict(zip(names, best.theta)), bounds=ext_box, local=local)
     loss = best.loss
-    if search and not fits_noise(loss, problem.dof, True):
+    if search and not fits_noise(result.chi2, result.dof, True):
         from vibid.identify.model.forward import build_forward_model
 
         wide = build_forward_model(setup, data.frequency_hz[data.used], model=fm.param,
