@@ -291,11 +291,15 @@ def _round(setup, data, current: Stage, todo, box, local):
                     key=lambda s: -s.score)[:REFITS_PER_ROUND]
     best, best_gain = None, 0.0
     done = {}
-    for s in ranked:
+    # local refits of the best few; a global search of the top candidate only when none of
+    # them explains the data (an orthotropic plate fitted as isotropic)
+    plan = [(s, False) for s in ranked]
+    for i, (s, search) in enumerate(plan):
+        if search and best is not None and best.fits_noise:
+            break
         cand = next(c for c in todo if c.name == s.name)
         try:
-            stage, gain = _refit(setup, data, res, cand, values, box, local,
-                                 search=s is ranked[0])
+            stage, gain = _refit(setup, data, res, cand, values, box, local, search=search)
         except Exception as exc:  # noqa: BLE001
             done[s.name] = (math.nan, False, f"refit failed: {exc}")
             continue
@@ -312,9 +316,12 @@ def _round(setup, data, current: Stage, todo, box, local):
             note = f"the refit leaves it at its null value ({z:.2g} std from it)"
         else:
             note = "the refit does not improve chi2 significantly"
-        done[s.name] = (gain, False, note)
+        if not search or passes or s.name not in done:
+            done[s.name] = (gain, False, note + (" (global search)" if search else ""))
         if passes and gain > best_gain:
             best, best_gain = stage, gain
+        if i == len(ranked) - 1 and ranked and not (best is not None and best.fits_noise):
+            plan.append((ranked[0], True))
     out = []
     for s in scores:
         if s.name in done:
@@ -385,7 +392,7 @@ def _collinearity(J_old, J_new) -> float:
     return float(min(cos)) if cos else math.nan
 
 
-def _refit(setup, data, res, cand, values, box, local, search: bool = False):
+def _refit(setup, data, res, cand, values, box, local, search: bool = False):  # noqa: C901
     """Local fits of the extended model from the current estimate (several starts along the
     new parameters), then the full identification from the best; returns (stage, Δχ²).
     With ``search``, when the local refit does not fit the noise (the current estimate may
