@@ -46,9 +46,3 @@ def problem_functions(kernel, model_idx: tuple, space):
     from vibid.identify.fit.problem import compile_problem
 
     return compile_problem(kernel, space, model_idx)
-
-
-def clear() -> None:
-    """Drop every compiled function vibid holds (JAX's own caches are left alone)."""
-    kernel_functions.cache_clear()
-    problem_functions.cache_clear()

@@ -246,10 +246,6 @@ class PlateModel:
                 out[q.name] = tuple(q.bounds)
         return out
 
-    def null_values(self) -> dict:
-        """The effects' null values (where each vanishes), by name."""
-        return {q.name: q.null for t in self.effects for q in t.parameters}
-
 
 def theta_from_dict(model: PlateModel, values: dict) -> np.ndarray:
     """The parameter vector in ``model.names`` order; KeyError naming what is missing."""
