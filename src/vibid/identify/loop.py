@@ -289,20 +289,16 @@ def _round(setup, data, current: Stage, todo, box, local):
     ranked = sorted((s for s in scores if np.isfinite(s.score)
                      and s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof)),
                     key=lambda s: -s.score)[:REFITS_PER_ROUND]
-    best, best_gain = None, 0.0
-    done = {}
-    # local refits of the best few; a global search of the top candidate only when none of
-    # them explains the data (an orthotropic plate fitted as isotropic)
-    plan = [(s, False) for s in ranked]
-    for i, (s, search) in enumerate(plan):
-        if search and best is not None and best.fits_noise:
-            break
+    done = {}  # name -> (delta chi2, note)
+
+    def attempt(s: Score, search: bool):
+        """Refit one candidate: (its stage if it is kept, else None, delta chi2)."""
         cand = next(c for c in todo if c.name == s.name)
         try:
             stage, gain = _refit(setup, data, res, cand, values, box, local, search=search)
         except Exception as exc:  # noqa: BLE001
-            done[s.name] = (math.nan, False, f"refit failed: {exc}")
-            continue
+            done.setdefault(s.name, (math.nan, f"refit failed: {exc}"))
+            return None, math.nan
         # significant under the current weights, and lower under the stage's own (the
         # extended model's error re-estimated): an effect must explain data, not mesh error
         z = cand.distance_from_null(stage.result)
@@ -317,15 +313,20 @@ def _round(setup, data, current: Stage, todo, box, local):
         else:
             note = "the refit does not improve chi2 significantly"
         if not search or passes or s.name not in done:
-            done[s.name] = (gain, False, note + (" (global search)" if search else ""))
-        if passes and gain > best_gain:
-            best, best_gain = stage, gain
-        if i == len(ranked) - 1 and ranked and not (best is not None and best.fits_noise):
-            plan.append((ranked[0], True))
+            done[s.name] = (gain, note + (" (global search)" if search else ""))
+        return (stage if passes else None), gain
+
+    # local refits of the best few; a global search of the top candidate only when none of
+    # them explains the data (an orthotropic plate fitted as isotropic)
+    kept = [attempt(s, False) for s in ranked]
+    if ranked and not any(st is not None and st.fits_noise for st, _ in kept):
+        kept.append(attempt(ranked[0], True))
+    kept = [(st, gain) for st, gain in kept if st is not None]
+    best = max(kept, key=lambda k: k[1])[0] if kept else None
     out = []
     for s in scores:
         if s.name in done:
-            gain, _, note = done[s.name]
+            gain, note = done[s.name]
             s = Score(s.name, s.score, s.dof, s.p_value, s.collinearity, gain,
                       best is not None and best.added == s.name, note)
         out.append(s)
@@ -392,7 +393,7 @@ def _collinearity(J_old, J_new) -> float:
     return float(min(cos)) if cos else math.nan
 
 
-def _refit(setup, data, res, cand, values, box, local, search: bool = False):  # noqa: C901
+def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     """Local fits of the extended model from the current estimate (several starts along the
     new parameters), then the full identification from the best; returns (stage, Δχ²).
     With ``search``, when the local refit does not fit the noise (the current estimate may
