@@ -20,12 +20,16 @@ TYPICAL = {
     "clamp_compliance": 1.6e4,
     "frequency_dependent_loss": 0.3,
     "sensor_gain": 1.02,
+    "transverse_shear": None,  # no parameter of its own on an isotropic plate
 }
 
 
 def test_every_effect_has_a_typical_size_and_declares_its_parameters():
     assert set(TYPICAL) == set(EFFECTS)
     for term in EFFECTS.values():
+        if TYPICAL[term.name] is None:
+            assert term.parameters == ()
+            continue
         assert len(term.parameters) == 1
         q = term.parameters[0]
         assert q.unit and q.null is not None and q.bounds is not None
@@ -42,6 +46,8 @@ def test_effect_in_every_evaluator(name, plain):
     import jax
 
     term = EFFECTS[name]
+    if TYPICAL[name] is None:
+        return _parameterless(name, plain)
     q = term.parameters[0]
     value = TYPICAL[name]
     fm = build_forward_model(strip_setup(), F, effects=(name,), theta0=STRIP | {q.name: value})
@@ -66,3 +72,20 @@ def test_effect_in_every_evaluator(name, plain):
     Jfd = (fm.afc_full(th + step) - fm.afc_full(th - step)) / (200 * h)
     assert np.abs(J - Jr).max() < 1e-6 * np.abs(Jr).max()
     assert np.abs(J - Jfd).max() < 1e-2 * np.abs(Jfd).max()
+
+
+def _parameterless(name, plain):
+    """A term without a parameter: reduced against full, a visible effect, and the exact
+    derivative along the material's parameters (which set its coefficients)."""
+    import jax
+
+    fm = build_forward_model(strip_setup(), F, effects=(name,), theta0=STRIP)
+    H, Hf = np.asarray(fm.afc(PAPER_THETA)), fm.afc_full(PAPER_THETA)
+    scale = np.abs(Hf).max()
+    assert np.abs(H - Hf).max() < 1e-6 * scale
+    assert np.abs(Hf - plain[1]).max() > 1e-3 * scale
+    J = np.asarray(jax.jacfwd(fm.afc)(PAPER_THETA))[:, 1]  # along nu
+    h = 1e-6
+    step = np.array([0, h, 0])
+    Jr = (np.asarray(fm.afc(PAPER_THETA + step)) - np.asarray(fm.afc(PAPER_THETA - step))) / (2 * h)
+    assert np.abs(J - Jr).max() < 1e-6 * np.abs(Jr).max()

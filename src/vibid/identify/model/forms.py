@@ -75,3 +75,15 @@ BENDING_FORMS = {
     "D26": bending_26,
     "D66": bending_66,
 }
+
+
+@BilinearForm
+def slope_x(u, v, _):
+    """``u,x v,x`` (a transverse-shear correction along x)."""
+    return grad(u)[0] * grad(v)[0]
+
+
+@BilinearForm
+def slope_y(u, v, _):
+    """``u,y v,y`` (a transverse-shear correction along y)."""
+    return grad(u)[1] * grad(v)[1]
