@@ -59,15 +59,20 @@ def _stage_block(added, result) -> dict[str, Any]:
     }
 
 
+def _effect_terms(loop) -> dict:
+    """The final model's effect terms by name (in their form for its material)."""
+    model = getattr(loop.final, "plate_model", None)
+    return {t.name: t for t in (model.effects if model is not None else ())}
+
+
 def _loop_block(loop) -> tuple[list, dict]:
     """(effects, loop block) of a :class:`vibid.identify.loop.LoopResult`."""
     final = loop.final
     std = dict(zip(final.parameter_names, final.std))
-    from vibid.identify.effects import EFFECTS
-
+    terms = _effect_terms(loop)
     effects = [{"name": name, "parameters": {
         q.name: {"value": _num(final.parameters[q.name]), "std": _num(std[q.name])}
-        for q in EFFECTS[name].parameters}} for name in loop.effects if name in EFFECTS]
+        for q in terms[name].parameters}} for name in loop.effects if name in terms]
     stages = []
     for st in loop.stages:
         block = _stage_block(st.added, st.result)
@@ -102,10 +107,7 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
         result = loop.final
     effect_params = set()
     if loop is not None:
-        from vibid.identify.effects import EFFECTS
-
-        effect_params = {q.name for n in loop.effects if n in EFFECTS
-                         for q in EFFECTS[n].parameters}
+        effect_params = {q.name for t in _effect_terms(loop).values() for q in t.parameters}
     params = {n: {"value": _num(v), "std": _num(s)}
               for n, v, s in zip(result.parameter_names, result.values, result.std)
               if n not in effect_params}

@@ -42,11 +42,13 @@ class StandConditions:
     drift_m_s2_per_s: tuple[float, float] = (0.004, -0.003)
 
 
-def true_afc(setup: Setup, params: dict, frequencies_hz, *, accuracy: str = "default") -> np.ndarray:
+def true_afc(setup: Setup, params: dict, frequencies_hz, *, accuracy: str = "default",
+             effects=()) -> np.ndarray:
     """The AFC at ``frequencies_hz`` (Hz) from the full FE model, for ``params``: a
     material's parameters, and any effect's (e.g. ``k_theta_N_per_rad``, ``tau_s``), which
-    puts that effect into the data whatever the setup declares."""
-    model = plate_model_for(params)
+    puts that effect into the data whatever the setup declares; ``effects`` names effects
+    without parameters of their own (``transverse_shear`` on an isotropic plate)."""
+    model = plate_model_for(params, effects)
     theta = theta_from_dict(model, params)
     geometry = Geometry.from_setup(setup)
     D = np.asarray(model.moduli(theta), float)

@@ -25,13 +25,19 @@ def _discover() -> dict:
 EFFECTS: dict = _discover()
 
 #: Every effect parameter by name (the setup's bounds may name them).
-EFFECT_PARAMETERS: dict = {q.name: q for term in EFFECTS.values() for q in term.parameters}
+def _all_parameters(term) -> tuple:
+    """A term's parameters in every material's form (``transverse_shear`` has ``G13_Pa``
+    on an orthotropic plate only)."""
+    return getattr(term, "all_parameters", term.parameters)
+
+
+EFFECT_PARAMETERS: dict = {q.name: q for term in EFFECTS.values() for q in _all_parameters(term)}
 
 
 def effects_for(names) -> tuple:
     """The effects whose parameters appear in ``names``, in :data:`EFFECTS` order."""
     names = set(names)
-    return tuple(t for t in EFFECTS.values() if set(t.names) & names)
+    return tuple(t for t in EFFECTS.values() if {q.name for q in _all_parameters(t)} & names)
 
 
 __all__ = ["EFFECTS", "EFFECT_PARAMETERS", "effects_for"]

@@ -331,19 +331,26 @@ def plate_model(model: str, per_modulus_loss: bool = False, effects=()) -> Plate
             if e not in EFFECTS:
                 raise VibidError(f"unknown effect {e!r}, expected one of {', '.join(EFFECTS)}")
             e = EFFECTS[e]
-        terms.append(e)
+        terms.append(e.for_material(material))
     return PlateModel(material, tuple(terms))
 
 
-def plate_model_for(names) -> PlateModel:
-    """The PlateModel whose parameters are exactly ``names`` (material and effects)."""
-    from vibid.identify.effects import effects_for
+def plate_model_for(names, effects=()) -> PlateModel:
+    """The PlateModel whose parameters are exactly ``names`` (material and effects), with
+    the effects named in ``effects`` too (those without parameters of their own, such as
+    ``transverse_shear`` on an isotropic plate, are added this way only)."""
+    from vibid.identify.effects import EFFECTS, effects_for
 
     try:
         material = infer_material(names)
     except KeyError as exc:
         raise VibidError(str(exc.args[0])) from None
-    model = PlateModel(material, effects_for(names))
+    unknown = sorted(set(effects) - set(EFFECTS))
+    if unknown:
+        raise VibidError(f"unknown effect {', '.join(unknown)}, expected one of {', '.join(EFFECTS)}")
+    found = {t.name for t in effects_for(names)} | set(effects)
+    model = PlateModel(material, tuple(t.for_material(material) for t in EFFECTS.values()
+                                       if t.name in found))
     unknown = sorted(set(names) - set(model.names))
     if unknown:
         raise VibidError(f"{', '.join(unknown)}: not a parameter of model {material.model!r} "
@@ -400,7 +407,8 @@ def build_forward_model(setup, frequencies_hz=None, *, model=None, effects=(), t
     return ForwardModel(geometry, freqs, model, box, disc, th0, kind)
 
 
-def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default"):
+def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default",
+                        effects=()):
     """Natural frequencies and decay factors of the setup's plate (with its sensor).
 
     Parameters
@@ -416,7 +424,7 @@ def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "def
     -------
     (frequency_hz (n,), decay_1_per_s (n,)): ``√Λ = 2π f + i γ`` (paper eq. 4.1.13).
     """
-    model = plate_model_for(params)
+    model = plate_model_for(params, effects)
     theta = theta_from_dict(model, params)
     geometry = Geometry.from_setup(setup)
     mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))

@@ -106,6 +106,11 @@ class Term:
     def afc_map(self, p: dict, omega, H, xp):
         return H
 
+    def for_material(self, material) -> "Term":
+        """This term's form for a plate of ``material`` (a term whose parameters depend on
+        the material, e.g. the transverse shear, returns its variant)."""
+        return self
+
 
 #: The six bending moduli (N·m), names of the plate's bending stiffness matrices
 #: (:mod:`vibid.identify.model.forms`), in the order of the session format.
@@ -160,7 +165,11 @@ class PlateModel:
         """This model with one more effect (a new value; this one is unchanged)."""
         if term.name in self.effect_names:
             return self
-        return PlateModel(self.material, tuple(self.effects) + (term,))
+        return PlateModel(self.material, tuple(self.effects) + (term.for_material(self.material),))
+
+    def with_material(self, material) -> "PlateModel":
+        """This model's effects on another material (each in its form for that material)."""
+        return PlateModel(material, tuple(t.for_material(material) for t in self.effects))
 
     # -- matrices and their coefficients at theta ------------------------------------------
     @property
