@@ -51,6 +51,11 @@ WHITENESS_P = 1e-3
 #: white) sends the loop on. The model's own discretisation error is structured along
 #: frequency too: on low-noise sessions it alone made Ljung-Box fail on clean data.
 BORDERLINE_QUANTILE = 0.95
+#: Whiteness is judged where the data's standard uncertainty is at least this share of the
+#: weight (the model's estimated error below a quarter of the noise), on at least this many
+#: points.
+DATA_SHARE = 0.97
+WHITENESS_MIN_POINTS = 20
 #: Candidates refitted per round (the highest scores that pass the score test).
 REFITS_PER_ROUND = 3
 #: A candidate's score must pass this quantile of chi-square to be refitted, and its
@@ -78,24 +83,25 @@ class Candidate:
 
     def extend(self, model: PlateModel) -> PlateModel:
         if self.name == "anisotropy":
-            return PlateModel(Material("orthotropic", model.material.per_modulus_loss),
-                              model.effects)
+            return model.with_material(Material("orthotropic", model.material.per_modulus_loss))
         from vibid.identify.effects import EFFECTS
 
         return model.with_effect(EFFECTS[self.name])
 
-    def at_null(self, values: dict, box: dict) -> dict:
+    def at_null(self, values: dict, box: dict, thickness_m: float) -> dict:
         """The extended model's parameters where it equals the current model: the null
         value (a stand-in far beyond the prior box for a null at infinity)."""
         if self.name == "anisotropy":
             D, nu = values["D"], values["nu"]
             out = {k: v for k, v in values.items() if k not in ("D", "nu")}
-            return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D}
+            # an isotropic plate's transverse shear has G = E / 2(1 + nu) = 6 (1 - nu) D / h³
+            return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D,
+                          "G13_Pa": 6 * (1 - nu) * D / thickness_m**3}
         from vibid.identify.effects import EFFECTS
 
         out = dict(values)
         own = self.bounds(box)
-        for q in EFFECTS[self.name].parameters:
+        for q in EFFECTS[self.name].parameters:  # (a material-dependent term: none here)
             out[q.name] = 100.0 * own[q.name][1] if math.isinf(q.null) else q.null
         return out
 
@@ -118,7 +124,7 @@ class Candidate:
         from vibid.identify.effects import EFFECTS
 
         z = []
-        for q in EFFECTS[self.name].parameters:
+        for q in EFFECTS[self.name].for_material(result.plate_model.material).parameters:
             v, s = p[q.name], sd[q.name]
             if not (np.isfinite(s) and s > 0):
                 z.append(math.inf)
@@ -126,7 +132,7 @@ class Candidate:
                 z.append(abs(v) / s)
             else:
                 z.append(abs(v - q.null) / s)
-        return max(z)
+        return max(z) if z else math.inf  # no parameter: the likelihood ratio alone decides
 
     def bounds(self, box: dict) -> dict:
         """The prior box of the new parameters (the setup's if it names them)."""
@@ -267,9 +273,22 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
 
 
 def _stage(added, result: IdentificationResult) -> Stage:
+    return Stage(added, result, ljung_box_p(_whiteness_residual(result)))
+
+
+def _whiteness_residual(result: IdentificationResult) -> np.ndarray:
+    """The normalised residual (real parts, then imaginary, each along frequency) on the
+    points where the data's noise dominates the weight: the model's own discretisation
+    error is smooth along frequency, so where it is a sizeable part of the weight it makes
+    the residual look structured on data the model explains (low-noise sessions). Where
+    fewer than :data:`WHITENESS_MIN_POINTS` such points remain, every point."""
     u = result.used
     r = (result.model_afc[u] - result.H[u]) / result.weights
-    return Stage(added, result, ljung_box_p(np.concatenate([r.real, r.imag])))
+    if result.H_std is not None:
+        quiet = np.asarray(result.H_std)[u] >= DATA_SHARE * np.asarray(result.weights)
+        if np.count_nonzero(quiet) >= WHITENESS_MIN_POINTS:
+            r = r[quiet]
+    return np.concatenate([r.real, r.imag])
 
 
 def _round(setup, data, current: Stage, todo, box, local):
@@ -286,10 +305,16 @@ def _round(setup, data, current: Stage, todo, box, local):
                                 note=f"could not be scored: {exc}"))
     from scipy.stats import chi2 as chi2_dist
 
-    ranked = sorted((s for s in scores if np.isfinite(s.score)
+    done = {}  # name -> (delta chi2, note)
+    n_residuals = 2 * int(np.count_nonzero(data.used))
+    for s in scores:
+        n = len(next(c for c in todo if c.name == s.name).extend(res.plate_model).names)
+        if n >= n_residuals:
+            done[s.name] = (math.nan, f"not refitted: too few points for its {n} parameters "
+                                      f"({n_residuals} real residuals)")
+    ranked = sorted((s for s in scores if np.isfinite(s.score) and s.name not in done
                      and s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof)),
                     key=lambda s: -s.score)[:REFITS_PER_ROUND]
-    done = {}  # name -> (delta chi2, note)
 
     def attempt(s: Score, search: bool):
         """Refit one candidate: (its stage if it is kept, else None, delta chi2)."""
@@ -337,7 +362,7 @@ def _extended_problem(setup, data, res, cand, values, box, weights):
     from vibid.identify.model.forward import build_forward_model
 
     model = cand.extend(res.plate_model)
-    start = cand.at_null(values, box)
+    start = cand.at_null(values, box, setup.specimen.thickness_m)
     ext_box = model.default_bounds(box | cand.bounds(box))
     fm = build_forward_model(setup, data.frequency_hz[data.used], model=model, theta0=start,
                              bounds=ext_box)
@@ -353,10 +378,20 @@ def _score(setup, data, res, cand, values, box) -> Score:
     J = problem.jacobian_theta(theta)
     r = problem.residuals_theta(theta)
     J_small, new = _current_directions(cand, J, names, values, res.parameter_names)
-    lm = max(_projected(J, r) - _projected(J_small, r), 0.0)
-    dof = len(names) - len(res.parameter_names)
     from scipy.stats import chi2 as chi2_dist
 
+    if not new:
+        # a term without parameters (transverse shear): the extended model at the current
+        # values differs from the current one by d; score along that secant, one dof
+        u = res.used
+        rc = (res.model_afc[u] - res.H[u]) / res.weights
+        r0 = np.concatenate([rc.real, rc.imag])
+        d = r - r0
+        lm = max(_projected(np.column_stack([J, d]), r0) - _projected(J, r0), 0.0)
+        return Score(cand.name, float(lm), 1, float(chi2_dist.sf(lm, 1)),
+                     _collinearity(J, d[:, None]))
+    lm = max(_projected(J, r) - _projected(J_small, r), 0.0)
+    dof = len(names) - len(res.parameter_names)
     return Score(cand.name, float(lm), dof, float(chi2_dist.sf(lm, dof)),
                  _collinearity(J_small, J[:, new]))
 
@@ -407,7 +442,7 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
         u0 = space.to_u(np.array([start[n] for n in names]))
     new = [i for i, n in enumerate(names) if n not in res.parameter_names]
     starts = [np.clip(u0, -5, 5)]
-    for v in REFIT_STARTS_U:
+    for v in REFIT_STARTS_U if new else ():
         u = u0.copy()
         u[new] = v
         starts.append(u)
