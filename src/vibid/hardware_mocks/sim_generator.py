@@ -177,6 +177,9 @@ class SimulatedGenerator:
         self._change(frequency_hz=value)
 
     def _change(self, **values) -> None:
+        """Apply ``values``; a real change (not a repeat of the state) starts a transient."""
+        if all(getattr(self, name) == value for name, value in values.items()):
+            return
         self.previous = (self.played_frequency_hz, self.amplitude_vpp, self.output_on)
         for name, value in values.items():
             setattr(self, name, value)

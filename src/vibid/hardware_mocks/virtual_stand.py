@@ -23,7 +23,7 @@ synthesis, as for ``vibid simulate``):
 * a transient when the last change of the generator (frequency, amplitude, output) is less
   than ~30 decay times of the nearest mode ago: the free vibration of that mode, at its
   natural frequency and decay rate, starting with the jump of the mode's steady response
-  (a one-mode resonance ``|H(f_n)| iβ f_n² / (f_n² − f² + iβ f_n²)`` times the base
+  (a one-mode resonance ``|H(f_n)| iβ f² / (f_n² − f² + iβ f_n²)`` times the base
   amplitude, before and after the change) and decayed over the time since the change;
 * clipping at each DAQ channel's range (in the fake task), which reports an overload.
 
@@ -145,10 +145,11 @@ class VirtualStand:
                          frequency_hz=f_n, phase_rad=float(rng.uniform(0, 2 * np.pi)))
 
     def _modal(self, f_hz: float, f_n: float, gamma: float) -> complex:
-        """The one-mode resonance of the mode at ``f_n`` (peak ``|H(f_n)|``) at ``f_hz``."""
+        """The one-mode resonance of the mode at ``f_n`` (peak ``|H(f_n)|``) at ``f_hz``: base
+        excitation loads a mode in proportion to ``f²``, so it vanishes at low frequency."""
         beta = gamma / (math.pi * f_n)
         peak = abs(complex(self.specimen.h(f_n)[0]))
-        return peak * 1j * beta * f_n**2 / (f_n**2 - f_hz**2 + 1j * beta * f_n**2)
+        return peak * 1j * beta * f_hz**2 / (f_n**2 - f_hz**2 + 1j * beta * f_n**2)
 
 
 def true_parameters(config: StandConfig) -> dict[str, float]:
