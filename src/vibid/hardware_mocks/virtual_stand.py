@@ -55,7 +55,8 @@ from vibid.hardware_mocks.simulated_session import StandConditions
 from vibid.hardware_mocks.specimen import VirtualSpecimen
 from vibid.setup_model import Setup
 
-#: a transient below exp(-30) of its start is left out
+#: a transient (or the IEPE offset) below exp(-30) of its start is left out: exactly 0, so
+#: that a stand reopened after a long settle records the same samples as one that ran on
 TRANSIENT_DECAYS = 30.0
 
 
@@ -120,7 +121,8 @@ class VirtualStand:
         self._acquisitions += 1
         f = gen.played_frequency_hz
         amplitude = sim.shaker_m_s2_per_v * gen.drive_vpp
-        iepe = self.iepe_offset_m_s2 * math.exp(-(now - self.daq_opened_at_s) / self.iepe_settle_s)
+        settled = (now - self.daq_opened_at_s) / self.iepe_settle_s
+        iepe = self.iepe_offset_m_s2 * math.exp(-settled) if settled < TRANSIENT_DECAYS else 0.0
         base, response = synthetic_step(
             f, complex(self.specimen.h(f)[0]), sample_rate_hz=sample_rate_hz, n_samples=n_samples,
             base_amplitude_m_s2=amplitude, base_phase_rad=float(rng.uniform(0, 2 * np.pi)),
