@@ -113,6 +113,15 @@ def test_no_reply_is_a_timeout_on_the_stands_clock():
     assert gen.frequency_hz == 80.0  # the next query is answered
 
 
+def test_a_late_reply_is_discarded_so_replies_never_shift():
+    inst, gen = instrument_and_driver(frequency_hz=80.0, amplitude_vpp=0.3)
+    inst.sim_late_reply()
+    with pytest.raises(GeneratorTimeout):
+        gen.frequency_hz  # noqa: B018 - its reply comes after the timeout ...
+    assert gen.amplitude_vpp == 0.3  # ... and is not taken for the next query's
+    assert gen.port.in_waiting == 0
+
+
 def test_reply_delay_takes_time_on_the_stands_clock():
     clock = VirtualClock()
     inst, gen = instrument_and_driver(clock=clock)

@@ -172,3 +172,20 @@ def test_undeclared_effect_is_in_the_specimen_not_the_setup():
     assert clamped.truth["k_theta_N_per_rad"] == 50.0
     assert abs(clamped.specimen.h(620.0)[0] - plain.specimen.h(620.0)[0]) > 1e-3
     assert SimulatedConfig().effects == {}
+
+
+@pytest.mark.parametrize("fault, error", [
+    ({"kind": "error", "at_step": 1, "code": -310, "message": "Overheated"},
+     "instrument error after 'FREQ 300': -310 Overheated"),
+    ({"kind": "no_reply", "at_step": 1}, r"no reply to 'SYST:ERR\?' within 0.1 s"),
+    ({"kind": "drop", "at_step": 1}, "device disconnected"),
+])
+def test_faults_of_the_stand_configuration_fire_at_their_step(fault, error):
+    from vibid.acquisition.generator import GeneratorError
+
+    stand, virtual = stand_for(setup_with((180.0, 300.0)), faults=[fault])
+    with stand:
+        play(stand, 180.0, settle_s=1.0)
+        with pytest.raises(GeneratorError, match=error):
+            play(stand, 300.0, settle_s=1.0)
+    assert not virtual.instrument.output_on or fault["kind"] == "drop"  # unplugged: unreachable

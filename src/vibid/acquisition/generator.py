@@ -162,7 +162,14 @@ class ScpiGenerator:
             raise GeneratorError(f"{self.name}: cannot send {command!r}: {_text(exc)}") from None
 
     def query(self, command: str) -> str:
-        """Send one query and return its reply line (without the terminator)."""
+        """Send one query and return its reply line (without the terminator). A late reply
+        to an earlier, timed-out query is discarded first, so replies never shift."""
+        try:
+            stale = self.port.in_waiting and self.port.read(self.port.in_waiting)
+        except Exception as exc:  # noqa: BLE001
+            raise GeneratorError(f"{self.name}: connection lost before {command!r}: {_text(exc)}") from None
+        if stale:
+            log.warning("%s: discarded a late reply %r before %r", self.name, stale, command)
         self.write(command)
         try:
             reply = self.port.read_until(TERMINATOR)

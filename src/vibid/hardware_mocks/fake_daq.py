@@ -11,7 +11,8 @@ real task does.
 Samples come from a ``source`` (the virtual stand): ``source.record(n, fs)`` returns both
 channels in m/s² as played *now* by the simulated generator through the virtual specimen;
 the task returns them in g (``AccelUnits.G``), clipped at each channel's range, and reports
-the clipped channels as overloaded. Reading takes ``n / fs`` on the stand's clock.
+the clipped channels as overloaded. Reading takes ``n / fs`` on the stand's clock (on a wall
+clock, the time the source took to compute the samples counts towards it).
 
 Notes (where this differs from a real task): only accelerometer channels in g, finite
 acquisitions and the on-board clock; the clipping level is the channel's configured range
@@ -172,8 +173,11 @@ class FakeTask:
             raise DaqError("The simulated stand has two accelerometers; the task must hold both.",
                            INVALID_TASK)
         fs = self.timing.rate
+        clock = self.source.clock
+        start_s = clock.now_s()
         records = self.source.record(n, fs)
-        self.source.clock.sleep(n / fs)
+        # the record takes n/fs; time spent computing it (wall clock) is part of that
+        clock.sleep(n / fs - (clock.now_s() - start_s))
         out, over = [], []
         for ch, x in zip(self.channels, records):
             g = np.asarray(x, float) / G_M_S2

@@ -66,13 +66,20 @@ class Serial(SerialBase):
             raise SerialException("device reports readiness to read but returned no data "
                                   "(device disconnected or multiple access on port?)")
 
+    def _deliver_late(self) -> None:
+        """Replies the instrument held back arrive now (after the host's read timed out)."""
+        while self.instrument.late_replies:
+            self._outgoing += self.instrument.late_replies.pop(0).encode("ascii") + b"\n"
+
     @property
     def in_waiting(self) -> int:
         self._check()
+        self._deliver_late()
         return len(self._outgoing)
 
     def write(self, data) -> int:
         self._check()
+        self._deliver_late()
         data = to_bytes(data)
         self._incoming += data
         while b"\n" in self._incoming:

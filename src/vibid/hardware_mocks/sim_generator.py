@@ -13,7 +13,7 @@ range"``, ``-113,"Undefined header"``, ``-104,"Data type error"``) to be read wi
 ``f·(1 + ppm·1e-6)`` when commanded ``f`` (:attr:`played_frequency_hz`).
 
 Simulation-only controls carry a ``sim_`` prefix: :meth:`sim_no_reply`,
-:meth:`sim_queue_error`, :meth:`sim_drop_connection`, :attr:`sim_reply_delay_s`,
+:meth:`sim_late_reply`, :meth:`sim_queue_error`, :meth:`sim_drop_connection`, :attr:`sim_reply_delay_s`,
 :attr:`sim_log`, and scheduled faults (:meth:`sim_schedule`) that fire at the N-th frequency
 command (a step of a campaign).
 
@@ -72,7 +72,10 @@ class SimulatedGenerator:
     sim_log: list[tuple[str, str | None]] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
     connected: bool = True
+    #: replies held back by :meth:`sim_late_reply`, for the port to deliver late
+    late_replies: list[str] = field(default_factory=list)
     _lost_replies: int = 0
+    _late: int = 0
     _faults: list[_Fault] = field(default_factory=list)
 
     # -- what the specimen sees ---------------------------------------------------------
@@ -90,6 +93,11 @@ class SimulatedGenerator:
     def sim_no_reply(self, count: int = 1) -> None:
         """Lose the next ``count`` replies (the command is still carried out)."""
         self._lost_replies += int(count)
+
+    def sim_late_reply(self, count: int = 1) -> None:
+        """Hold the next ``count`` replies back until after the host's read timed out: they
+        arrive before its next command (:attr:`late_replies`, delivered by the port)."""
+        self._late += int(count)
 
     def sim_queue_error(self, code: int = -310, message: str = "System error") -> None:
         """Put an error in the queue, as an instrument fault would."""
@@ -117,6 +125,11 @@ class SimulatedGenerator:
         if reply is not None and self._lost_replies > 0:
             self._lost_replies -= 1
             reply = None
+        if reply is not None and self._late > 0:
+            self._late -= 1
+            self.late_replies.append(reply)
+            self.sim_log.append((command, reply))
+            return None
         self.sim_log.append((command, reply))
         if reply is not None and self.sim_reply_delay_s > 0:
             self.clock.sleep(self.sim_reply_delay_s)

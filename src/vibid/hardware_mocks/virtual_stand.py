@@ -48,6 +48,7 @@ from vibid.acquisition.daq import NiDaq
 from vibid.acquisition.generator import open_generator
 from vibid.acquisition.protocols import Clock, Stand, WallClock
 from vibid.acquisition.stand_config import StandConfig, StandConfigError
+from vibid.errors import VibidError
 from vibid.hardware_mocks.fake_daq import DeviceLimits, FakeTask
 from vibid.hardware_mocks.records import Transient, synthetic_step
 from vibid.hardware_mocks.sim_generator import SimulatedGenerator, register
@@ -165,6 +166,10 @@ def true_parameters(config: StandConfig) -> dict[str, float]:
         if name not in EFFECTS:
             raise StandConfigError(f"simulated.effects.{name}: unknown effect (known: "
                                    f"{', '.join(EFFECTS)})")
+        own = {q.name for q in EFFECTS[name].parameters}
+        if set(values) != own:
+            raise StandConfigError(f"simulated.effects.{name}: give {', '.join(sorted(own))}, "
+                                   f"got {', '.join(sorted(values)) or 'nothing'}")
         out |= {k: float(v) for k, v in values.items()}
     return out
 
@@ -192,8 +197,11 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     try:
         virtual = VirtualStand(setup, config, clock=WallClock() if realtime else VirtualClock(),
                                accuracy=accuracy)
-    except ValueError as exc:  # a bad fault or parameter of the simulated section
+    except StandConfigError:
+        raise
+    except (ValueError, VibidError) as exc:  # a bad fault or parameter of the simulated section
         raise StandConfigError(f"simulated: {exc}") from None
+    virtual.specimen.modes  # noqa: B018 - solved now, not during the first record
     register(parts.netloc, virtual.instrument)
     _STANDS[parts.netloc] = virtual
     generator = open_generator(url, baudrate=config.generator.baudrate,
