@@ -187,8 +187,15 @@ def fast_config(**timing):
 if __name__ == "__main__":  # a campaign process for the crash tests
     from vibid.acquisition.campaign import run_campaign
 
+    import time
+
+    import scipy.special  # noqa: F401 - imported before "ready" (the first fit would), so that
+    import vibid.signal  # noqa: F401   kill instants spread over the steps
+
     out = sys.argv[1]
+    print("ready", flush=True)
+    t = time.perf_counter()
     result = run_campaign(short_setup(), fake_stand(seed=7), out, fast_config(),
                           resume="--resume" in sys.argv[2:],
                           progress=lambda p: print(p.index, flush=True))
-    print(result.run_status, result.n_steps, flush=True)
+    print("done", result.run_status, result.n_steps, time.perf_counter() - t, flush=True)

@@ -253,7 +253,7 @@ def test_optional_fields_are_written_and_the_session_validates(tmp_path, capsys)
 
 def test_resume_refuses_a_complete_file_another_setup_and_a_missing_file(tmp_path):
     reference = _reference(tmp_path)
-    with pytest.raises(CampaignError, match="already holds all 10 steps|already complete"):
+    with pytest.raises(CampaignError, match="already complete"):
         run_campaign(short_setup(), fake_stand(), reference, fast_config(), resume=True)
     with pytest.raises(CampaignError, match="setup differs"):
         run_campaign(short_setup(11), fake_stand(), reference, fast_config(), resume=True)

@@ -161,9 +161,10 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     n_steps = len(setup.excitation.frequencies_hz)
     if resume:
         start, drive, near = _resume_point(path, setup)
-        if start >= n_steps:
-            raise CampaignError(f"{path}: already holds all {n_steps} steps; nothing to resume")
         writer = SessionWriter.resume(path)
+        if start >= n_steps:  # stopped after its last step, before it was closed
+            writer.close("complete")
+            return CampaignResult(path, "complete", "", writer.n_steps)
     else:
         if os.path.exists(path):
             raise CampaignError(f"{path}: already exists; a session file is never overwritten "
@@ -384,7 +385,7 @@ def _resume_point(path: str, setup: Setup) -> tuple[int, float, bool]:
         got = s.frequencies_hz()
         if n > len(want) or not np.array_equal(got, np.asarray(want[:n], float)):
             raise CampaignError(f"{path}: its steps do not follow the setup's frequencies")
-        if n >= len(want) and s.run_status == "complete":
+        if n >= len(want) and s.run_status_written and s.run_status == "complete":
             raise CampaignError(f"{path}: the session is already complete ({n} steps)")
         if n == 0:
             return 0, math.nan, False

@@ -60,6 +60,8 @@ class Session:
         n_freq = len(self.setup.excitation.frequencies_hz) if self.setup.excitation else 0
         #: ``complete``, ``interrupted`` or ``aborted``, and why (empty when complete)
         self.run_status, self.run_status_reason = fmt.run_status_of(attrs, len(self._names), n_freq)
+        #: whether the file says how it ended (else ``run_status`` is inferred from the step count)
+        self.run_status_written = fmt.RUN_STATUS in attrs
         self.operator = fmt.text(attrs["operator"]) if "operator" in attrs else None
         self.notes = fmt.text(attrs["notes"]) if "notes" in attrs else None
 
