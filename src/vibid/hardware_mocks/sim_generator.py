@@ -79,10 +79,14 @@ class SimulatedGenerator:
     _faults: list[_Fault] = field(default_factory=list)
 
     # -- what the specimen sees ---------------------------------------------------------
+    def played_at(self, frequency_hz: float) -> float:
+        """The frequency really played when ``frequency_hz`` is commanded, Hz."""
+        return frequency_hz * (1.0 + 1e-6 * self.clock_offset_ppm)
+
     @property
     def played_frequency_hz(self) -> float:
-        """The frequency really played (the commanded one on the instrument's clock), Hz."""
-        return self.frequency_hz * (1.0 + 1e-6 * self.clock_offset_ppm)
+        """The frequency really played now (the commanded one on the instrument's clock), Hz."""
+        return self.played_at(self.frequency_hz)
 
     @property
     def drive_vpp(self) -> float:

@@ -38,6 +38,7 @@ class VirtualSpecimen:
 
     def __init__(self, setup: Setup, params: dict, *, f_max_hz: float, accuracy: str = "fine"):
         self.setup = setup
+        self.f_max_hz = float(f_max_hz)
         self.params = dict(params)
         self.model = plate_model_for(self.params)
         self.theta = theta_from_dict(self.model, self.params)

@@ -107,6 +107,13 @@ class VirtualStand:
         self._acquisitions = 0
         self._last_frequency_commands = -1
 
+    def prefetch(self) -> None:
+        """Solve the specimen now at every frequency the setup will play and at each mode's
+        peak, so that recording does not have to (a paced stand keeps its timing)."""
+        played = [self.instrument.played_at(f) for f in self.setup.excitation.frequencies_hz]
+        f_n, _ = self.specimen.modes
+        self.specimen.h(np.concatenate([played, f_n[f_n <= self.specimen.f_max_hz]]))
+
     def task_factory(self) -> FakeTask:
         """A new fake DAQ task on this stand (the ``task_factory`` of the DAQ driver)."""
         self.daq_opened_at_s = self.clock.now_s()
@@ -187,7 +194,8 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     """The simulated stand: the real drivers in front of the virtual specimen.
 
     ``config.generator.url`` must be ``vibidsim://NAME``; ``realtime`` paces it on the wall
-    clock (settle and record take their real time), otherwise time is virtual. The
+    clock (settle and record take their real time; the specimen is solved at every step's
+    frequency first, which takes a while on a fine mesh), otherwise time is virtual. The
     :class:`VirtualStand` behind it is :func:`lookup_stand` ``(NAME)``.
     """
     url = config.generator.url
@@ -202,6 +210,8 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     except (ValueError, VibidError) as exc:  # a bad fault or parameter of the simulated section
         raise StandConfigError(f"simulated: {exc}") from None
     virtual.specimen.modes  # noqa: B018 - solved now, not during the first record
+    if realtime:
+        virtual.prefetch()
     register(parts.netloc, virtual.instrument)
     _STANDS[parts.netloc] = virtual
     generator = open_generator(url, baudrate=config.generator.baudrate,
