@@ -120,6 +120,25 @@ def test_same_seed_same_records_on_a_reopened_stand():
     assert not np.array_equal(other.response_m_s2, records[0].response_m_s2)
 
 
+def test_announced_steps_seed_the_records_from_their_index():
+    setup = setup_with((300.0, 620.0))
+    records = {}
+    for order in ((0, 1), (1,)):  # uninterrupted, and resumed at step 1
+        stand, _ = stand_for(setup, seed=3)
+        with stand:
+            for index in order:
+                stand.begin_step(index)
+                reading = play(stand, setup.excitation.frequencies_hz[index], settle_s=60.0)[1]
+                records.setdefault(index, []).append(reading)
+    first, resumed = records[1]
+    np.testing.assert_array_equal(first.response_m_s2, resumed.response_m_s2)
+    stand, _ = stand_for(setup, seed=3)
+    with stand:
+        stand.begin_step(0)
+        other = play(stand, 620.0, settle_s=60.0)[1]  # same frequency, other step: other noise
+    assert not np.array_equal(other.response_m_s2, first.response_m_s2)
+
+
 def test_too_short_a_settle_at_a_q300_resonance_leaves_a_flagged_transient():
     setup = setup_with((70.0, 75.0))
     _, virtual = stand_for(setup)

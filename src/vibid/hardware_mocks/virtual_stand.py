@@ -27,20 +27,25 @@ synthesis, as for ``vibid simulate``):
   amplitude, before and after the change) and decayed over the time since the change;
 * clipping at each DAQ channel's range (in the fake task), which reports an overload.
 
-Randomness is seeded per acquisition from (``simulated.seed``, the commanded frequency in
-mHz, the number of acquisitions since the last frequency command), so a resumed campaign
-that plays the same steps draws the same records. The clock is a :class:`VirtualClock`
+Randomness is seeded per acquisition from (``simulated.seed``, the step index, the number
+of acquisitions in the step) when the campaign announces its steps
+(:meth:`SimulatedStand.begin_step`), else from (seed, the commanded frequency in mHz, the
+number of acquisitions since the last frequency command), so a resumed campaign that plays
+the same steps draws the same noise. The transient depends on the generator's state before
+the step (see above): a resumed step equals the uninterrupted one to the last bit only when
+its settle lets the transient fall below ``exp(-30)`` (:data:`TRANSIENT_DECAYS`). The clock is a :class:`VirtualClock`
 (sleeping advances it, no real waiting) unless ``realtime``.
 
 Notes (where this differs from a real stand): the shaker's gain is flat and has no phase,
-the base has no transient, only the nearest mode rings after a change, and two steps at the
-same frequency with the same acquisition count draw the same noise.
+the base has no transient, only the nearest mode rings after a change, and (without
+``begin_step``) two steps at the same frequency draw the same noise.
 """
 
 from __future__ import annotations
 
 import math
 import urllib.parse
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -106,6 +111,7 @@ class VirtualStand:
         self.daq_opened_at_s = clock.now_s()
         self._acquisitions = 0
         self._last_frequency_commands = -1
+        self._step: int | None = None
 
     def prefetch(self) -> None:
         """Solve the specimen now at every frequency the setup will play and at each mode's
@@ -119,14 +125,29 @@ class VirtualStand:
         self.daq_opened_at_s = self.clock.now_s()
         return FakeTask(self, DeviceLimits(device=self.config.daq.device))
 
+    def begin_step(self, index: int) -> None:
+        """The campaign starts step ``index``: seed its acquisitions from it from now on."""
+        self._step, self._acquisitions = int(index), 0
+
+    def _rng(self) -> np.random.Generator:
+        """This acquisition's random numbers: from (seed, step index, acquisitions in the
+        step) once :meth:`begin_step` was called, else (seed, commanded frequency in mHz,
+        acquisitions since the last frequency command)."""
+        gen, seed = self.instrument, self.config.simulated.seed
+        if self._step is not None:
+            key = [seed, 0, self._step, self._acquisitions]
+        else:
+            if gen.frequency_commands != self._last_frequency_commands:
+                self._last_frequency_commands, self._acquisitions = gen.frequency_commands, 0
+            key = [seed, 1, int(round(gen.frequency_hz * 1e3)), self._acquisitions]
+        self._acquisitions += 1
+        return np.random.default_rng(key)
+
     def record(self, n_samples: int, sample_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
         """Both accelerometers (base, response), m/s², recorded from now."""
         gen, sim, c = self.instrument, self.config.simulated, self.conditions
         now = self.clock.now_s()
-        if gen.frequency_commands != self._last_frequency_commands:
-            self._last_frequency_commands, self._acquisitions = gen.frequency_commands, 0
-        rng = np.random.default_rng([sim.seed, int(round(gen.frequency_hz * 1e3)), self._acquisitions])
-        self._acquisitions += 1
+        rng = self._rng()
         f = gen.played_frequency_hz
         amplitude = sim.shaker_m_s2_per_v * gen.drive_vpp
         settled = (now - self.daq_opened_at_s) / self.iepe_settle_s
@@ -181,6 +202,18 @@ def true_parameters(config: StandConfig) -> dict[str, float]:
     return out
 
 
+@dataclass
+class SimulatedStand(Stand):
+    """A :class:`~vibid.acquisition.protocols.Stand` on the virtual stand ``virtual``; the
+    campaign may call :meth:`begin_step` (a real stand has no such method)."""
+
+    virtual: VirtualStand | None = None
+
+    def begin_step(self, index: int) -> None:
+        """Seed the coming step's records from its index (a resumed run draws the same)."""
+        self.virtual.begin_step(index)
+
+
 _STANDS: dict[str, VirtualStand] = {}
 
 
@@ -196,7 +229,7 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     ``config.generator.url`` must be ``vibidsim://NAME``; ``realtime`` paces it on the wall
     clock (settle and record take their real time; the specimen is solved at every step's
     frequency first, which takes a while on a fine mesh), otherwise time is virtual. The
-    :class:`VirtualStand` behind it is :func:`lookup_stand` ``(NAME)``.
+    :class:`VirtualStand` behind it is ``stand.virtual`` and :func:`lookup_stand` ``(NAME)``.
     """
     url = config.generator.url
     parts = urllib.parse.urlsplit(url)
@@ -221,5 +254,6 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     except BaseException:
         generator.close()
         raise
-    return Stand(generator, daq, virtual.clock,
-                 description=f"simulated stand {url} (virtual specimen, fake NI-DAQmx task)")
+    return SimulatedStand(generator, daq, virtual.clock,
+                          description=f"simulated stand {url} (virtual specimen, fake NI-DAQmx task)",
+                          virtual=virtual)
