@@ -146,3 +146,18 @@ def test_from_setup_takes_rate_and_sensitivities_from_the_setup():
     daq = NiDaq.from_setup(setup, DaqConfig(), task_factory=lambda: tasks.append(FakeTask(Source())) or tasks[-1])
     assert daq.sample_rate_hz == setup.daq.sample_rate_hz
     assert [c["sensitivity"] for c in tasks[0].channels] == [9.81, 100.0]
+
+
+def test_a_failed_read_is_one_line_and_stops_the_task():
+    from nidaqmx.errors import DaqError as NiDaqError
+
+    class Failing(Source):
+        def record(self, n, fs):
+            raise NiDaqError("Some or all of the samples requested have not yet been acquired.\n"
+                             "Increase the timeout.", -200284)
+
+    daq, (task,) = open_daq(Failing())
+    with pytest.raises(DaqError, match=r"^DAQ Dev1: cannot read: Some or all of the samples requested "
+                                       r"have not yet been acquired\.$"):
+        daq.acquire(256)
+    assert not task.running
