@@ -15,9 +15,11 @@ so it finds them by measurement, conservatively:
 
 * every step first settles ``excitation.settle_s``;
 * a record the signal stage finds *unsettled* (its two halves disagree beyond noise,
-  :mod:`vibid.signal.flags`) is recorded again once, after waiting until
-  ``settle_time_constants · Q / (π f)`` (capped at ``max_settle_s``) has passed since the
-  frequency changed — the damping settle, the larger of the two;
+  :mod:`vibid.signal.flags`) is recorded again after waiting until
+  ``settle_time_constants · Q / (π f)`` — the damping settle — has passed since the frequency
+  changed; if it is still unsettled, again after twice that, and so on until the time since
+  the change would pass ``max_settle_s`` (the cap): a high signal-to-noise ratio shows a
+  transient longer than a fixed number of time constants hides it;
 * the step after an unsettled one (a resonance spans neighbouring steps) settles
   ``max(excitation.settle_s, damping settle)`` from the start.
 
@@ -45,8 +47,8 @@ __all__ = [
 class StepCommand:
     """One acquisition: play ``frequency_hz``, wait ``settle_s``, record ``n_samples``.
 
-    ``attempt`` is 0 for a step's first record and 1 for its re-record after the damping
-    settle (the frequency is then unchanged and ``settle_s`` is the extra wait).
+    ``attempt`` is 0 for a step's first record and k ≥ 1 for its k-th re-record after a
+    longer settle (the frequency is then unchanged and ``settle_s`` is the extra wait).
     """
 
     index: int
@@ -79,8 +81,12 @@ def record_samples(frequency_hz: float, sample_rate_hz: float, timing: TimingCon
 def damping_settle_s(frequency_hz: float, timing: TimingConfig) -> float:
     """``settle_time_constants · Q / (π f)`` with ``Q = 1 / expected_loss_factor``, capped at
     ``max_settle_s``, s: the wait for a free vibration near ``frequency_hz`` to die out."""
+    return float(min(timing.max_settle_s, _time_constants_s(frequency_hz, timing)))
+
+
+def _time_constants_s(frequency_hz: float, timing: TimingConfig) -> float:
     q = 1.0 / timing.expected_loss_factor if timing.expected_loss_factor > 0 else math.inf
-    return float(min(timing.max_settle_s, timing.settle_time_constants * q / (math.pi * frequency_hz)))
+    return timing.settle_time_constants * q / (math.pi * frequency_hz)
 
 
 def stepped_sine(setup: Setup, config: StandConfig, *, start: int = 0,
@@ -115,12 +121,17 @@ def _plan(setup: Setup, t: TimingConfig, start: int, near: bool) -> Generator[St
         settle = max(exc.settle_s, damping) if near else exc.settle_s
         samples = record_samples(f, fs, t)
         outcome = yield StepCommand(i, n, f, settle, samples, fs)
-        near = False
-        if outcome is not None and not outcome.settled:
-            near = True
-            extra = damping - settle - samples / fs  # the transient has decayed since the change
-            if extra > 0:
-                yield StepCommand(i, n, f, extra, samples, fs, attempt=1)
+        near = outcome is not None and not outcome.settled
+        since_change_s = settle + samples / fs
+        attempt = 0
+        while outcome is not None and not outcome.settled:
+            attempt += 1
+            # wait until attempt x the damping settle has passed since the change, within the cap
+            until_s = min(t.max_settle_s, attempt * _time_constants_s(f, t))
+            if until_s <= since_change_s:
+                break  # the cap is reached: the signal stage flags what is left
+            outcome = yield StepCommand(i, n, f, until_s - since_change_s, samples, fs, attempt=attempt)
+            since_change_s = until_s + samples / fs
 
 
 @dataclass(frozen=True)
