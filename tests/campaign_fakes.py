@@ -7,7 +7,8 @@ resonance. Each record is seeded from ``(seed, step index, record within the ste
 resumed campaign draws what an uninterrupted one does.
 
 Run as a script it is a campaign process for the crash tests:
-``python campaign_fakes.py OUT.h5 [--resume]`` (kill points through ``VIBID_KILL_AT``).
+``python campaign_fakes.py OUT.h5 [--resume] [--slow]`` (kill points through ``VIBID_KILL_AT``;
+``--slow``: each record takes 0.1 s of real time).
 """
 
 from __future__ import annotations
@@ -113,6 +114,7 @@ class FakeDaq:
     step: int = -1
     records_in_step: int = 0
     fail_at: tuple | None = None        #: (step, exception instance) raised by acquire
+    wall_delay_s: float = 0.0           #: real time each acquisition takes (signal tests)
     acquisitions: list = field(default_factory=list)
 
     def base_amplitude(self, f):
@@ -122,6 +124,10 @@ class FakeDaq:
     def acquire(self, n_samples: int) -> Reading:
         if self.fail_at is not None and self.fail_at[0] == self.step:
             raise self.fail_at[1]
+        if self.wall_delay_s:
+            import time
+
+            time.sleep(self.wall_delay_s)
         g = self.generator
         f = g.frequency_hz
         h = complex(sdof_h(f * (1 + 1e-6 * self.clock_offset_ppm), self.fn_hz, self.eta))  # as played
@@ -195,7 +201,8 @@ if __name__ == "__main__":  # a campaign process for the crash tests
     out = sys.argv[1]
     print("ready", flush=True)
     t = time.perf_counter()
-    result = run_campaign(short_setup(), fake_stand(seed=7), out, fast_config(),
+    slow = 0.1 if "--slow" in sys.argv[2:] else 0.0
+    result = run_campaign(short_setup(), fake_stand(seed=7, wall_delay_s=slow), out, fast_config(),
                           resume="--resume" in sys.argv[2:],
                           progress=lambda p: print(p.index, flush=True))
     print("done", result.run_status, result.n_steps, time.perf_counter() - t, flush=True)

@@ -154,3 +154,18 @@ def test_sigkill_at_a_random_instant_leaves_a_valid_file_that_resume_completes(
     if not out.exists():  # killed before the header was in place
         return
     _check_killed_file_and_resume(out, reference, capsys)
+
+
+def test_sigterm_ends_the_campaign_like_ctrl_c(tmp_path, reference, capsys):
+    out = tmp_path / "s.h5"
+    child = _child(out, "--slow")  # a second in all: the signal comes while it runs
+    assert child.stdout.readline().strip() == "ready"
+    assert child.stdout.readline().strip() == "0"  # the first step is written
+    os.kill(child.pid, signal.SIGTERM)
+    stdout, stderr = child.communicate(timeout=120)
+    assert child.returncode == 0, stderr  # the campaign returned: the file was closed
+    assert "done interrupted" in stdout
+    with read_session(out) as s:
+        assert s.run_status == "interrupted" and s.run_status_reason == "stopped by SIGTERM"
+        assert 1 <= len(s) < N_STEPS
+    _check_killed_file_and_resume(out, reference, capsys)
