@@ -265,3 +265,35 @@ def test_resume_refuses_a_complete_file_another_setup_and_a_missing_file(tmp_pat
     assert not stand.generator.output_enabled and stand.daq.acquisitions == []
     with read_session(reference) as s:
         assert len(s) == 10 and s.run_status == "complete"
+
+
+def test_bad_stand_configuration_is_refused_before_any_file_or_drive(tmp_path):
+    path = tmp_path / "s.h5"
+    cfg = fast_config()
+    for bad in (replace(cfg, drive=replace(cfg.drive, initial_vpp=6.0)),  # above max_vpp 5
+                replace(cfg, timing=replace(cfg.timing, min_record_s=0.0))):
+        stand = fake_stand()
+        with pytest.raises(VibidError, match="stand configuration"):
+            run_campaign(short_setup(), stand, path, bad)
+        assert not path.exists() and stand.daq.acquisitions == [] and not stand.generator.output_enabled
+
+
+def test_a_file_that_cannot_be_written_aborts_with_output_off(tmp_path, monkeypatch):
+    from vibid.session import SessionWriter
+
+    path = tmp_path / "s.h5"
+    real = SessionWriter.append
+
+    def full_disk(self, **kw):
+        if self.n_steps == 2:
+            raise VibidError(f"{self.path}: cannot write the session file (No space left on device)")
+        return real(self, **kw)
+
+    monkeypatch.setattr(SessionWriter, "append", full_disk)
+    stand = fake_stand(seed=7)
+    result = run_campaign(short_setup(), stand, path, fast_config())
+    assert result.run_status == "aborted" and result.reason.endswith("(No space left on device)")
+    assert not result.reason.startswith("stand fault") and result.n_steps == 2
+    assert not stand.generator.output_enabled
+    with read_session(path) as s:
+        assert (len(s), s.run_status) == (2, "aborted")

@@ -107,6 +107,10 @@ class _Stop(KeyboardInterrupt):
     """Raised in the main thread by the SIGTERM handler: ends the campaign like Ctrl-C."""
 
 
+class _WriteError(VibidError):
+    """The session file could not take a step (not a stand fault)."""
+
+
 @dataclass
 class _Measured:
     """One executed command: the record to write and what was learnt."""
@@ -159,6 +163,8 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     if setup.excitation is None:
         raise CampaignError("the setup has no excitation: nothing to play")
     n_steps = len(setup.excitation.frequencies_hz)
+    _check_drive(config)
+    stepped_sine(setup, config)  # checks the timing before any file is touched
     if resume:
         start, drive, near = _resume_point(path, setup)
         writer = SessionWriter.resume(path)
@@ -210,6 +216,8 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
         run_status, reason = "interrupted", "stopped by SIGTERM"
     except KeyboardInterrupt:
         run_status, reason = "interrupted", "interrupted by the operator (Ctrl-C)"
+    except _WriteError as exc:
+        run_status, reason = "aborted", str(exc)
     except VibidError as exc:
         run_status, reason = "aborted", f"stand fault: {exc}"
     except BaseException as exc:
@@ -356,9 +364,22 @@ def _write(writer: SessionWriter, cmd: StepCommand, m: _Measured, temperature_c:
     if m.note:
         extra["vibid_note"] = m.note
     r = m.reading
-    writer.append(frequency_hz=cmd.frequency_hz, sample_rate_hz=r.sample_rate_hz, base=r.base_m_s2,
-                  response=r.response_m_s2, status=m.status, t0_utc=r.t0_utc,
-                  temperature_c=temperature_c, extra_attrs=extra)
+    try:
+        writer.append(frequency_hz=cmd.frequency_hz, sample_rate_hz=r.sample_rate_hz, base=r.base_m_s2,
+                      response=r.response_m_s2, status=m.status, t0_utc=r.t0_utc,
+                      temperature_c=temperature_c, extra_attrs=extra)
+    except VibidError as exc:
+        raise _WriteError(str(exc)) from None
+
+
+def _check_drive(config: StandConfig) -> None:
+    d = config.drive
+    ok = (d.target_base_m_s2 > 0 and 0 < d.tolerance < 1 and 0 < d.initial_vpp <= d.max_vpp
+          and d.abort_response_m_s2 > 0)
+    if not ok:
+        raise CampaignError("stand configuration drive: target_base_m_s2, initial_vpp and "
+                            "abort_response_m_s2 must be positive, tolerance within (0, 1), "
+                            f"initial_vpp at most max_vpp (got {d})")
 
 
 def _progress(cmd: StepCommand, m: _Measured, nominal: dict[int, float], elapsed_s: float) -> StepProgress:
