@@ -224,9 +224,13 @@ def test_stop_request_ends_cleanly_between_steps(tmp_path):
         if p.index == 1:
             event.set()
 
-    result = run_campaign(short_setup(), fake_stand(seed=7), path, fast_config(), progress=progress, stop=event)
-    assert (result.run_status, result.reason, result.n_steps) == ("interrupted", "stopped on request", 2)
-    assert [p.index for p in seen] == [0, 1] and seen[0].n_steps == 10
+    stand = fake_stand(seed=7, transient_scale=0.0)  # no re-records: one record a step
+    result = run_campaign(short_setup(), stand, path, fast_config(), progress=progress, stop=event)
+    # step 1 is written and reported while step 2 settles; step 2, measured, is written at the
+    # stop, and nothing more is played
+    assert (result.run_status, result.reason, result.n_steps) == ("interrupted", "stopped on request", 3)
+    assert [p.index for p in seen] == [0, 1, 2] and seen[0].n_steps == 10
+    assert {a[0] for a in stand.daq.acquisitions} == {0, 1, 2}
     assert seen[1].eta_s > 0 and math.isfinite(seen[1].h_abs)
 
 

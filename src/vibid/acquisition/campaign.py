@@ -8,7 +8,11 @@ process killed at any instant leaves a valid file; :mod:`vibid.session.writer`).
 Per step:
 
 1. the generator plays the step's frequency (the drive level is carried from the step
-   before), the stand waits the plan's settle time and records the step;
+   before), the stand waits the plan's settle time and records the step; the step before
+   is written to the file during this settle (its time counts towards the settle), so the
+   file costs the stand no time of its own. A step is in the file, and reported, once the
+   next frequency plays; a process killed before that loses it (resume measures it again),
+   Ctrl-C and faults write it before closing;
 2. **base-amplitude control**: while the base amplitude is off the target by more than the
    tolerance, the drive is scaled by ``target / measured`` (never above ``max_vpp``, at most
    ×10 per move), the stand settles again and measures with a short record (a quarter of
@@ -182,23 +186,32 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     if not (math.isfinite(drive) and drive > 0):
         drive = config.drive.initial_vpp
     runner = _Runner(stand, config, _State(drive_vpp=min(drive, config.drive.max_vpp)))
-    first_unsettled = False
     stop_requested = _stop_test(stop)
     t_start = time.monotonic()
-    run_status, reason = "interrupted", "stopped before the end"
+    pending: list[tuple[StepCommand, _Measured, bool]] = []  # measured, not yet in the file
+
+    def flush() -> None:
+        """Write the measured step and report it (while the next one settles)."""
+        while pending:
+            c, m, unsettled = pending[0]
+            _write(writer, c, m, temperature_c, unsettled)
+            pending.pop(0)
+            if progress is not None:
+                progress(_progress(c, m, nominal, time.monotonic() - t_start))
+
+    runner.during_settle = flush
+    first_unsettled = False
+    run_status, reason = "interrupted", "stopped on request"
     try:
         with _sigterm_raises():
             cmd = next(plan, None)
-            while cmd is not None:
-                if stop_requested():
-                    run_status, reason = "interrupted", "stopped on request"
-                    break
+            while cmd is not None and not stop_requested():
                 m = runner.execute(cmd)
                 if cmd.attempt == 0:
                     first_unsettled = not m.settled
                 if m.abort_reason:
                     stand.generator.shutdown()
-                    _write(writer, cmd, m, temperature_c, first_unsettled)
+                    pending.append((cmd, m, first_unsettled))
                     run_status, reason = "aborted", m.abort_reason
                     break
                 try:
@@ -206,34 +219,41 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
                 except StopIteration:
                     nxt = None
                 if nxt is None or nxt.index != cmd.index:
-                    _write(writer, cmd, m, temperature_c, first_unsettled)
-                    if progress is not None:
-                        progress(_progress(cmd, m, nominal, time.monotonic() - t_start))
+                    pending.append((cmd, m, first_unsettled))
                 cmd = nxt
             else:
-                run_status, reason = "complete", ""
+                if cmd is None:
+                    run_status, reason = "complete", ""
+            flush()
     except _Stop:
         run_status, reason = "interrupted", "stopped by SIGTERM"
     except KeyboardInterrupt:
         run_status, reason = "interrupted", "interrupted by the operator (Ctrl-C)"
     except _WriteError as exc:
+        pending.clear()
         run_status, reason = "aborted", str(exc)
     except VibidError as exc:
         run_status, reason = "aborted", f"stand fault: {exc}"
     except BaseException as exc:
         run_status, reason = "interrupted", f"crashed: {type(exc).__name__}: {exc}"
-        _finish(stand, writer, run_status, reason)
+        _finish(stand, writer, run_status, reason, flush)
         raise
-    _finish(stand, writer, run_status, reason)
+    _finish(stand, writer, run_status, reason, flush)
     return CampaignResult(path, run_status, reason, writer.n_steps)
 
 
-def _finish(stand: Stand, writer: SessionWriter, run_status: str, reason: str) -> None:
-    """Output off, then the session closed with how it ended (each tried even if one fails)."""
+def _finish(stand: Stand, writer: SessionWriter, run_status: str, reason: str, flush) -> None:
+    """Output off, a completely measured step still in memory written, then the session
+    closed with how it ended (each tried even if one before fails)."""
     try:
         stand.generator.shutdown()
     finally:
-        writer.close(run_status, reason or None)
+        try:
+            flush()
+        except VibidError:
+            pass  # the file keeps every earlier step; the close says why it ended
+        finally:
+            writer.close(run_status, reason or None)
         log.info("campaign %s: %s %s", writer.path, run_status, reason)
 
 
@@ -245,6 +265,9 @@ class _Runner:
         self.drive = config.drive
         self.timing = config.timing
         self.state = state
+        #: work done while a new frequency settles (writing the step before); its time on
+        #: the stand's clock counts towards the settle
+        self.during_settle: Callable[[], None] = lambda: None
 
     def execute(self, cmd: StepCommand) -> _Measured:
         st = self.state
@@ -256,7 +279,14 @@ class _Runner:
                 self.gen.output_enabled = True
                 st.output_on = True
             st.since_change_s = 0.0
-        self._settle(cmd.settle_s)
+            clock = self.stand.clock
+            started = clock.now_s()
+            self.during_settle()
+            spent = clock.now_s() - started
+            clock.sleep(max(0.0, cmd.settle_s - spent))
+            st.since_change_s = max(cmd.settle_s, spent)
+        else:
+            self._settle(cmd.settle_s)
         reading, base, abort = self._record(cmd, cmd.n_samples)
         if not abort and cmd.attempt == 0 and not self._within(base):
             reading, base, abort = self._control(cmd, base)
