@@ -15,7 +15,7 @@ from campaign_fakes import fake_stand, fast_config, sdof_h, short_setup  # noqa:
 
 from vibid.acquisition.campaign import CampaignError, amplitude_m_s2, run_campaign  # noqa: E402
 from vibid.acquisition.plan import damping_settle_s, plan_summary, record_samples, stepped_sine  # noqa: E402
-from vibid.acquisition.stand_config import StandConfig, TimingConfig  # noqa: E402
+from vibid.acquisition.stand_config import TimingConfig  # noqa: E402
 from vibid.cli import main  # noqa: E402
 from vibid.errors import VibidError  # noqa: E402
 from vibid.session import file_problems, read_session  # noqa: E402
