@@ -34,11 +34,12 @@ def _write_setup(tmp_path, freqs=FREQS, settle_s=0.5):
     return path
 
 
-def _write_stand(tmp_path, name, timing=None, **simulated):
+def _write_stand(tmp_path, name, timing=None, drive=None, **simulated):
     # settling is free in virtual time: up to 40 s lets the 75 Hz mode (decay 1.4 s) ring
     # out below the noise wherever the runner finds a record unsettled
     doc = {"generator": {"url": f"vibidsim://{name}"},
            "timing": {"min_record_s": 0.1, "min_cycles": 10, "max_settle_s": 40.0, **(timing or {})},
+           "drive": drive or {},
            "simulated": {"seed": 5, **simulated}}
     path = tmp_path / f"{name}.json"
     path.write_text(json.dumps(doc))
@@ -160,3 +161,31 @@ def test_killed_campaign_process_is_continued_by_resume(tmp_path, capsys):
     assert both.sum() >= n - 2, (ta.flags, tb.flags)
     z = np.abs(ta.H - tb.H)[both] / np.hypot(ta.std, tb.std)[both]
     assert np.max(z) < 5.0, z
+
+
+def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_avoids_it(tmp_path, capsys):
+    """The virtual plate's first mode (75 Hz, loss factor 0.003: Q 333, decay time 1.4 s),
+    played with a 0.02 s settle: with the damping settle switched off the signal stage flags
+    the transient; with the runner's rule (up to 40 s of virtual settle) no step is flagged."""
+    from vibid.hardware_mocks.virtual_stand import lookup_stand
+
+    setup = _write_setup(tmp_path, (72.0, 74.0, 75.0, 76.0, 78.0), settle_s=0.02)
+    tables = {}
+    for name, timing in (("q-short", {"max_settle_s": 0.0}), ("q-rule", {})):
+        # |H| reaches 125: a 1 m/s² base keeps the response (125 m/s², 13 g) in the 50 g range
+        stand_json = _write_stand(tmp_path, name, timing=timing,
+                                  drive={"target_base_m_s2": 1.0, "initial_vpp": 0.04})
+        out = tmp_path / f"{name}.h5"
+        assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
+                     "--out", str(out)]) == 0
+        with read_session(out) as s:
+            tables[name] = afc_from_session(s)
+    f_n, _ = lookup_stand("q-rule").specimen.nearest_mode(75.0)
+    assert abs(f_n - 75.0) < 0.2  # the step at 75 Hz sits on the resonance
+    assert "unsettled" in tables["q-short"].flags[2]
+    assert not any("unsettled" in f for f in tables["q-rule"].flags), tables["q-rule"].flags
+    assert tables["q-rule"].used.all(), tables["q-rule"].flags
+    truth = lookup_stand("q-rule").specimen.h(np.array([72.0, 74.0, 75.0, 76.0, 78.0]) * (1 + 40e-6))
+    t = tables["q-rule"]
+    z = np.concatenate([(t.H.real - truth.real) / t.std_re, (t.H.imag - truth.imag) / t.std_im])
+    assert np.max(np.abs(z)) < 4.5, z

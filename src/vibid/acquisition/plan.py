@@ -17,9 +17,9 @@ so it finds them by measurement, conservatively:
 * a record the signal stage finds *unsettled* (its two halves disagree beyond noise,
   :mod:`vibid.signal.flags`) is recorded again after waiting until
   ``settle_time_constants · Q / (π f)`` — the damping settle — has passed since the frequency
-  changed; if it is still unsettled, again after twice that, and so on until the time since
-  the change would pass ``max_settle_s`` (the cap): a high signal-to-noise ratio shows a
-  transient longer than a fixed number of time constants hides it;
+  changed; if it is still unsettled, again at the next whole multiple of that time, and so on
+  until the time since the change would pass ``max_settle_s`` (the cap): a high
+  signal-to-noise ratio shows a transient longer than a fixed number of time constants hides;
 * the step after an unsettled one (a resonance spans neighbouring steps) settles
   ``max(excitation.settle_s, damping settle)`` from the start.
 
@@ -124,10 +124,11 @@ def _plan(setup: Setup, t: TimingConfig, start: int, near: bool) -> Generator[St
         near = outcome is not None and not outcome.settled
         since_change_s = settle + samples / fs
         attempt = 0
-        while outcome is not None and not outcome.settled:
+        tau_s = _time_constants_s(f, t)
+        while outcome is not None and not outcome.settled and tau_s > 0:
             attempt += 1
-            # wait until attempt x the damping settle has passed since the change, within the cap
-            until_s = min(t.max_settle_s, attempt * _time_constants_s(f, t))
+            # wait until the next whole multiple of the damping settle since the change, within the cap
+            until_s = min(t.max_settle_s, (math.floor(since_change_s / tau_s) + 1) * tau_s)
             if until_s <= since_change_s:
                 break  # the cap is reached: the signal stage flags what is left
             outcome = yield StepCommand(i, n, f, until_s - since_change_s, samples, fs, attempt=attempt)
