@@ -49,6 +49,24 @@ def test_dry_run_lists_every_step_with_the_setup_settle():
         stepped_sine(setup, fast_config(), start=13)
 
 
+def test_unsettled_record_is_recorded_again_at_multiples_of_the_damping_settle():
+    from vibid.acquisition.plan import StepOutcome
+
+    cfg = fast_config(max_settle_s=10.0)
+    plan = stepped_sine(short_setup(3, 70.0, 90.0), cfg)
+    first = next(plan)
+    d = damping_settle_s(70.0, cfg.timing)  # 2.27 s
+    waits = [first.settle_s + first.record_s]
+    for k in (1, 2, 3, 4):
+        cmd = plan.send(StepOutcome(settled=False))
+        assert (cmd.index, cmd.attempt) == (0, k)
+        assert waits[-1] + cmd.settle_s == pytest.approx(k * d)  # the k-th multiple since the change
+        waits.append(k * d + cmd.record_s)
+    cmd = plan.send(StepOutcome(settled=False))  # 5 d passes the 10 s cap: up to the cap
+    assert waits[-1] + cmd.settle_s == pytest.approx(10.0)
+    assert plan.send(StepOutcome(settled=False)).index == 1
+
+
 def test_unsettled_record_is_recorded_again_after_the_damping_settle():
     from vibid.acquisition.plan import StepOutcome
 
@@ -60,8 +78,14 @@ def test_unsettled_record_is_recorded_again_after_the_damping_settle():
     assert (again.index, again.attempt) == (0, 1)
     assert again.settle_s == pytest.approx(damping_settle_s(70.0, cfg.timing) - first.settle_s - first.record_s)
     nxt = plan.send(StepOutcome(settled=True))  # the neighbour starts with the damping settle
-    assert nxt.index == 1 and nxt.settle_s == pytest.approx(damping_settle_s(80.0, cfg.timing))
-    assert plan.send(StepOutcome(settled=True)).settle_s == 0.05
+    d80 = damping_settle_s(80.0, cfg.timing)
+    assert nxt.index == 1 and nxt.settle_s == pytest.approx(d80)
+    # still unsettled: again at twice the damping settle (3.98 s) since the change, capped at 3 s
+    again = plan.send(StepOutcome(settled=False))
+    assert (again.index, again.attempt) == (1, 1)
+    assert again.settle_s == pytest.approx(3.0 - d80 - nxt.record_s)
+    last = plan.send(StepOutcome(settled=False))  # the cap is reached: on to the next step
+    assert (last.index, last.settle_s) == (2, pytest.approx(damping_settle_s(90.0, cfg.timing)))
 
 
 def _zscores(path, ppm=40.0, eta=0.01):
