@@ -2,9 +2,9 @@
 [--resume] [--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T]`: the live
 stepped-sine campaign.
 
-Plays the setup's frequencies on the stand and records the session step by step (every
-step is in the file as soon as it is measured; a crash or Ctrl-C leaves a valid file that
---resume continues). --stand simulated puts the simulated instruments and the virtual
+Plays the setup's frequencies on the stand and records the session step by step (each
+step is in the file by the time the next one has settled; a crash or Ctrl-C leaves a valid
+file that --resume continues). --stand simulated puts the simulated instruments and the virtual
 specimen of the stand configuration's "simulated" section behind the real drivers and runs
 as fast as it can, unless --realtime paces it like the real stand. One progress line per
 step on stderr: frequency, the step's |H| and phase, and the time left. Exit 0 when the
