@@ -189,3 +189,16 @@ def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_av
     t = tables["q-rule"]
     z = np.concatenate([(t.H.real - truth.real) / t.std_re, (t.H.imag - truth.imag) / t.std_im])
     assert np.max(np.abs(z)) < 4.5, z
+
+
+def test_dry_run_prints_the_plan_without_opening_the_stand(tmp_path, capsys):
+    setup = _write_setup(tmp_path, (20.0, 100.0, 1000.0), settle_s=0.5)
+    out = tmp_path / "s.h5"
+    assert main(["campaign", str(setup), "--stand", "ni", "--out", str(out), "--dry-run"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    # default timing: 20 cycles or 0.25 s of whole cycles at 25.6 kHz
+    assert lines[:3] == ["step 1/3  20 Hz  settle 0.5 s  record 25600 samples (1 s)",
+                         "step 2/3  100 Hz  settle 0.5 s  record 6400 samples (0.25 s)",
+                         "step 3/3  1000 Hz  settle 0.5 s  record 6400 samples (0.25 s)"]
+    assert lines[3].startswith("3 steps: settle 1.5 s + record 1.5 s = at least 3 s")
+    assert not out.exists()

@@ -1,6 +1,6 @@
 """`vibid campaign SETUP.json --stand simulated|ni [--stand-config STAND.json] --out S.h5
-[--resume] [--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T]`: the live
-stepped-sine campaign.
+[--resume] [--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T] [--dry-run]`:
+the live stepped-sine campaign.
 
 Plays the setup's frequencies on the stand and records the session step by step (each
 step is in the file by the time the next one has settled; a crash or Ctrl-C leaves a valid
@@ -38,6 +38,9 @@ def add_parser(sub):
     p.add_argument("--notes", metavar="TEXT", help="free-text notes (session attribute)")
     p.add_argument("--temperature-c", type=float, metavar="T",
                    help="specimen or room temperature, °C, written on every step")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the plan (steps, settle and record times, the least duration) "
+                   "and exit without opening the stand or writing --out")
     p.set_defaults(run=run)
 
 
@@ -73,6 +76,9 @@ def run(args) -> int:
         raise VibidError("--realtime paces the simulated stand; the real stand always runs in real time")
     if args.temperature_c is not None and not math.isfinite(args.temperature_c):
         raise VibidError("--temperature-c must be a finite number")
+    if args.dry_run:
+        print_plan(setup, config)
+        return 0
     check_out_path(args.out, args.resume)
     if args.stand == "simulated":
         from vibid.identify import configure
@@ -94,6 +100,19 @@ def run(args) -> int:
               f"{' --stand-config ' + args.stand_config if args.stand_config else ''} "
               f"--out {result.path} --resume", file=sys.stderr)
     return 0 if result.run_status == "complete" else 1
+
+
+def print_plan(setup, config) -> None:
+    """The dry run: one line per step, then the totals (every record assumed settled)."""
+    from vibid.acquisition.plan import plan_summary
+
+    summary = plan_summary(setup, config)
+    for c in summary.commands:
+        print(f"step {c.index + 1}/{c.n_steps}  {c.frequency_hz:g} Hz  settle {c.settle_s:g} s  "
+              f"record {c.n_samples} samples ({c.record_s:.4g} s)")
+    print(f"{len(summary.commands)} steps: settle {summary.settle_s:.1f} s + record "
+          f"{summary.record_s:.1f} s = at least {_duration(summary.duration_s)} (longer where a "
+          "record is unsettled or the drive moves)")
 
 
 class ProgressPrinter:
