@@ -50,7 +50,8 @@ def test_conformant_file_from_independent_writer_is_accepted(tmp_path, capsys, s
     write_conformant(path, strings=strings)
     code, lines = validate(capsys, path)
     assert code == 0
-    assert lines == [f"{path}: valid session, 4 steps (4 ok), 10-40 Hz, declared model isotropic"]
+    assert lines == [f"{path}: valid session, 4 steps (4 ok), 10-40 Hz, declared model isotropic, run interrupted "
+                     "(stopped before closing the session, 4 of 200 steps recorded)"]
 
 
 def _setup(mutate):

@@ -32,7 +32,8 @@ def run(args) -> int:
 
 
 def summary(session) -> str:
-    """One line: steps, their statuses, the frequency range and the declared model."""
+    """One line: steps, their statuses, the frequency range, the declared model and how the
+    run ended."""
     freqs = session.frequencies_hz()
     statuses = session.statuses()
     n = len(statuses)
@@ -41,5 +42,6 @@ def summary(session) -> str:
     return (
         f"valid session, {n} step{'s' if n != 1 else ''}"
         f"{' (' + counts + ')' if counts else ''}, {span}, "
-        f"declared model {session.setup.identification.model}"
+        f"declared model {session.setup.identification.model}, run {session.run_status}"
+        f"{' (' + session.run_status_reason + ')' if session.run_status_reason else ''}"
     )

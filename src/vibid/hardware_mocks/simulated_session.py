@@ -2,7 +2,9 @@
 
 :func:`simulate_session` plays the setup's stepped sine on a plate with known parameters and
 writes what the two accelerometers would have recorded, step by step, with the session
-writer. The truth is the full finite-element model (not the reduced one that the
+writer. The specimen is the same :class:`~vibid.hardware_mocks.specimen.VirtualSpecimen` and
+the records the same :func:`~vibid.hardware_mocks.records.synthetic_step` as the virtual
+stand's (:mod:`vibid.hardware_mocks.virtual_stand`), which plays them through the real drivers. The truth is the full finite-element model (not the reduced one that the
 identification uses), on a finer mesh than the identification's default so that the
 model's own discretisation error is really there to be accounted for. The records carry
 what real ones do (clock offset, harmonics, DC, drift, noise; see :class:`StandConditions`).
@@ -21,10 +23,7 @@ from datetime import datetime, timedelta, timezone
 import numpy as np
 
 from vibid.hardware_mocks.records import synthetic_step, true_frequency_hz
-from vibid.identify.model.assembly import Geometry, model_matrices
-from vibid.identify.model.forward import discretisation, plate_model_for
-from vibid.identify.model.full import model_afc_full
-from vibid.identify.model.terms import theta_from_dict
+from vibid.hardware_mocks.specimen import VirtualSpecimen
 from vibid.session import SessionWriter
 from vibid.setup_model import Setup
 
@@ -47,15 +46,12 @@ def true_afc(setup: Setup, params: dict, frequencies_hz, *, accuracy: str = "def
     """The AFC at ``frequencies_hz`` (Hz) from the full FE model, for ``params``: a
     material's parameters, and any effect's (e.g. ``k_theta_N_per_rad``, ``tau_s``), which
     puts that effect into the data whatever the setup declares; ``effects`` names effects
-    without parameters of their own (``transverse_shear`` on an isotropic plate)."""
-    model = plate_model_for(params, effects)
-    theta = theta_from_dict(model, params)
-    geometry = Geometry.from_setup(setup)
-    D = np.asarray(model.moduli(theta), float)
-    disc = discretisation(geometry, accuracy, f_max_hz=float(np.max(frequencies_hz)),
-                          rigidity_n_m=float(min(D[0], D[3])))
-    mats = model_matrices(geometry, disc, tuple(model.effects))
-    return model_afc_full(mats, model, theta, frequencies_hz)
+    without parameters of their own (``transverse_shear`` on an isotropic plate). The
+    virtual specimen (:class:`~vibid.hardware_mocks.specimen.VirtualSpecimen`) meshed for
+    the highest of ``frequencies_hz``."""
+    specimen = VirtualSpecimen(setup, params, f_max_hz=float(np.max(frequencies_hz)),
+                               accuracy=accuracy, effects=effects)
+    return specimen.h(frequencies_hz)
 
 
 def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,

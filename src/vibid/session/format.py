@@ -16,10 +16,18 @@ STEP_DATASETS = ("base", "response")
 STEP_STATUSES = ("ok", "overload", "aborted")
 
 STEPS_GROUP = "steps"
-#: A step being written lives here until it is complete, then moves into /steps (vibid's own).
+#: Where vibid once wrote a step before moving it into /steps; a leftover is removed on resume.
 PARTIAL_STEP = "_vibid_partial_step"
-#: vibid's own root attribute: "running", "complete" or "aborted" (extension of the format).
-RUN_STATUS_ATTR = "vibid_run_status"
+#: Optional root attributes saying how the session ended ("How a session ends" in the spec).
+RUN_STATUS = "run_status"
+RUN_STATUS_REASON = "run_status_reason"
+RUN_STATUSES = ("complete", "interrupted", "aborted")
+#: What vibid wrote before the spec named the run status: "running", "complete" or "aborted"
+#: (read, never written).
+LEGACY_RUN_STATUS = "vibid_run_status"
+RUN_STATUS_ATTRS = (RUN_STATUS, RUN_STATUS_REASON, LEGACY_RUN_STATUS)
+#: Optional free-text root attributes of the spec.
+OPTIONAL_TEXT_ATTRIBUTES = ("operator", "notes")
 
 _STEP_NAME = re.compile(r"^[0-9]{6}$")
 
@@ -41,3 +49,24 @@ def parse_utc(text: str) -> datetime:
 def text(value) -> str:
     """An HDF5 string attribute as str, whether stored variable-length (str) or fixed (bytes)."""
     return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def run_status_of(attrs, n_steps: int, n_frequencies: int) -> tuple[str, str]:
+    """How a session ended, ``(status, reason)``, from its root attributes and step count.
+
+    ``run_status`` when written; else vibid's earlier ``vibid_run_status`` ("running" read as
+    ``interrupted``); else, as the spec says, ``interrupted`` when fewer steps than
+    frequencies were recorded and ``complete`` otherwise.
+    """
+    if RUN_STATUS in attrs:
+        reason = text(attrs[RUN_STATUS_REASON]) if RUN_STATUS_REASON in attrs else ""
+        return text(attrs[RUN_STATUS]), reason
+    if LEGACY_RUN_STATUS in attrs:
+        legacy = text(attrs[LEGACY_RUN_STATUS])
+        if legacy in ("complete", "aborted"):
+            return legacy, ""
+        return "interrupted", "stopped before closing the session"
+    if n_steps < n_frequencies:
+        return "interrupted", (f"stopped before closing the session, {n_steps} of "
+                               f"{n_frequencies} steps recorded")
+    return "complete", ""

@@ -27,6 +27,7 @@ class Step:
     status: str
     base: np.ndarray
     response: np.ndarray
+    temperature_c: float | None = None  #: optional, °C
 
     @property
     def n_samples(self) -> int:
@@ -55,8 +56,14 @@ class Session:
         self.session_id = fmt.text(attrs["session_id"])
         self.created_utc = fmt.text(attrs["created_utc"])
         self.software = fmt.text(attrs["software"])
-        self.run_status = fmt.text(attrs.get(fmt.RUN_STATUS_ATTR, "unknown"))
         self._names = sorted(k for k in f[fmt.STEPS_GROUP] if fmt.is_step_name(k))
+        n_freq = len(self.setup.excitation.frequencies_hz) if self.setup.excitation else 0
+        #: ``complete``, ``interrupted`` or ``aborted``, and why (empty when complete)
+        self.run_status, self.run_status_reason = fmt.run_status_of(attrs, len(self._names), n_freq)
+        #: whether the file says how it ended (else ``run_status`` is inferred from the step count)
+        self.run_status_written = fmt.RUN_STATUS in attrs
+        self.operator = fmt.text(attrs["operator"]) if "operator" in attrs else None
+        self.notes = fmt.text(attrs["notes"]) if "notes" in attrs else None
 
     def __len__(self) -> int:
         return len(self._names)
@@ -73,8 +80,14 @@ class Session:
             bad = np.count_nonzero(~np.isfinite(x))
             if bad:
                 raise SessionFileError(self.path, [Problem(f"{where}/{label}", f"{bad} samples are NaN or infinite")])
+        temperature = float(a["temperature_c"]) if "temperature_c" in a else None
         return Step(index, float(a["frequency_hz"]), float(a["sample_rate_hz"]), fmt.text(a["t0_utc"]),
-                    fmt.text(a["status"]), base, response)
+                    fmt.text(a["status"]), base, response, temperature)
+
+    def step_attributes(self, index: int) -> dict:
+        """Every attribute of step ``index`` (the format's and vibid's own), without samples."""
+        g = self._file[f"/{fmt.STEPS_GROUP}/{self._names[index]}"]
+        return {k: (fmt.text(v) if isinstance(v, (str, bytes)) else v) for k, v in g.attrs.items()}
 
     def steps(self) -> Iterator[Step]:
         """Every step in the order acquired, read one at a time."""

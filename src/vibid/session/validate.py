@@ -100,6 +100,19 @@ def _root_problems(f: h5py.File) -> Iterator[Problem]:
                 yield Problem("/@created_utc", f"{value!r} is not an ISO 8601 time")
     if "setup" in attrs:
         yield from _setup_problems(attrs["setup"])
+    yield from _optional_root_problems(attrs)
+
+
+def _optional_root_problems(attrs) -> Iterator[Problem]:
+    """``run_status``, ``run_status_reason``, ``operator``, ``notes``: strings when present."""
+    for name in (fmt.RUN_STATUS, fmt.RUN_STATUS_REASON, *fmt.OPTIONAL_TEXT_ATTRIBUTES):
+        if name in attrs and _as_str(attrs[name]) is None:
+            yield Problem(f"/@{name}", f"must be a string, got {_describe(attrs[name])}")
+    if fmt.RUN_STATUS in attrs:
+        value = _as_str(attrs[fmt.RUN_STATUS])
+        if value is not None and value not in fmt.RUN_STATUSES:
+            yield Problem(f"/@{fmt.RUN_STATUS}",
+                          f"unknown run status {value!r}, expected one of {', '.join(fmt.RUN_STATUSES)}")
 
 
 def _setup_problems(raw) -> Iterator[Problem]:
@@ -179,6 +192,11 @@ def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -
             yield Problem(f"{where}@status", f"must be a string, got {_describe(attrs['status'])}")
         elif value not in fmt.STEP_STATUSES:
             yield Problem(f"{where}@status", f"unknown status {value!r}, expected one of {', '.join(fmt.STEP_STATUSES)}")
+
+    if "temperature_c" in attrs:
+        value = _as_float(attrs["temperature_c"])
+        if value is None or not np.isfinite(value):
+            yield Problem(f"{where}@temperature_c", f"must be a finite number, got {_describe(attrs['temperature_c'])}")
 
     lengths = {}
     for name in fmt.STEP_DATASETS:

@@ -1,0 +1,163 @@
+"""`vibid campaign SETUP.json --stand simulated|ni [--stand-config STAND.json] --out S.h5
+[--resume] [--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T] [--dry-run]`:
+the live stepped-sine campaign.
+
+Plays the setup's frequencies on the stand and records the session step by step (each
+step is in the file by the time the next one has settled; a crash or Ctrl-C leaves a valid
+file that --resume continues). --stand simulated puts the simulated instruments and the virtual
+specimen of the stand configuration's "simulated" section behind the real drivers and runs
+as fast as it can, unless --realtime paces it like the real stand. One progress line per
+step on stderr: frequency, the step's |H| and phase, and the time left. Exit 0 when the
+campaign completes, 1 when it is interrupted or aborted (the reason is printed) or the input
+is bad.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+from vibid.errors import VibidError
+
+
+def add_parser(sub):
+    p = sub.add_parser("campaign", help="run the stepped-sine campaign on the stand",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("setup", metavar="SETUP.json", help="the declared setup (with excitation)")
+    p.add_argument("--stand", required=True, choices=("simulated", "ni"),
+                   help="the real NI stand, or the simulated one behind the same drivers")
+    p.add_argument("--stand-config", metavar="STAND.json",
+                   help="the stand configuration (default: every setting at its default)")
+    p.add_argument("--out", required=True, metavar="S.h5", help="the session file to write")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the interrupted session --out from its first missing step")
+    p.add_argument("--realtime", action="store_true",
+                   help="simulated stand: settle and record in wall-clock time")
+    p.add_argument("--operator", metavar="NAME", help="who runs the test (session attribute)")
+    p.add_argument("--notes", metavar="TEXT", help="free-text notes (session attribute)")
+    p.add_argument("--temperature-c", type=float, metavar="T",
+                   help="specimen or room temperature, °C, written on every step")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the plan (steps, settle and record times, the least duration) "
+                   "and exit without opening the stand or writing --out")
+    p.set_defaults(run=run)
+
+
+def check_out_path(path: str, resume: bool) -> None:
+    """Refuse an output path that cannot be used, before anything slow starts."""
+    if resume:
+        if not os.path.isfile(path):
+            raise VibidError(f"--out {path}: no such session file to resume")
+        if not os.access(path, os.W_OK) or not os.access(os.path.dirname(os.path.abspath(path)), os.W_OK):
+            raise VibidError(f"--out {path}: cannot be written")
+        return
+    if os.path.exists(path):
+        raise VibidError(f"--out {path}: already exists; a session file is never overwritten "
+                         "(--resume continues an interrupted one)")
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):
+        raise VibidError(f"--out {path}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise VibidError(f"--out {path}: the directory {parent} is not writable")
+
+
+def run(args) -> int:
+    from vibid.acquisition.campaign import run_campaign
+    from vibid.acquisition.stand import open_stand
+    from vibid.acquisition.stand_config import load_stand_config
+    from vibid.session import load_setup
+
+    setup = load_setup(args.setup)
+    if setup.excitation is None:
+        raise VibidError(f"{args.setup}: the setup has no excitation to play")
+    config = load_stand_config(args.stand_config)
+    if args.realtime and args.stand != "simulated":
+        raise VibidError("--realtime paces the simulated stand; the real stand always runs in real time")
+    if args.temperature_c is not None and not math.isfinite(args.temperature_c):
+        raise VibidError("--temperature-c must be a finite number")
+    if args.dry_run:
+        print_plan(setup, config)
+        return 0
+    check_out_path(args.out, args.resume)
+    if args.stand == "simulated":
+        from vibid.identify import configure
+
+        configure()  # the virtual specimen is the plate model
+    printer = ProgressPrinter(sys.stderr)
+    with open_stand(args.stand, setup, config, realtime=args.realtime) as stand:
+        result = run_campaign(setup, stand, args.out, config, resume=args.resume, progress=printer,
+                              operator=args.operator, notes=args.notes,
+                              temperature_c=args.temperature_c)
+    printer.close()
+    n = len(setup.excitation.frequencies_hz)
+    line = f"{result.path}: {result.run_status}, {result.n_steps} of {n} steps"
+    if result.reason:
+        line += f" ({result.reason})"
+    print(line)
+    if result.run_status == "interrupted":
+        print(f"continue with: vibid campaign {args.setup} --stand {args.stand}"
+              f"{' --stand-config ' + args.stand_config if args.stand_config else ''} "
+              f"--out {result.path} --resume", file=sys.stderr)
+    return 0 if result.run_status == "complete" else 1
+
+
+def print_plan(setup, config) -> None:
+    """The dry run: one line per step, then the totals (every record assumed settled)."""
+    from vibid.acquisition.plan import plan_summary
+
+    summary = plan_summary(setup, config)
+    for c in summary.commands:
+        print(f"step {c.index + 1}/{c.n_steps}  {c.frequency_hz:g} Hz  settle {c.settle_s:g} s  "
+              f"record {c.n_samples} samples ({c.record_s:.4g} s)")
+    print(f"{len(summary.commands)} steps: settle {summary.settle_s:.1f} s + record "
+          f"{summary.record_s:.1f} s = at least {_duration(summary.duration_s)} (longer where a "
+          "record is unsettled or the drive moves)")
+
+
+class ProgressPrinter:
+    """One progress line per step: rewritten in place on a terminal, appended otherwise."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self._width = 0
+
+    def __call__(self, p) -> None:
+        text = progress_line(p)
+        if self.tty:
+            pad = max(0, self._width - len(text))
+            self.stream.write("\r" + text + " " * pad)
+            self._width = len(text)
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and self._width:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def progress_line(p) -> str:
+    """``step 12/200  97.5 Hz  |H| 3.412  phase -12.3 deg  left 2 min 10 s`` (+ status, note)."""
+    text = (f"step {p.index + 1}/{p.n_steps}  {p.frequency_hz:g} Hz  |H| {p.h_abs:.4g}  "
+            f"phase {p.phase_deg:+.1f} deg  left {_duration(p.eta_s)}")
+    if p.status != "ok":
+        text += f"  [{p.status}]"
+    if p.note:
+        text += f"  ({p.note})"
+    return text
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "?"
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f"{seconds} s"
+    minutes, s = divmod(seconds, 60)
+    if minutes < 60:
+        return f"{minutes} min {s:02d} s"
+    hours, m = divmod(minutes, 60)
+    return f"{hours} h {m:02d} min"
