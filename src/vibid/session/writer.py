@@ -95,8 +95,8 @@ class SessionWriter:
             g.attrs["sample_rate_hz"] = float(sample_rate_hz)
             g.attrs["t0_utc"] = t0_utc or utc_now()
             g.attrs["status"] = status
-            g.create_dataset("base", data=_float_samples(base))
-            g.create_dataset("response", data=_float_samples(response))
+            g.create_dataset("base", data=_float_samples(base), chunks=base.shape, fletcher32=True, fillvalue=np.nan)
+            g.create_dataset("response", data=_float_samples(response), chunks=response.shape, fletcher32=True, fillvalue=np.nan)
             f.move(fmt.PARTIAL_STEP, f"{fmt.STEPS_GROUP}/{fmt.step_name(index)}")
             f.flush()
         self.n_steps += 1
