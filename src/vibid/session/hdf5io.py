@@ -197,13 +197,13 @@ def survives(read: Callable[[str], object], path: str, *, timeout_s: float | Non
     (within ``timeout_s``, default :data:`PROBE_TIMEOUT_S`).
 
     ``read`` should touch what the caller will then read in-process (its own errors are
-    ignored here: the caller meets them again, converted, in-process). Where no child
-    process can be started (e.g. inside a daemonic process), the check is skipped.
+    ignored here: the caller meets them again, converted, in-process); it is pickled, so a
+    module-level function. Where no child process can be started (e.g. inside a daemonic
+    process), the check is skipped.
     """
     timeout_s = PROBE_TIMEOUT_S if timeout_s is None else timeout_s
-    method = "fork" if sys.platform.startswith("linux") else "spawn"
-    ctx = multiprocessing.get_context(method)
     try:
+        ctx = _context()
         child = ctx.Process(target=_probe, args=(read, path), daemon=True)
         child.start()
     except (OSError, AssertionError, ValueError):  # daemonic parent, no fork, ...
@@ -218,6 +218,17 @@ def survives(read: Callable[[str], object], path: str, *, timeout_s: float | Non
         how = f"signal {-child.exitcode}" if child.exitcode < 0 else f"exit code {child.exitcode}"
         return Problem("/", f"the HDF5 library crashed reading the file's structure ({how}; {DAMAGED})")
     return None
+
+
+def _context():
+    """A fork server where there is one (a clean single-threaded parent for every child, started
+    once per process, with h5py already imported: a plain fork of a process running JAX's
+    threads may deadlock), else spawn (Windows)."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["vibid.session.validate"])
+        return ctx
+    return multiprocessing.get_context("spawn")
 
 
 def _probe(read: Callable[[str], object], path: str) -> None:
