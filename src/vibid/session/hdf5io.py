@@ -6,10 +6,11 @@ Every read of a session file's contents goes through :func:`reading` (or
 one :class:`SessionFileError` naming the file and the path inside it, e.g.
 ``S.h5: /steps/000012/response: checksum mismatch (the file is damaged)``.
 
-Two kinds of damage the library does not report by itself are checked here too:
+Damage the library does not report by itself is checked here too:
 
-- a record whose chunk index lost entries reads back as the fill value (zeros), silently;
-  :func:`read_samples` refuses a dataset whose stored chunks do not cover its shape;
+- a record whose chunk index lost an entry or an address reads back as the fill value,
+  silently; :func:`storage_problem` refuses a dataset whose stored chunks do not cover its
+  shape, and :func:`read_samples` one that reads as nothing but vibid's NaN fill value;
 - a zeroed object header inside a global heap collection (where variable-length strings
   live) sends the library into an endless loop (HDF5 <= 2.0: an entry of index 0 and size 0
   never advances the parser); :func:`heap_problem` finds such a collection before the
@@ -28,7 +29,6 @@ import mmap
 import multiprocessing
 import os
 import struct
-import sys
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Iterator
