@@ -174,18 +174,35 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
 
 def write_report(report: dict, path) -> None:
     """Write ``report`` as JSON (strict: no NaN). The text is made in full first and then
-    replaces ``path`` in one step, so a failure never leaves half a report behind."""
+    replaces ``path`` in one step, so a failure never leaves half a report behind. The file
+    gets the permissions of any file the user makes (``0o666`` less the umask), not the
+    private ``0o600`` of a temporary file; a failure is a VibidError naming ``path``."""
     import os
     import tempfile
 
+    from vibid.errors import VibidError
+
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".report-", suffix=".json", dir=folder)
+    tmp = None
     try:
+        fd, tmp = tempfile.mkstemp(prefix=".report-", suffix=".json", dir=folder)
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
+    except BaseException as exc:
+        if tmp is not None and os.path.exists(tmp):
             os.remove(tmp)
+        if isinstance(exc, OSError):
+            raise VibidError(f"{os.fspath(path)}: cannot write the report ({exc.strerror or exc})") from None
         raise
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read by setting it and putting it back)."""
+    import os
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask

@@ -23,10 +23,13 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     import json
 
+    from vibid.cli.paths import check_output_file
     from vibid.errors import VibidError
     from vibid.session import read_session
     from vibid.signal import afc_from_session
 
+    if args.json:
+        check_output_file(args.json, overwrite=True)  # before every step is fitted
     with read_session(args.session) as session:
         table = afc_from_session(session)
         session_id = session.session_id

@@ -20,6 +20,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from vibid.cli.paths import check_output_dir, check_output_file
     from vibid.cli.progress import search_progress
     from vibid.hardware_mocks.simulated_session import simulate_session
     from vibid.identify import configure
@@ -30,9 +31,11 @@ def run(args) -> int:
     from vibid.setup_model import example_setup
     from vibid.signal import afc_from_session
 
+    check_output_dir(args.out)  # before the simulation and the search
+    for name in ("report.json", "report.txt", "afc_fit.png"):
+        check_output_file(os.path.join(args.out, name), overwrite=True)
     configure()
     truth = {"D": 17.97, "nu": 0.286, "beta": 0.003}
-    os.makedirs(args.out, exist_ok=True)
     session_path = os.path.join(args.out, f"session-seed{args.seed}.h5")
     if os.path.exists(session_path):
         os.remove(session_path)  # the demo's own file, made again on every run

@@ -37,6 +37,7 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    from vibid.cli.paths import check_output_file
     from vibid.cli.progress import search_progress
     from vibid.errors import VibidError
     from vibid.identify import configure
@@ -45,6 +46,8 @@ def run(args) -> int:
 
     if args.restarts < 1:
         raise VibidError("--restarts must be at least 1")
+    if args.json:
+        check_output_file(args.json, overwrite=True)  # before the minutes of identification
     setup, session_id, afc = _source(args)
     candidates = None
     if args.candidates:

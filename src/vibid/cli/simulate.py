@@ -57,12 +57,17 @@ def _effects(items) -> dict[str, float]:
 
 def run(args) -> int:
     from vibid.cli.modes import load_setup, parse_params
+    from vibid.cli.paths import check_output_file
     from vibid.hardware_mocks.simulated_session import StandConditions, simulate_session
     from vibid.identify import configure
     from vibid.identify.model.forward import plate_model_for
 
     if not (math.isfinite(args.noise) and args.noise >= 0):
         raise VibidError("--noise must be zero or positive")
+    out = Path(args.out)
+    sidecar = out.with_name(out.stem + ".truth.json")
+    check_output_file(args.out, overwrite=False)  # before the FE model is built and solved
+    check_output_file(sidecar, overwrite=True)
     setup = load_setup(args.setup)
     if setup.excitation is None:
         raise VibidError(f"{args.setup}: the setup has no excitation to play")
@@ -74,15 +79,11 @@ def run(args) -> int:
                   if n in setup.identification.parameter_names}
     truth = params | _effects(args.effect)
     plate_model_for(truth)  # every name known, one-line error otherwise
-    out = Path(args.out)
-    if out.exists():
-        raise VibidError(f"{out}: already exists; a session file is never overwritten")
     configure()
     base = StandConditions()
     conditions = dataclasses.replace(
         base, noise_std_m_s2=(args.noise * base.base_amplitude_m_s2,) * 2)
     simulate_session(out, setup, truth, conditions=conditions, seed=args.seed)
-    sidecar = out.with_name(out.stem + ".truth.json")
     sidecar.write_text(json.dumps({"parameters": truth, "noise": args.noise, "seed": args.seed},
                                   indent=1) + "\n")
     print(f"{out}: {len(setup.excitation.frequencies_hz)} steps; truth in {sidecar}")

@@ -1,4 +1,9 @@
-"""Read a session file: the declared setup at once, the steps lazily, one at a time."""
+"""Read a session file: the declared setup at once, the steps lazily, one at a time.
+
+Every read goes through :mod:`vibid.session.hdf5io`, so a damaged file gives one
+:class:`SessionFileError` naming the file and the path inside it, whenever it is found (also
+in the middle of a lazy pass over the steps), never an exception of the HDF5 library.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +17,8 @@ import numpy as np
 
 from vibid.errors import VibidError
 from vibid.session import format as fmt
-from vibid.session.validate import Problem, hdf5_problems, open_hdf5
+from vibid.session.hdf5io import Problem, SessionFileError, close_quietly, read_samples, reading
+from vibid.session.validate import hdf5_problems, open_hdf5
 from vibid.setup_model import Setup, SetupError, parse_setup
 
 
@@ -34,60 +40,61 @@ class Step:
         return self.base.shape[0]
 
 
-class SessionFileError(VibidError):
-    """A session file that breaks the format; ``problems`` lists every reason found."""
-
-    def __init__(self, path: str, problems: list[Problem]):
-        self.path = path
-        self.problems = problems
-        first = problems[0]
-        more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
-        super().__init__(f"{path}: {first}{more}")
-
-
 class Session:
     """An open session file. Use :func:`read_session`; close it (or use ``with``)."""
 
     def __init__(self, path: str, f: h5py.File):
         self.path = path
         self._file = f
-        attrs = f.attrs
-        self.setup: Setup = parse_setup(fmt.text(attrs["setup"]))
-        self.session_id = fmt.text(attrs["session_id"])
-        self.created_utc = fmt.text(attrs["created_utc"])
-        self.software = fmt.text(attrs["software"])
-        self._names = sorted(k for k in f[fmt.STEPS_GROUP] if fmt.is_step_name(k))
+        with reading(path, "/"):
+            attrs = f.attrs
+            self.setup: Setup = parse_setup(fmt.text(attrs["setup"]))
+            self.session_id = fmt.text(attrs["session_id"])
+            self.created_utc = fmt.text(attrs["created_utc"])
+            self.software = fmt.text(attrs["software"])
+            self.operator = fmt.text(attrs["operator"]) if "operator" in attrs else None
+            self.notes = fmt.text(attrs["notes"]) if "notes" in attrs else None
+            #: whether the file says how it ended (else ``run_status`` is inferred from the step count)
+            self.run_status_written = fmt.RUN_STATUS in attrs
+        with reading(path, f"/{fmt.STEPS_GROUP}"):
+            self._names = sorted(k for k in f[fmt.STEPS_GROUP] if fmt.is_step_name(k))
         n_freq = len(self.setup.excitation.frequencies_hz) if self.setup.excitation else 0
-        #: ``complete``, ``interrupted`` or ``aborted``, and why (empty when complete)
-        self.run_status, self.run_status_reason = fmt.run_status_of(attrs, len(self._names), n_freq)
-        #: whether the file says how it ended (else ``run_status`` is inferred from the step count)
-        self.run_status_written = fmt.RUN_STATUS in attrs
-        self.operator = fmt.text(attrs["operator"]) if "operator" in attrs else None
-        self.notes = fmt.text(attrs["notes"]) if "notes" in attrs else None
+        with reading(path, "/"):
+            #: ``complete``, ``interrupted`` or ``aborted``, and why (empty when complete)
+            self.run_status, self.run_status_reason = fmt.run_status_of(attrs, len(self._names), n_freq)
 
     def __len__(self) -> int:
         return len(self._names)
 
     def step(self, index: int) -> Step:
-        """Read step ``index``; raise :class:`SessionFileError` if its samples are not finite."""
+        """Read step ``index``; raise :class:`SessionFileError` if its samples are not finite
+        or the file is damaged there."""
         name = self._names[index]
         where = f"/{fmt.STEPS_GROUP}/{name}"
-        g = self._file[where]
-        a = g.attrs
-        base = np.asarray(g["base"][()], dtype=np.float64)
-        response = np.asarray(g["response"][()], dtype=np.float64)
+        with reading(self.path, where):
+            g = self._file[where]
+            a = g.attrs
+            frequency_hz, sample_rate_hz = float(a["frequency_hz"]), float(a["sample_rate_hz"])
+            t0_utc, status = fmt.text(a["t0_utc"]), fmt.text(a["status"])
+            records = {label: g[label] for label in ("base", "response")}
+        base = read_samples(self.path, f"{where}/base", records["base"])
+        response = read_samples(self.path, f"{where}/response", records["response"])
         for label, x in (("base", base), ("response", response)):
             bad = np.count_nonzero(~np.isfinite(x))
             if bad:
                 raise SessionFileError(self.path, [Problem(f"{where}/{label}", f"{bad} samples are NaN or infinite")])
-        temperature = float(a["temperature_c"]) if "temperature_c" in a else None
-        return Step(index, float(a["frequency_hz"]), float(a["sample_rate_hz"]), fmt.text(a["t0_utc"]),
-                    fmt.text(a["status"]), base, response, temperature)
+        temperature = None
+        with reading(self.path, where):
+            if "temperature_c" in a:
+                temperature = float(a["temperature_c"])
+        return Step(index, frequency_hz, sample_rate_hz, t0_utc, status, base, response, temperature)
 
     def step_attributes(self, index: int) -> dict:
         """Every attribute of step ``index`` (the format's and vibid's own), without samples."""
-        g = self._file[f"/{fmt.STEPS_GROUP}/{self._names[index]}"]
-        return {k: (fmt.text(v) if isinstance(v, (str, bytes)) else v) for k, v in g.attrs.items()}
+        where = f"/{fmt.STEPS_GROUP}/{self._names[index]}"
+        with reading(self.path, where):
+            g = self._file[where]
+            return {k: (fmt.text(v) if isinstance(v, (str, bytes)) else v) for k, v in g.attrs.items()}
 
     def steps(self) -> Iterator[Step]:
         """Every step in the order acquired, read one at a time."""
@@ -96,15 +103,20 @@ class Session:
 
     def frequencies_hz(self) -> np.ndarray:
         """The commanded frequency of every step, without reading any samples."""
-        grp = self._file[fmt.STEPS_GROUP]
-        return np.array([float(grp[n].attrs["frequency_hz"]) for n in self._names])
+        return np.array([float(v) for v in self._step_attribute("frequency_hz")])
 
     def statuses(self) -> list[str]:
-        grp = self._file[fmt.STEPS_GROUP]
-        return [fmt.text(grp[n].attrs["status"]) for n in self._names]
+        return [fmt.text(v) for v in self._step_attribute("status")]
+
+    def _step_attribute(self, name: str) -> Iterator:
+        for n in self._names:
+            where = f"/{fmt.STEPS_GROUP}/{n}"
+            with reading(self.path, f"{where}@{name}"):
+                value = self._file[where].attrs[name]
+            yield value
 
     def close(self) -> None:
-        self._file.close()
+        close_quietly(self._file)
 
     def __enter__(self) -> "Session":
         return self
@@ -123,11 +135,14 @@ def read_session(path: str | os.PathLike) -> Session:
     opened = open_hdf5(path)
     if isinstance(opened, Problem):
         raise SessionFileError(path, [opened])
-    problems = list(hdf5_problems(opened, check_samples=False))
-    if problems:
-        opened.close()
-        raise SessionFileError(path, problems)
-    return Session(path, opened)
+    try:
+        problems = list(hdf5_problems(opened, check_samples=False))
+        if problems:
+            raise SessionFileError(path, problems)
+        return Session(path, opened)
+    except BaseException:
+        close_quietly(opened)
+        raise
 
 
 def load_setup(path: str | os.PathLike) -> Setup:

@@ -2,30 +2,24 @@
 
 Problems are ``(location, message)`` pairs. A location is the path inside the file, with
 ``@name`` for an attribute: ``/@format_version``, ``/steps/000003@status``,
-``/steps/000003/response``. :func:`file_problems` also covers files that are not HDF5 at all.
+``/steps/000003/response``. :func:`file_problems` also covers files that are not HDF5 at all,
+and damaged ones: whatever the HDF5 library raises becomes a problem at the path being read
+(:mod:`vibid.session.hdf5io`), after which checking stops.
 """
 
 from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
 from typing import Iterator
 
 import h5py
 import numpy as np
 
 from vibid.session import format as fmt
+from vibid.session.hdf5io import (LIBRARY_ERRORS, Problem, SessionFileError, close_quietly, heap_problem, reading,
+                                  storage_problem, survives)
 from vibid.setup_model import SetupError, parse_setup
-
-
-@dataclass(frozen=True)
-class Problem:
-    location: str
-    message: str
-
-    def __str__(self) -> str:
-        return f"{self.location}: {self.message}"
 
 
 def file_problems(path: str | os.PathLike, *, check_samples: bool = True) -> list[Problem]:
@@ -33,8 +27,10 @@ def file_problems(path: str | os.PathLike, *, check_samples: bool = True) -> lis
     opened = open_hdf5(path)
     if isinstance(opened, Problem):
         return [opened]
-    with opened as f:
-        return list(hdf5_problems(f, check_samples=check_samples))
+    try:
+        return list(hdf5_problems(opened, check_samples=check_samples))
+    finally:
+        close_quietly(opened)
 
 
 def open_hdf5(path: str | os.PathLike) -> h5py.File | Problem:
@@ -54,21 +50,58 @@ def open_hdf5(path: str | os.PathLike) -> h5py.File | Problem:
     if not is_hdf5:
         return Problem("/", "not an HDF5 file (no HDF5 signature)")
     try:
-        return h5py.File(path, "r", locking=False)
+        damaged_heap = heap_problem(path)
     except OSError as exc:
+        return Problem("/", f"cannot be read ({exc.strerror or exc})")
+    if damaged_heap is not None:
+        return damaged_heap
+    crashed = survives(read_structure, path)
+    if crashed is not None:
+        return crashed
+    try:
+        return h5py.File(path, "r", locking=False)
+    except LIBRARY_ERRORS as exc:
         reason = str(exc).split("(")[0].strip().rstrip(":") or "unreadable"
         return Problem("/", f"HDF5 file is truncated or corrupted ({reason}, {size} bytes)")
 
 
 def hdf5_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Problem]:
-    """Rules of the root, the setup and every step; samples are read only if ``check_samples``."""
-    root_ok = True
-    for p in _root_problems(f):
-        root_ok = False
-        yield p
-    if not root_ok:
-        return  # without a readable header, step problems would only add noise
-    yield from steps_problems(f, check_samples=check_samples)
+    """Rules of the root, the setup and every step; samples are read only if ``check_samples``.
+
+    A part of the file the library cannot read ends the list with one problem at that path.
+    """
+    try:
+        root_ok = True
+        with reading(f.filename, "/"):
+            for p in _root_problems(f):
+                root_ok = False
+                yield p
+        if not root_ok:
+            return  # without a readable header, step problems would only add noise
+        for name in f.attrs:  # vibid's own and the optional ones are read too: they must be readable
+            with reading(f.filename, f"/@{name}"):
+                f.attrs[name]
+        yield from steps_problems(f, check_samples=check_samples)
+    except SessionFileError as exc:
+        yield from exc.problems
+
+
+def read_structure(path: str) -> None:
+    """Read everything of a session file but its samples: attributes, groups, dataset headers
+    and chunk indexes (what :func:`hdf5_problems` and the reader touch). Run in a child process
+    by :func:`open_hdf5`, where a crash of the library costs nothing."""
+    with h5py.File(path, "r", locking=False) as f:
+        list(hdf5_problems(f, check_samples=False))
+        steps = f.get(fmt.STEPS_GROUP)
+        for name in list(steps) if isinstance(steps, h5py.Group) else ():
+            try:
+                group = steps[name]
+                for key in group.attrs:
+                    group.attrs[key]
+                for key in fmt.STEP_DATASETS:
+                    storage_problem(group[key])
+            except LIBRARY_ERRORS:
+                continue
 
 
 def _root_problems(f: h5py.File) -> Iterator[Problem]:
@@ -136,14 +169,15 @@ def _setup_problems(raw) -> Iterator[Problem]:
 
 
 def steps_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Problem]:
-    if fmt.STEPS_GROUP not in f:
-        yield Problem(f"/{fmt.STEPS_GROUP}", "missing group")
-        return
-    steps = f[fmt.STEPS_GROUP]
-    if not isinstance(steps, h5py.Group):
-        yield Problem(f"/{fmt.STEPS_GROUP}", "must be a group, found a dataset")
-        return
-    names = sorted(steps.keys())
+    with reading(f.filename, f"/{fmt.STEPS_GROUP}"):
+        if fmt.STEPS_GROUP not in f:
+            yield Problem(f"/{fmt.STEPS_GROUP}", "missing group")
+            return
+        steps = f[fmt.STEPS_GROUP]
+        if not isinstance(steps, h5py.Group):
+            yield Problem(f"/{fmt.STEPS_GROUP}", "must be a group, found a dataset")
+            return
+        names = sorted(steps.keys())
     for name in names:
         if not fmt.is_step_name(name):
             yield Problem(f"/{fmt.STEPS_GROUP}/{name}", "step group name is not six digits")
@@ -152,11 +186,12 @@ def steps_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Prob
         if name != fmt.step_name(expected):
             yield Problem(where, f"step out of sequence: {fmt.step_name(expected)} is missing before it")
             return  # every later name is off by the same gap; one line says it
-        step = steps[name]
-        if not isinstance(step, h5py.Group):
-            yield Problem(where, "must be a group, found a dataset")
-            continue
-        yield from step_problems(step, where, check_samples=check_samples)
+        with reading(f.filename, where):
+            step = steps[name]
+            if not isinstance(step, h5py.Group):
+                yield Problem(where, "must be a group, found a dataset")
+                continue
+            yield from step_problems(step, where, check_samples=check_samples)
 
 
 def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -> Iterator[Problem]:
@@ -201,26 +236,37 @@ def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -
     lengths = {}
     for name in fmt.STEP_DATASETS:
         path = f"{where}/{name}"
-        if name not in step:
-            yield Problem(path, "missing dataset")
-            continue
-        ds = step[name]
-        if not isinstance(ds, h5py.Dataset):
-            yield Problem(path, "must be a dataset, found a group")
-        elif ds.ndim != 1:
-            yield Problem(path, f"must be 1-D, has shape {ds.shape}")
-        elif ds.dtype not in (np.float32, np.float64):
-            yield Problem(path, f"must be float32 or float64, is {ds.dtype}")
-        elif ds.shape[0] == 0:
-            yield Problem(path, "is empty")
-        else:
-            lengths[name] = ds.shape[0]
-            if check_samples:
-                bad = _count_non_finite(ds)
-                if bad:
-                    yield Problem(path, f"{bad} sample{'s are' if bad > 1 else ' is'} NaN or infinite")
+        with reading(step.file.filename, path):
+            yield from _dataset_problems(step, name, path, lengths, check_samples)
     if len(lengths) == 2 and lengths["response"] != lengths["base"]:
         yield Problem(f"{where}/response", f"length {lengths['response']} differs from base {lengths['base']}")
+
+
+def _dataset_problems(step: h5py.Group, name: str, path: str, lengths: dict, check_samples: bool) -> Iterator[Problem]:
+    if name not in step:
+        yield Problem(path, "missing dataset")
+        return
+    ds = step[name]
+    if not isinstance(ds, h5py.Dataset):
+        yield Problem(path, "must be a dataset, found a group")
+    elif ds.ndim != 1:
+        yield Problem(path, f"must be 1-D, has shape {ds.shape}")
+    elif ds.dtype not in (np.float32, np.float64):
+        yield Problem(path, f"must be float32 or float64, is {ds.dtype}")
+    elif ds.shape[0] == 0:
+        yield Problem(path, "is empty")
+    else:
+        lengths[name] = ds.shape[0]
+        if check_samples:
+            missing = storage_problem(ds)
+            if missing is not None:
+                yield Problem(path, missing)
+                return
+            bad = _count_non_finite(ds)
+            if bad == ds.shape[0] and np.isnan(ds.fillvalue):  # vibid's writer fills with NaN
+                yield Problem(path, "no samples stored (the file is damaged)")
+            elif bad:
+                yield Problem(path, f"{bad} sample{'s are' if bad > 1 else ' is'} NaN or infinite")
 
 
 def _count_non_finite(ds: h5py.Dataset, chunk: int = 1 << 22) -> int:

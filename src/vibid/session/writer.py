@@ -113,10 +113,11 @@ class SessionWriter:
         self = cls.__new__(cls)
         self.path = os.fspath(path)
         _remove(self._tmp)
+        from vibid.session.reader import read_session
+
+        with read_session(self.path) as s:  # a damaged file: one line, nothing written
+            self.setup, self.session_id, self.n_steps = s.setup, s.session_id, len(s)
         with h5py.File(self.path, "r", locking=False) as f:
-            self.setup = parse_setup(fmt.text(f.attrs["setup"]))
-            self.session_id = fmt.text(f.attrs["session_id"])
-            self.n_steps = sum(fmt.is_step_name(k) for k in f[fmt.STEPS_GROUP])
             stale = fmt.PARTIAL_STEP in f or any(a in f.attrs for a in fmt.RUN_STATUS_ATTRS)
 
         def reopen(f: h5py.File) -> None:
@@ -159,8 +160,11 @@ class SessionWriter:
                 g.attrs["temperature_c"] = float(temperature_c)
             for name, value in extra.items():
                 g.attrs[name] = value
-            g.create_dataset("base", data=_float_samples(base))
-            g.create_dataset("response", data=_float_samples(response))
+            # one chunk per record, with a checksum (a flipped sample is refused, not
+            # fitted) and a NaN fill (a chunk whose address is lost reads as NaN, refused)
+            for label, x in (("base", base), ("response", response)):
+                g.create_dataset(label, data=_float_samples(x), chunks=x.shape, fletcher32=True,
+                                 fillvalue=np.nan)
 
         self._commit(add_step, phase_tag=f"step{index}")
         self.n_steps += 1
