@@ -28,7 +28,8 @@ def add_parser(sub):
                    help="the plate's true material parameters (default: the middle of the "
                    "setup's bounds)")
     p.add_argument("--effect", nargs="+", default=[], metavar="NAME:PARAM=VALUE",
-                   help="effects in the data, e.g. channel_delay:tau_s=2e-5")
+                   help="effects in the data, e.g. channel_delay:tau_s=2e-5 or "
+                   "transverse_shear (an effect without parameters)")
     p.add_argument("--noise", type=float, default=0.0004,
                    help="noise std of each channel relative to the base amplitude "
                    "(default 0.0004)")
@@ -36,11 +37,13 @@ def add_parser(sub):
     p.set_defaults(run=run)
 
 
-def _effects(items) -> dict[str, float]:
+def _effects(items) -> tuple[dict[str, float], tuple[str, ...]]:
+    """The effects' parameter values, and every effect's name (a bare name for an effect
+    without parameters, e.g. ``transverse_shear``)."""
     from vibid.cli.modes import parse_params
     from vibid.identify.effects import EFFECTS
 
-    out = {}
+    out, names = {}, []
     for item in items:
         name, sep, rest = item.partition(":")
         if name not in EFFECTS:
@@ -52,7 +55,8 @@ def _effects(items) -> dict[str, float]:
             raise VibidError(f"--effect {name}: give {', '.join(sorted(own))} "
                              f"(e.g. {name}:{sorted(own)[0]}=...)")
         out |= values
-    return out
+        names.append(name)
+    return out, tuple(names)
 
 
 def run(args) -> int:
@@ -77,14 +81,15 @@ def run(args) -> int:
         params = {n: math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
                   for n, (lo, hi) in setup.identification.bounds.items()
                   if n in setup.identification.parameter_names}
-    truth = params | _effects(args.effect)
-    plate_model_for(truth)  # every name known, one-line error otherwise
+    values, effects = _effects(args.effect)
+    truth = params | values
+    plate_model_for(truth, effects)  # every name known, one-line error otherwise
     configure()
     base = StandConditions()
     conditions = dataclasses.replace(
         base, noise_std_m_s2=(args.noise * base.base_amplitude_m_s2,) * 2)
-    simulate_session(out, setup, truth, conditions=conditions, seed=args.seed)
-    sidecar.write_text(json.dumps({"parameters": truth, "noise": args.noise, "seed": args.seed},
-                                  indent=1) + "\n")
+    simulate_session(out, setup, truth, conditions=conditions, seed=args.seed, effects=effects)
+    sidecar.write_text(json.dumps({"parameters": truth, "effects": list(effects),
+                                   "noise": args.noise, "seed": args.seed}, indent=1) + "\n")
     print(f"{out}: {len(setup.excitation.frequencies_hz)} steps; truth in {sidecar}")
     return 0

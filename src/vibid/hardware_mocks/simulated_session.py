@@ -56,8 +56,9 @@ def true_afc(setup: Setup, params: dict, frequencies_hz, *, accuracy: str = "def
 
 def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,
                      conditions: StandConditions = StandConditions(), seed: int = 0,
-                     accuracy: str = "fine") -> str:
-    """Write a session of ``setup``'s stepped sine on a plate with material ``params``.
+                     accuracy: str = "fine", effects=()) -> str:
+    """Write a session of ``setup``'s stepped sine on a plate with material ``params`` (and
+    the effects their names imply, plus ``effects`` by name: see :func:`true_afc`).
 
     Returns the path written. The same arguments and seed give the same file contents
     (but for times and the session id).
@@ -67,7 +68,7 @@ def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,
     commanded = np.asarray(setup.excitation.frequencies_hz, float)
     # the specimen answers at the frequency the generator really plays
     played = np.array([true_frequency_hz(f, c.clock_offset_ppm) for f in commanded])
-    h = true_afc(setup, params, played, accuracy=accuracy)
+    h = true_afc(setup, params, played, accuracy=accuracy, effects=effects)
     n = max(1, int(round(c.record_s * fs)))
     start = datetime.now(timezone.utc)
     step_s = setup.excitation.settle_s + c.record_s
