@@ -117,7 +117,9 @@ class VirtualStand:
     def prefetch(self) -> None:
         """Solve the specimen now at every frequency the setup will play and at each mode's
         peak, so that recording does not have to (a paced stand keeps its timing)."""
-        played = [self.instrument.played_at(f) for f in self.setup.excitation.frequencies_hz]
+        # the frequency as the driver sends it (12 significant digits), then as played
+        played = [self.instrument.played_at(float(format(f, ".12g")))
+                  for f in self.setup.excitation.frequencies_hz]
         f_n, _ = self.specimen.modes
         self.specimen.h(np.concatenate([played, f_n[f_n <= self.specimen.f_max_hz]]))
 
