@@ -22,7 +22,7 @@ from vibid import __version__
 from vibid.errors import VibidError
 
 #: Sub-command modules, in the order ``vibid --help`` lists them.
-COMMANDS = ("demo", "simulate", "validate", "afc", "modes", "identify")
+COMMANDS = ("demo", "simulate", "validate", "afc", "modes", "identify", "replay")
 
 
 def build_parser() -> argparse.ArgumentParser:
