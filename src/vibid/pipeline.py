@@ -10,10 +10,19 @@ console text (:attr:`Identified.summary`) is the caller's to show.
 from __future__ import annotations
 
 import os
+import threading
 from dataclasses import dataclass
 from typing import Any
 
 from vibid.errors import VibidError
+
+#: One JAX computation at a time per process: two identifications running in two threads
+#: of one process (a thread-pool task runner, an in-process Dask cluster) deadlocked inside
+#: XLA's CPU executions on the project's 2-core machine (both threads waiting in
+#: ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike). The stages
+#: that run the model hold this lock; the signal stage and file writing run beside them.
+#: Batches gain parallelism from worker *processes* (a Dask cluster), not threads.
+COMPUTE_LOCK = threading.RLock()
 
 #: Default options of the identification stage (those of ``vibid identify``).
 RESTARTS = 5
@@ -95,17 +104,18 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     names = parse_candidates(candidates)
     configure()
     setup, afc = data.setup, data.afc
-    result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, method=method,
-                      local=local, restarts=restarts, seed=seed, progress=progress)
-    if loop and result.converged and afc.std is None:
-        return Identified(result, None, "no loop: the AFC has no std column, so the residual "
-                          "cannot be tested against the noise\n" + result.summary())
-    if loop and result.converged:
-        from vibid.identify.loop import close_loop
+    with COMPUTE_LOCK:
+        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, method=method,
+                          local=local, restarts=restarts, seed=seed, progress=progress)
+        if loop and result.converged and afc.std is None:
+            return Identified(result, None, "no loop: the AFC has no std column, so the "
+                              "residual cannot be tested against the noise\n" + result.summary())
+        if loop and result.converged:
+            from vibid.identify.loop import close_loop
 
-        closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                            candidates=names, local=local, declared=result)
-        return Identified(closed.final, closed, closed.summary())
+            closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
+                                candidates=names, local=local, declared=result)
+            return Identified(closed.final, closed, closed.summary())
     return Identified(result, None, result.summary())
 
 
@@ -132,7 +142,8 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
     report and the paths written, by file name (``"json"`` for ``json_path``)."""
     from vibid.report import write_report
 
-    report = build_session_report(data, identified)
+    with COMPUTE_LOCK:  # engineering constants differentiate with JAX
+        report = build_session_report(data, identified)
     paths: dict[str, str] = {}
     if json_path is not None:
         write_report(report, json_path)
@@ -140,8 +151,10 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
     if report_dir is not None:
         from vibid.lab_report import write_lab_report
 
-        paths |= write_lab_report(report_dir, data, identified, report,
-                                  session_path=None if session_path is None else os.fspath(session_path))
+        with COMPUTE_LOCK:  # the figures evaluate the model
+            paths |= write_lab_report(report_dir, data, identified, report,
+                                      session_path=None if session_path is None
+                                      else os.fspath(session_path))
     return report, paths
 
 
