@@ -148,3 +148,8 @@ def test_replay_command_rejects_bad_input_in_one_line(tmp_path, capsys):
     assert err.startswith("vibid replay: error:") and "no such file" in err and "\n" not in err
     assert main(["replay", str(tmp_path / "missing.h5"), "--candidates", "warp_drive"]) == 1
     assert "unknown warp_drive" in capsys.readouterr().err
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not a session")
+    assert main(["replay", str(junk)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("vibid replay: error:") and "junk.h5" in err and "\n" not in err

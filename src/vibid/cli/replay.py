@@ -44,6 +44,10 @@ def run(args) -> int:
     candidates = parse_candidates(args.candidates)
     if not os.path.isfile(args.session):
         raise VibidError(f"{args.session}: no such file")
+    from vibid.session import read_session
+
+    with read_session(args.session):  # a file that is no session: one line, before Prefect starts
+        pass
     from vibid.flows import replay_flow
 
     replay_flow(args.session, json_path=args.json, report_dir=args.report,
