@@ -4,7 +4,6 @@ setting and the replay command's input checks."""
 
 import csv
 import io
-import math
 
 import numpy as np
 import pytest
