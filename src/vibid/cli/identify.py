@@ -40,71 +40,40 @@ def run(args) -> int:
     from vibid.cli.paths import check_output_file
     from vibid.cli.progress import search_progress
     from vibid.errors import VibidError
-    from vibid.identify import configure
-    from vibid.identify.fit import identify
-    from vibid.report import build_report, write_report
+    from vibid.pipeline import (build_session_report, identify_afc, parse_candidates,
+                                require_converged)
+    from vibid.report import write_report
 
     if args.restarts < 1:
         raise VibidError("--restarts must be at least 1")
     if args.json:
         check_output_file(args.json, overwrite=True)  # before the minutes of identification
-    setup, session_id, afc = _source(args)
-    candidates = None
-    if args.candidates:
-        from vibid.identify.loop import all_candidates
-
-        candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
-        known = {c.name for c in all_candidates()}
-        if unknown := sorted(set(candidates) - known):
-            raise VibidError(f"--candidates: unknown {', '.join(unknown)}; expected some of "
-                             f"{', '.join(sorted(known))}")
-    configure()
+    candidates = parse_candidates(args.candidates)
+    data = _source(args)
     with search_progress(not args.no_progress) as progress:
-        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                          method=args.method, local=args.local, restarts=args.restarts,
-                          seed=args.seed, progress=progress)
-    loop = None
-    if not args.no_loop and result.converged and afc.std is None:
-        print("no loop: the AFC has no std column, so the residual cannot be tested against "
-              "the noise")
-    elif not args.no_loop and result.converged:
-        from vibid.identify.loop import close_loop
-
-        loop = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                          candidates=candidates, local=args.local, declared=result)
-        result = loop.final
-        print(loop.summary())
-    else:
-        print(result.summary())
+        identified = identify_afc(data, loop=not args.no_loop, candidates=candidates,
+                                  method=args.method, local=args.local, restarts=args.restarts,
+                                  seed=args.seed, progress=progress)
+    print(identified.summary)
     if args.json:
-        report = build_report(result, session_id=session_id,
-                              declared_model=setup.identification.model,
-                              afc=afc.to_report_block(), loop=loop, setup=setup)
-        write_report(report, args.json)
+        write_report(build_session_report(data, identified), args.json)
         print(f"report written to {args.json}")
-    if not result.converged:
-        # the report is written (it says why); the job itself failed
-        raise VibidError(f"the identification did not converge: {result.message}")
+    # the report is written (it says why); the job itself failed
+    require_converged(identified)
     return 0
 
 
 def _source(args):
-    """(setup, session_id, AFC) from a session file, or from --afc and --setup."""
+    """The :class:`~vibid.pipeline.SessionAfc` of a session file, or of --afc and --setup."""
     from vibid.errors import VibidError
+    from vibid.pipeline import SessionAfc, session_afc
 
     if args.afc is None:
         if args.session is None:
             raise VibidError("give a session file, or --afc AFC.csv with --setup SETUP.json")
         if args.setup is not None:
             raise VibidError("--setup goes with --afc; a session file holds its own setup")
-        from vibid.session import read_session
-
-        with read_session(args.session) as s:
-            setup, session_id = s.setup, s.session_id
-            afc = _signal_stage(s)
-        if afc is None:
-            raise VibidError("the signal stage (vibid.signal.afc_from_session) is not available")
-        return setup, session_id, afc
+        return session_afc(args.session)
     if args.session is not None:
         raise VibidError("give either a session file or --afc, not both")
     if args.setup is None:
@@ -113,12 +82,4 @@ def _source(args):
     from vibid.signal.imported import read_afc_csv
 
     afc = read_afc_csv(args.afc)
-    return load_setup(args.setup), afc.session_id, afc
-
-
-def _signal_stage(session):
-    try:
-        from vibid.signal import afc_from_session
-    except ImportError:
-        return None
-    return afc_from_session(session)
+    return SessionAfc(load_setup(args.setup), afc.session_id, afc)

@@ -1,0 +1,60 @@
+"""`vibid replay SESSION.h5 [--json REPORT.json] [--report DIR] [--no-loop] [--candidates A,B]`:
+``vibid identify`` run as a Prefect flow (:func:`vibid.flows.replay_flow`): the same options
+and the same JSON report, plus in ``--report DIR`` a readable ``report.md`` with PNG figures,
+and the summary as Prefect artifacts.
+
+With no configuration the flow runs on Prefect's embedded temporary server (started for the
+run); with ``PREFECT_API_URL`` set, on that server, where the run and its artifacts stay.
+"""
+
+from __future__ import annotations
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "replay",
+        help="identify a recorded session as a Prefect flow, with a readable report",
+        description=__doc__.split("\n\n")[0].replace("`", ""),
+    )
+    p.add_argument("session", metavar="SESSION.h5", help="the session file")
+    p.add_argument("--json", metavar="REPORT.json", help="write the JSON report here")
+    p.add_argument("--report", metavar="DIR",
+                   help="write report.md, report.json and the PNG figures into this folder")
+    p.add_argument("--no-loop", action="store_true",
+                   help="fit the declared model only (no search for missing effects)")
+    p.add_argument("--candidates", metavar="A,B",
+                   help="limit the closed loop's candidates (effect names, anisotropy)")
+    p.add_argument("--method", choices=("global", "local"), default="global",
+                   help="global search then polish (default), or a local run from the box centre")
+    p.add_argument("--local", choices=("newton", "bfgs", "lm"), default="newton",
+                   help="local method (default: trust-region Newton, exact Hessian)")
+    p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
+    p.add_argument("--seed", type=int, default=0, help="seed of the global search")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    import os
+
+    from vibid.errors import VibidError
+    from vibid.pipeline import parse_candidates
+
+    if args.restarts < 1:
+        raise VibidError("--restarts must be at least 1")
+    candidates = parse_candidates(args.candidates)
+    if not os.path.isfile(args.session):
+        raise VibidError(f"{args.session}: no such file")
+    from vibid.session import read_session
+
+    with read_session(args.session):  # a file that is no session: one line, before Prefect starts
+        pass
+    from vibid.flows import replay_flow
+
+    replay_flow(args.session, json_path=args.json, report_dir=args.report,
+                loop=not args.no_loop, candidates=None if candidates is None else list(candidates),
+                method=args.method, local=args.local, restarts=args.restarts, seed=args.seed)
+    if args.json:
+        print(f"report written to {args.json}")
+    if args.report:
+        print(f"readable report: {os.path.join(args.report, 'report.md')}")
+    return 0

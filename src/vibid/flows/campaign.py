@@ -1,0 +1,106 @@
+"""Campaign: acquire a session on a stand, then AFC → identification with the loop → report.
+
+Acquisition runs in the flow's own (main) thread, never on the task runner: the hardware
+stays on the stand's machine, and Ctrl-C or a cancelled flow's SIGTERM reaches the campaign,
+which switches the generator's output off and closes the session ``interrupted``
+(:func:`vibid.acquisition.campaign.run_campaign`). A transient stand fault (the campaign
+ends ``aborted`` with a ``stand fault: ...`` reason, e.g. an instrument that did not answer)
+is retried by reopening the stand and *resuming* the session: a written step is never
+recorded again. The abort limit (a response above ``drive.abort_response_m_s2``) is a safety
+stop and never retried. The stages after acquisition are those of a replay, so a campaign's
+report equals a replay of its session.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from prefect import flow
+
+from vibid.errors import VibidError
+from vibid.flows.tasks import afc_task, identify_task, publish_artifacts, report_task, run_logger
+from vibid.pipeline import read_setup, require_converged
+
+#: The reason prefix of a campaign ended by a driver's fault (retried as a resume).
+TRANSIENT_REASON = "stand fault:"
+
+
+def is_transient(result) -> bool:
+    """Whether a :class:`~vibid.acquisition.campaign.CampaignResult` ended on a stand fault
+    that a resume may get past (not the abort limit, not an operator's stop)."""
+    return result.run_status == "aborted" and result.reason.startswith(TRANSIENT_REASON)
+
+
+def default_report_dir(out) -> str:
+    """The report folder beside a session file: ``<session stem>-report``."""
+    out = Path(out)
+    return os.fspath(out.with_name(f"{out.stem}-report"))
+
+
+def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: bool = False,
+            retries: int = 2, retry_delay_s: float = 1.0, logger=None, **campaign_options):
+    """Run the campaign, retrying a transient stand fault up to ``retries`` times as a
+    resume (the stand reopened, the session continued from its first missing step).
+    Returns the last :class:`~vibid.acquisition.campaign.CampaignResult`."""
+    from vibid.acquisition.campaign import run_campaign
+    from vibid.acquisition.stand import open_stand
+
+    logger = logger or run_logger()
+
+    def step_logged(p) -> None:
+        logger.info("step %d/%d: %.2f Hz, |H| %.4g, phase %.1f deg, %s (about %.0f s left)",
+                    p.index + 1, p.n_steps, p.frequency_hz, p.h_abs, p.phase_deg, p.status,
+                    p.eta_s)
+
+    for attempt in range(retries + 1):
+        with open_stand(stand, setup, config, realtime=realtime) as st:
+            result = run_campaign(setup, st, out, config, resume=resume, progress=step_logged,
+                                  **campaign_options)
+        logger.info("campaign %s: %s %s (%d steps)", result.path, result.run_status,
+                    result.reason, result.n_steps)
+        if not is_transient(result) or attempt == retries:
+            return result
+        logger.warning("%s; resuming (retry %d of %d)", result.reason, attempt + 1, retries)
+        resume = True  # a retry never repeats a written step
+        # operator/notes are attributes of a new session only
+        campaign_options = {k: v for k, v in campaign_options.items() if k == "temperature_c"}
+        time.sleep(retry_delay_s)
+    return result
+
+
+@flow(name="campaign")
+def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: Path | None = None,
+                  out: Path, report_dir: Path | None = None, resume: bool = False,
+                  realtime: bool = False, loop: bool = True,
+                  candidates: list[str] | str | None = None, retries: int = 2,
+                  operator: str | None = None, notes: str | None = None,
+                  temperature_c: float | None = None) -> dict:
+    """Record a session of the setup at ``setup_path`` on ``stand`` (``"simulated"`` or
+    ``"ni"``, configured by the STAND.json ``stand_config``) into ``out``, then identify it
+    and write the report into ``report_dir`` (default: ``<out stem>-report`` beside ``out``).
+
+    Returns the report (a dict). A campaign that did not complete (interrupted, aborted)
+    fails the flow with its reason; the session keeps every step recorded (``resume=True``
+    continues it).
+    """
+    from vibid.acquisition.stand_config import load_stand_config
+
+    logger = run_logger()
+    setup = read_setup(setup_path)
+    config = load_stand_config(stand_config)
+    result = acquire(setup, stand=stand, config=config, out=out, resume=resume,
+                     realtime=realtime, retries=retries, logger=logger, operator=operator,
+                     notes=notes, temperature_c=temperature_c)
+    if result.run_status != "complete":
+        raise VibidError(f"campaign {result.run_status}: {result.reason}; {result.path} keeps "
+                         f"its {result.n_steps} steps (resume to continue)")
+    report_dir = default_report_dir(out) if report_dir is None else report_dir
+    data = afc_task(os.fspath(out))
+    identified = identify_task(data, loop=loop, candidates=candidates)
+    # the folder gets report.json beside report.md
+    report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)
+    publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)
+    require_converged(identified)
+    return report

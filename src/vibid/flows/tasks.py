@@ -1,0 +1,92 @@
+"""The stages as Prefect tasks: thin wrappers over :mod:`vibid.pipeline`.
+
+Each task calls one plain function and logs what it found; the functions are where the work
+and its tests are (``task.fn(...)`` runs a task's body without Prefect). No task caches its
+result: a replay always recomputes, so a changed session or library is never masked.
+Outside a flow run the tasks log to ``logging.getLogger("vibid.flows")``.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from prefect import task
+from prefect.cache_policies import NO_CACHE
+
+from vibid.pipeline import (RESTARTS, SEED, Identified, SessionAfc, identify_afc, session_afc,
+                            write_outputs)
+
+
+def run_logger():
+    """Prefect's run logger inside a flow or task run, else the module's logger."""
+    from prefect import get_run_logger
+    from prefect.exceptions import MissingContextError
+
+    try:
+        return get_run_logger()
+    except MissingContextError:
+        return logging.getLogger("vibid.flows")
+
+
+def progress_logger(logger, *, every: float = 0.25):
+    """A search ``progress(label, done, total, best)`` callback that logs one line per
+    search at every ``every`` of its generations (no carriage-return bars in a log)."""
+    reached: dict[str, int] = {}
+
+    def progress(label: str, done: int, total: int, best: float) -> None:
+        mark = int(done / total / every) if total else 0
+        if mark > reached.get(label, -1):
+            reached[label] = mark
+            logger.info("%s: generation %d of %d, best chi2 %.4g", label, done, total, best)
+
+    return progress
+
+
+@task(name="afc", cache_policy=NO_CACHE)
+def afc_task(session_path: str) -> SessionAfc:
+    """Signal stage: read the session and fit every step's AFC."""
+    data = session_afc(session_path)
+    used = int(data.afc.used.sum())
+    run_logger().info("%s: %d of %d steps used", session_path, used, len(data.afc.used))
+    return data
+
+
+@task(name="identify", cache_policy=NO_CACHE)
+def identify_task(data: SessionAfc, *, loop: bool = True, candidates=None,
+                  method: str = "global", local: str = "newton", restarts: int = RESTARTS,
+                  seed: int = SEED) -> Identified:
+    """Identification stage: the declared model, then the closed loop (with ``loop``)."""
+    logger = run_logger()
+    identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
+                              local=local, restarts=restarts, seed=seed,
+                              progress=progress_logger(logger))
+    logger.info("%s", identified.summary)
+    return identified
+
+
+@task(name="report", cache_policy=NO_CACHE)
+def report_task(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
+                session_path=None) -> tuple[dict, dict]:
+    """Report stage: the JSON report, and the readable report folder; (report, paths)."""
+    report, paths = write_outputs(data, identified, json_path=json_path, report_dir=report_dir,
+                                  session_path=session_path)
+    for name, path in paths.items():
+        run_logger().info("wrote %s", path)
+    return report, paths
+
+
+def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
+    """The report's summary as Prefect artifacts: a markdown summary and a parameter table,
+    keyed by specimen (``<specimen>-report``, ``<specimen>-parameters``) so one specimen's
+    runs form a history in the Prefect UI. Call inside a flow run."""
+    from prefect.artifacts import create_markdown_artifact, create_table_artifact
+
+    from vibid.lab_report import artifact_key, parameter_table, summary_markdown
+
+    text = summary_markdown(report, title=f"{specimen or 'specimen'}: identification report")
+    if report_dir is not None:
+        text += f"\nFigures and report.md: `{report_dir}`\n"
+    create_markdown_artifact(key=artifact_key(specimen, "report"), markdown=text,
+                             description=f"identification report of session {report['session_id']}")
+    create_table_artifact(key=artifact_key(specimen, "parameters"), table=parameter_table(report),
+                          description=f"identified values (SI units) of session {report['session_id']}")

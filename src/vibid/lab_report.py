@@ -1,0 +1,422 @@
+"""The readable report of one identified session: ``report.md`` with PNG figures, in a
+folder; and the summary table of many sessions (CSV and markdown).
+
+Built from the same content as the JSON report (:mod:`vibid.report`), plus what only the
+in-memory results hold: the model evaluated on a fine frequency grid (so a resonance is a
+peak, not a one-point spike), every loop stage's residual, the optimiser's history.
+
+The text speaks a lab's language: values with units and standard deviation, the effect the
+loop found and what it changed, χ² before and after; the optimiser's internals (status
+sentence, runs, evaluations) go to the "Details" section.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+#: Points of the fine grid the model is drawn on, spread evenly over the measured band;
+#: each natural frequency in the band gets FINE_PER_MODE more within a few half-power
+#: bandwidths of it, so its peak is drawn at its height.
+FINE_POINTS = 2000
+FINE_PER_MODE = 161
+#: Half-widths around a mode densely sampled, in half-power bandwidths.
+FINE_HALF_WIDTH_BANDWIDTHS = 12.0
+#: Modes asked of the model to find those in the band.
+N_MODES = 12
+
+#: File names in the report folder.
+REPORT_MD = "report.md"
+REPORT_JSON = "report.json"
+AFC_PNG = "afc.png"
+RESIDUALS_PNG = "residuals.png"
+CONVERGENCE_PNG = "convergence.png"
+
+#: What a lab engineer calls each parameter (units come from the model's terms).
+MEANING = {
+    "D": "bending stiffness", "nu": "Poisson's ratio", "beta": "loss factor",
+    "D11": "bending stiffness along the length", "D22": "bending stiffness across",
+    "D12": "coupling stiffness", "D66": "twisting stiffness", "D16": "coupling stiffness 16",
+    "D26": "coupling stiffness 26", "E_Pa": "Young's modulus", "G_Pa": "shear modulus",
+    "E1_Pa": "Young's modulus along the length", "E2_Pa": "Young's modulus across",
+    "G12_Pa": "in-plane shear modulus", "nu12": "Poisson's ratio 12",
+}
+#: What each effect of the loop is, in a lab's words (shared/spec/report-format.md).
+EFFECT_MEANING = {
+    "channel_delay": "a time skew between the two measurement channels",
+    "sensor_gain": "a sensitivity error of the response sensor against the base sensor",
+    "clamp_compliance": "an elastic clamp (a rotational spring along the clamped edge)",
+    "added_mass": "an undeclared mass at the response sensor (glue, cable)",
+    "frequency_dependent_loss": "a loss factor that varies with frequency",
+    "anisotropy": "an orthotropic material instead of the declared isotropic one",
+    "transverse_shear": "shear deformation of a thick plate (Reissner–Mindlin)",
+}
+
+
+# -- numbers a person reads -------------------------------------------------------------------
+def unit_of(name: str) -> str:
+    """The SI unit of a report parameter (material, effect or engineering constant)."""
+    if name.endswith("_Pa"):
+        return "Pa"
+    from vibid.identify.effects import EFFECTS
+    from vibid.identify.model.materials import Material
+
+    for effect in EFFECTS.values():
+        for q in effect.parameters:
+            if q.name == name:
+                return q.unit
+    for model in ("isotropic", "orthotropic", "monoclinic"):
+        for per_modulus in (False, True):
+            try:
+                params = Material(model, per_modulus).parameters
+            except (ValueError, AttributeError):
+                continue
+            for q in params:
+                if q.name == name:
+                    return q.unit
+    return "1"
+
+
+def _unit_text(unit: str) -> str:
+    return "" if unit == "1" else f" {unit.replace(' ', '·')}"
+
+
+def with_std(value, std) -> str:
+    """``value ± std`` with the value rounded to the std's second significant digit."""
+    if value is None:
+        return "n/a"
+    if std is None or not math.isfinite(std) or std <= 0:
+        return f"{value:.6g}"
+    digits = max(0, 1 - int(math.floor(math.log10(std))))
+    if abs(value) >= 1e5 or (abs(value) < 1e-3 and value != 0):
+        exp = int(math.floor(math.log10(abs(value))))
+        scale = 10.0**exp
+        d = max(0, 1 - int(math.floor(math.log10(std / scale))))
+        return f"({value / scale:.{d}f} ± {std / scale:.{d}f})e{exp:+d}"
+    return f"{value:.{digits}f} ± {std:.{digits}f}"
+
+
+def _chi2(x) -> str:
+    return "n/a" if x is None else f"{x:.4g}"
+
+
+# -- the model on a fine grid ----------------------------------------------------------------
+def fine_model(setup, result, *, n_points: int = FINE_POINTS):
+    """``(frequency_hz, H, natural_hz)``: the final model's AFC on a fine grid over the
+    measured band (:data:`FINE_POINTS` evenly spread, plus :data:`FINE_PER_MODE` around
+    each natural frequency in the band) and those natural frequencies (Hz), from the
+    reduced model rebuilt around the estimate (accurate to about 1e-6 of max |H|)."""
+    from vibid.identify import build_forward_model, natural_frequencies
+
+    f_used = np.asarray(result.frequency_hz, float)[np.asarray(result.used, bool)]
+    lo, hi = float(f_used.min()), float(f_used.max())
+    fn, decay = natural_frequencies(setup, result.parameters, N_MODES)
+    fn, decay = np.asarray(fn, float), np.asarray(decay, float)
+    inband = (fn >= lo) & (fn <= hi)
+    grids = [np.linspace(lo, hi, n_points)]
+    for f0, g in zip(fn[inband], decay[inband]):
+        half = FINE_HALF_WIDTH_BANDWIDTHS * max(g / np.pi, 1e-6 * f0)
+        grids.append(np.clip(np.linspace(f0 - half, f0 + half, FINE_PER_MODE), lo, hi))
+    grid = np.unique(np.concatenate(grids))
+    model = build_forward_model(setup, grid, model=result.plate_model, theta0=result.parameters)
+    return grid, np.asarray(model.afc(np.asarray(result.values, float))), fn[inband]
+
+
+# -- the figures -------------------------------------------------------------------------------
+def _values_text(report: dict) -> str:
+    rows = [(n, p["value"], p["std"]) for n, p in report["parameters"].items()]
+    rows += [(n, p["value"], p["std"]) for e in report["effects"] for n, p in e["parameters"].items()]
+    rows += [(n, p["value"], p["std"]) for n, p in report.get("engineering", {}).items()
+             if n.endswith("_Pa")]
+    return "\n".join(f"{n:>7} = {with_std(v, s)}{_unit_text(unit_of(n))}" for n, v, s in rows)
+
+
+def _flagged(afc) -> list:
+    from vibid.plots import Flagged
+
+    out = []
+    used = np.asarray(afc.used, bool)
+    flags = getattr(afc, "flags", None) or ((),) * used.size
+    status = getattr(afc, "status", None) or ("ok",) * used.size
+    for k in np.flatnonzero(~used):
+        H = complex(afc.H[k])
+        if not (np.isfinite(H) and np.isfinite(afc.frequency_hz[k])):
+            continue
+        label = ", ".join(flags[k]) or status[k]
+        out.append(Flagged(float(afc.frequency_hz[k]), H, label))
+    return out
+
+
+def _stage_residual(label, result):
+    from vibid.plots import StageResidual
+
+    u = np.asarray(result.used, bool)
+    w = result.weights if result.weights is not None else np.ones(int(u.sum()))
+    r = (np.asarray(result.H)[u] - np.asarray(result.model_afc)[u]) / np.asarray(w, float)
+    return StageResidual(label, np.asarray(result.frequency_hz, float)[u], r.real, r.imag,
+                         float(result.chi2_reduced))
+
+
+def _stages(identified) -> list[tuple[str, Any]]:
+    if identified.loop is None:
+        return [("declared model", identified.result)]
+    return [("declared model" if st.added is None else f"+ {st.added}", st.result)
+            for st in identified.loop.stages]
+
+
+def figures(data, identified, report: dict) -> dict[str, Any]:
+    """The report's figures by file name (:data:`AFC_PNG`, :data:`RESIDUALS_PNG`,
+    :data:`CONVERGENCE_PNG`); the last only when the optimiser recorded its history."""
+    from vibid.plots import afc_figure, convergence_figure, residual_figure
+
+    afc, result = data.afc, identified.result
+    used = np.asarray(afc.used, bool)
+    grid, Hm, natural = fine_model(data.setup, result)
+    name = data.setup.specimen.name or "specimen"
+    out = {AFC_PNG: afc_figure(
+        np.asarray(afc.frequency_hz)[used], np.asarray(afc.H)[used],
+        None if afc.std is None else np.asarray(afc.std)[used],
+        model_frequency_hz=grid, model_H=Hm, natural_hz=natural, flagged=_flagged(afc),
+        values_text=_values_text(report),
+        title=f"{name}: measured AFC and the identified model ({report['model']}"
+              + "".join(f" + {e['name']}" for e in report["effects"]) + ")")}
+    stages = _stages(identified)
+    out[RESIDUALS_PNG] = residual_figure(
+        [_stage_residual(label, r) for label, r in stages],
+        title="normalised residual (measured − model) / std, loop stage by stage")
+    histories = [(label, [[h.loss for h in run.history] for run in r.local_results])
+                 for label, r in stages]
+    if any(len(h) for _, runs in histories for h in runs):
+        out[CONVERGENCE_PNG] = convergence_figure(
+            histories, title="local optimiser: χ² per iteration")
+    return out
+
+
+# -- the text ----------------------------------------------------------------------------------
+def _param_rows(params: dict) -> list[str]:
+    return [f"| {n} | {MEANING.get(n, '')} | {with_std(p['value'], p['std'])} | "
+            f"{unit_of(n).replace(' ', '·')} |" for n, p in params.items()]
+
+
+def _effect_text(report: dict) -> list[str]:
+    stages = report["loop"]["stages"]
+    first, last = stages[0], stages[-1]
+    lines = []
+    if "rounds" not in report["loop"]:
+        fit = ("does **not** fit" if report["loop"]["unexplained_residual"] else "fits")
+        return [f"The closed loop did not run; the declared model {fit} the data to the "
+                "noise level."]
+    if not report["effects"]:
+        if report["loop"]["unexplained_residual"]:
+            lines.append("The declared model does **not** fit the data to the noise level, and "
+                         "no candidate effect explained the residual (`unexplained_residual`): "
+                         "look at the residual figure for what the model lacks.")
+        else:
+            lines.append("No effect needed: the declared model fits the data to the noise level.")
+        return lines
+    for e in report["effects"]:
+        vals = ", ".join(f"{n} = {with_std(p['value'], p['std'])}{_unit_text(unit_of(n))}"
+                         for n, p in e["parameters"].items())
+        lines.append(f"- **{e['name']}**: {EFFECT_MEANING.get(e['name'], e['name'])}"
+                     + (f"; {vals}" if vals else ""))
+    lines.append("")
+    lines.append(f"With it χ²/dof went from {_chi2(first['chi2_reduced'])} to "
+                 f"{_chi2(last['chi2_reduced'])}, and the relative RMS residual from "
+                 f"{_pct(first['rel_rms_residual'])} to {_pct(last['rel_rms_residual'])}.")
+    changes = []
+    for n, v1 in last["parameters"].items():
+        v0 = first["parameters"].get(n)
+        if v0 is None or v1 is None or v0 == 0:
+            continue
+        changes.append(f"{n} {100 * (v1 - v0) / abs(v0):+.3g} %")
+    if changes:
+        lines.append("Against the declared model's fit it changed " + ", ".join(changes) + ".")
+    if report["loop"]["unexplained_residual"]:
+        lines.append("The residual is still above the noise (`unexplained_residual`).")
+    return lines
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None else f"{100 * x:.3g} %"
+
+
+def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = "",
+                     session_path: str | None = None) -> str:
+    """``report.md``: the result in a lab's language, the figures (file names relative to
+    the report folder), and a Details section with the optimiser's internals."""
+    ident = report.get("identification", {})
+    afc = report["afc"]
+    diag = afc.get("diagnostics")
+    n_used = len(afc["frequency_hz"])
+    lines = [f"# {title or 'Identification report'}", ""]
+    lines.append(f"- session: `{report['session_id']}`"
+                 + (f" (`{os.path.basename(session_path)}`)" if session_path else ""))
+    if diag is not None:
+        left_out = [d for d in diag if not d.get("used")]
+        lines.append(f"- steps used: {n_used} of {len(diag)}"
+                     + (" — left out: " + "; ".join(
+                         f"{d['commanded_hz']:.4g} Hz ({', '.join(f['name'] for f in d['flags']) or d['status']})"
+                         for d in left_out) if left_out else ""))
+    else:
+        lines.append(f"- AFC points used: {n_used}")
+    model = report["model"] + ("" if report["model"] == report["declared_model"]
+                               else f" (declared {report['declared_model']})")
+    lines.append(f"- model: {model}")
+    if ident and not ident.get("converged", True):
+        lines.append(f"- **the identification did not converge**: {ident.get('message', '')}")
+    lines += ["", "## Identified values (value ± standard deviation)", "",
+              "| parameter | meaning | value | unit |", "|---|---|---|---|"]
+    lines += _param_rows(report["parameters"])
+    if "engineering" in report:
+        lines += ["", "Engineering constants (from the stiffnesses and the declared thickness):", "",
+                  "| constant | meaning | value | unit |", "|---|---|---|---|"]
+        lines += _param_rows(report["engineering"])
+    lines += ["", "## Effects the loop found", ""] + _effect_text(report)
+    lines += ["", "## Fit quality, stage by stage", "",
+              "| stage | χ²/dof | relative RMS residual |", "|---|---|---|"]
+    for st in report["loop"]["stages"]:
+        lines.append(f"| {'declared model' if st['added'] is None else '+ ' + st['added']} | "
+                     f"{_chi2(st['chi2_reduced'])} | {_pct(st['rel_rms_residual'])} |")
+    captions = {AFC_PNG: "Measured AFC (±2 std) and the identified model on a fine grid; "
+                         "natural frequencies dotted, flagged steps crossed",
+                RESIDUALS_PNG: "Normalised residual with its ±2 band, before and after each effect",
+                CONVERGENCE_PNG: "The local optimiser's χ² per iteration"}
+    if figures:
+        lines += ["", "## Figures", ""]
+        for name in figures:
+            lines += [f"![{captions.get(name, name)}]({name})", "", f"*{captions.get(name, name)}*", ""]
+        if CONVERGENCE_PNG not in figures:
+            lines.append("(No convergence figure: the optimiser recorded no iteration history.)")
+    lines += ["", "## Details", ""]
+    if ident:
+        lines.append(f"- optimiser: {ident.get('message', '')}")
+        lines.append(f"- χ² = {_chi2(ident.get('chi2'))} over {ident.get('dof')} degrees of freedom;"
+                     f" χ²/dof with the data's own weights {_chi2(ident.get('chi2_reduced_data_weights'))}")
+        g = ident.get("global_search")
+        if g:
+            lines.append(f"- global search: {len(g['restart_loss'])} restarts, "
+                         f"{g['evaluations']} model evaluations")
+        for r in ident.get("local_runs", [])[:5]:
+            lines.append(f"- local run {r['method']}: χ² {_chi2(r['chi2'])}, "
+                         f"{r['iterations']} iterations, {r['status']}")
+        if ident.get("model_error_std"):
+            lines.append("- the model's discretisation bias (included in the std): " + ", ".join(
+                f"{n} {v:.2g}" for n, v in ident["model_error_std"].items() if v is not None))
+        for w in ident.get("warnings", []):
+            lines.append(f"- warning: {w}")
+        if ident.get("seconds") is not None:
+            lines.append(f"- identification time: {ident['seconds']:.1f} s"
+                         + (f", loop {report['loop']['seconds']:.1f} s"
+                            if report["loop"].get("seconds") is not None else ""))
+    for rnd, scores in enumerate(report["loop"].get("rounds", []), start=1):
+        for sc in scores:
+            lines.append(f"- loop round {rnd}: {sc['candidate']} score {_chi2(sc['score'])}"
+                         f" (p {_chi2(sc['p_value'])}), Δχ² {_chi2(sc['delta_chi2'])}"
+                         f"{', kept' if sc['kept'] else ''}{'; ' + sc['note'] if sc['note'] else ''}")
+    return "\n".join(lines) + "\n"
+
+
+def write_lab_report(report_dir: str | os.PathLike, data, identified, report: dict, *,
+                     session_path: str | None = None) -> dict[str, str]:
+    """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``
+    (created); return their paths by file name."""
+    from vibid.plots import save_png
+    from vibid.report import write_report
+
+    os.makedirs(report_dir, exist_ok=True)
+    paths = {}
+    figs = figures(data, identified, report)
+    for name, fig in figs.items():
+        paths[name] = save_png(fig, os.path.join(report_dir, name))
+    name = data.setup.specimen.name or "specimen"
+    text = summary_markdown(report, figures=list(figs), session_path=session_path,
+                            title=f"{name}: identification report")
+    paths[REPORT_MD] = os.path.join(report_dir, REPORT_MD)
+    with open(paths[REPORT_MD], "w", encoding="utf-8") as fh:
+        fh.write(text)
+    paths[REPORT_JSON] = os.path.join(report_dir, REPORT_JSON)
+    write_report(report, paths[REPORT_JSON])
+    return paths
+
+
+# -- tables ------------------------------------------------------------------------------------
+def parameter_table(report: dict) -> list[dict[str, Any]]:
+    """One row per identified quantity (parameters, effects' parameters, engineering
+    constants): name, value, std, unit, and which block it comes from."""
+    rows = [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
+             "source": "model"} for n, p in report["parameters"].items()]
+    rows += [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
+              "source": e["name"]} for e in report["effects"] for n, p in e["parameters"].items()]
+    rows += [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
+              "source": "engineering"} for n, p in report.get("engineering", {}).items()]
+    return rows
+
+
+def summary_row(name: str, report: dict | None, *, error: str = "") -> dict[str, Any]:
+    """One session's row of the batch summary: its parameters (value and std columns),
+    the effects found, χ²/dof before and after the loop."""
+    if report is None:
+        return {"session": name, "status": f"failed: {error}"}
+    stages = report["loop"]["stages"]
+    row: dict[str, Any] = {"session": name, "session_id": report["session_id"],
+                           "status": "ok" if report.get("identification", {}).get("converged", True)
+                           else "not converged", "model": report["model"],
+                           "effects": " ".join(e["name"] for e in report["effects"]) or "none"}
+    for q in parameter_table(report):
+        if q["source"] == "engineering":
+            continue
+        row[q["quantity"]] = q["value"]
+        row[f"{q['quantity']}_std"] = q["std"]
+    row["chi2_reduced_before"] = stages[0]["chi2_reduced"]
+    row["chi2_reduced_after"] = stages[-1]["chi2_reduced"]
+    row["unexplained_residual"] = report["loop"]["unexplained_residual"]
+    return row
+
+
+def _columns(rows) -> list[str]:
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    return cols
+
+
+def summary_csv(rows: Sequence[dict]) -> str:
+    """The batch summary as CSV (one row per session; empty cells where a session lacks a
+    column; floats written with repr, so they read back exactly)."""
+    out = io.StringIO()
+    w = csv.DictWriter(out, fieldnames=_columns(rows), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+    return out.getvalue()
+
+
+def summary_table_markdown(rows: Sequence[dict]) -> str:
+    """The batch summary as a markdown table: parameters as ``value ± std`` with units,
+    the effects found, χ²/dof before → after."""
+    params = [c for c in _columns(rows) if f"{c}_std" in _columns(rows)]
+    head = ["session", "status", "model", *[p if unit_of(p) == "1" else f"{p} ({unit_of(p).replace(' ', '·')})" for p in params],
+            "effects", "χ²/dof before → after"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        cells = [str(r.get("session", "")), str(r.get("status", "")), str(r.get("model", ""))]
+        cells += [with_std(r[p], r.get(f"{p}_std")) if r.get(p) is not None else "" for p in params]
+        cells.append(str(r.get("effects", "")))
+        cells.append(f"{_chi2(r.get('chi2_reduced_before'))} → {_chi2(r.get('chi2_reduced_after'))}"
+                     if "chi2_reduced_before" in r else "")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def artifact_key(specimen_name: str, suffix: str) -> str:
+    """A Prefect artifact key (lowercase letters, digits, dashes) stable per specimen, so
+    one specimen's reports form a history."""
+    slug = re.sub(r"[^a-z0-9]+", "-", (specimen_name or "specimen").lower()).strip("-")
+    return f"{slug or 'specimen'}-{suffix}"

@@ -1,0 +1,174 @@
+"""The stages of one identification job, as plain functions: session → AFC → identified
+model (with the closed loop) → the JSON report of shared/spec/report-format.md.
+
+``vibid identify`` (:mod:`vibid.cli.identify`) and the Prefect flows (:mod:`vibid.flows`)
+both call these, so a replay of a session gives the same report as ``vibid identify`` on
+it. Nothing here imports Prefect or prints: each stage returns what it found, and the
+console text (:attr:`Identified.summary`) is the caller's to show.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+from vibid.errors import VibidError
+
+#: One JAX computation at a time per process: two identifications running in two threads
+#: of one process (a thread-pool task runner, an in-process Dask cluster) deadlocked inside
+#: XLA's CPU executions on the project's 2-core machine (both threads waiting in
+#: ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike). The stages
+#: that run the model hold this lock; the signal stage and file writing run beside them.
+#: Batches gain parallelism from worker *processes* (a Dask cluster), not threads.
+COMPUTE_LOCK = threading.RLock()
+
+#: Default options of the identification stage (those of ``vibid identify``).
+RESTARTS = 5
+SEED = 0
+
+
+@dataclass(frozen=True)
+class SessionAfc:
+    """The signal stage's result: the declared setup, the session id and its AFC
+    (:class:`vibid.signal.afc.AfcTable`, or an imported AFC with the same attributes)."""
+
+    setup: Any
+    session_id: str
+    afc: Any
+
+
+@dataclass(frozen=True)
+class Identified:
+    """The identification stage's result: ``result`` the final
+    :class:`~vibid.identify.fit.result.IdentificationResult` (the loop's last stage when
+    the loop ran), ``loop`` the :class:`~vibid.identify.loop.LoopResult` or None, and
+    ``summary`` the lines for the console."""
+
+    result: Any
+    loop: Any
+    summary: str
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.result.converged)
+
+
+def parse_candidates(candidates) -> tuple[str, ...] | None:
+    """The closed loop's candidate names from ``"A,B"`` or a list; None for all of them.
+    An unknown name is a :class:`~vibid.errors.VibidError` that lists the known ones."""
+    if candidates is None:
+        return None
+    if isinstance(candidates, str):
+        candidates = candidates.split(",")
+    names = tuple(c.strip() for c in candidates if c and c.strip())
+    if not names:
+        return None
+    from vibid.identify.loop import all_candidates
+
+    known = {c.name for c in all_candidates()}
+    if unknown := sorted(set(names) - known):
+        raise VibidError(f"--candidates: unknown {', '.join(unknown)}; expected some of "
+                         f"{', '.join(sorted(known))}")
+    return names
+
+
+def session_afc(session_path: str | os.PathLike) -> SessionAfc:
+    """Read a session file and fit the AFC of every step (:func:`vibid.signal.afc_from_session`)."""
+    from vibid.session import read_session
+    from vibid.signal import afc_from_session
+
+    with read_session(session_path) as s:
+        setup, session_id = s.setup, s.session_id
+        afc = afc_from_session(s)
+    return SessionAfc(setup, session_id, afc)
+
+
+def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
+                 method: str = "global", local: str = "newton", restarts: int = RESTARTS,
+                 seed: int = SEED, progress=None) -> Identified:
+    """Identify the declared model from ``data.afc`` (global search, then the local polish),
+    then, with ``loop``, close the loop (:func:`vibid.identify.loop.close_loop`): the
+    effects the residual asks for, among ``candidates`` (names; default all).
+
+    The loop needs the AFC's uncertainty (to test the residual against the noise): without
+    it, or when the declared fit did not converge, the declared model's result is final.
+    ``progress`` is the search's ``progress(label, done, total, best)`` callback.
+    """
+    from vibid.identify import configure
+    from vibid.identify.fit import identify
+
+    if restarts < 1:
+        raise VibidError("--restarts must be at least 1")
+    names = parse_candidates(candidates)
+    configure()
+    setup, afc = data.setup, data.afc
+    with COMPUTE_LOCK:
+        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, method=method,
+                          local=local, restarts=restarts, seed=seed, progress=progress)
+        if loop and result.converged and afc.std is None:
+            return Identified(result, None, "no loop: the AFC has no std column, so the "
+                              "residual cannot be tested against the noise\n" + result.summary())
+        if loop and result.converged:
+            from vibid.identify.loop import close_loop
+
+            closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
+                                candidates=names, local=local, declared=result)
+            return Identified(closed.final, closed, closed.summary())
+    return Identified(result, None, result.summary())
+
+
+def build_session_report(data: SessionAfc, identified: Identified) -> dict[str, Any]:
+    """The JSON report (:func:`vibid.report.build_report`) of one identified session."""
+    from vibid.report import build_report
+
+    return build_report(identified.result, session_id=data.session_id,
+                        declared_model=data.setup.identification.model,
+                        afc=data.afc.to_report_block(), loop=identified.loop, setup=data.setup)
+
+
+def require_converged(identified: Identified) -> None:
+    """Raise the job's failure once its report is written (the report says why)."""
+    if not identified.converged:
+        raise VibidError(f"the identification did not converge: {identified.result.message}")
+
+
+def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
+                  session_path=None) -> tuple[dict[str, Any], dict[str, str]]:
+    """The report stage: build the JSON report, write it to ``json_path`` (if given) and the
+    readable report folder (``report.md``, ``report.json``, PNG figures:
+    :func:`vibid.lab_report.write_lab_report`) to ``report_dir`` (if given). Returns the
+    report and the paths written, by file name (``"json"`` for ``json_path``)."""
+    from vibid.report import write_report
+
+    with COMPUTE_LOCK:  # engineering constants differentiate with JAX
+        report = build_session_report(data, identified)
+    paths: dict[str, str] = {}
+    if json_path is not None:
+        write_report(report, json_path)
+        paths["json"] = os.fspath(json_path)
+    if report_dir is not None:
+        from vibid.lab_report import write_lab_report
+
+        with COMPUTE_LOCK:  # the figures evaluate the model
+            paths |= write_lab_report(report_dir, data, identified, report,
+                                      session_path=None if session_path is None
+                                      else os.fspath(session_path))
+    return report, paths
+
+
+def read_setup(path: str | os.PathLike):
+    """The declared setup of a setup JSON file (one-line errors naming the file)."""
+    from vibid.setup_model import parse_setup
+
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise VibidError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        return parse_setup(text)
+    except VibidError as exc:
+        raise VibidError(f"{path}: {exc}") from None

@@ -1,0 +1,154 @@
+"""The readable report's pieces without an identification: numbers with units and
+uncertainty, figures whose axes name their units, the batch summary table, the task-runner
+setting and the replay command's input checks."""
+
+import csv
+import io
+
+import numpy as np
+import pytest
+
+from vibid import lab_report, plots
+
+
+def test_values_are_rounded_to_the_second_significant_digit_of_their_std():
+    assert lab_report.with_std(17.969987, 2.0e-5) == "17.969987 ± 0.000020"
+    assert lab_report.with_std(0.2861180, 1.3e-6) == "0.2861180 ± 0.0000013"
+    assert lab_report.with_std(1.9800156e11, 1.2e5) == "(1.9800156 ± 0.0000012)e+11"
+    assert lab_report.with_std(2.0e-5, 1.5e-9) == "(2.00000 ± 0.00015)e-5"
+    assert lab_report.with_std(3.0, None) == "3"
+
+
+def test_units_come_from_the_model_terms():
+    assert lab_report.unit_of("D") == "N m"
+    assert lab_report.unit_of("D11") == "N m"
+    assert lab_report.unit_of("tau_s") == "s"
+    assert lab_report.unit_of("nu") == "1"
+    assert lab_report.unit_of("E_Pa") == "Pa"
+
+
+def test_measured_phase_is_drawn_within_half_a_turn_of_the_unwrapped_model():
+    # a model unwrapped to -540 deg; the measurement's angle() says +180 deg: same phasor
+    ph = plots._phase_near(np.radians([180.0, -170.0]), np.radians([-540.0, -190.0]))
+    assert np.allclose(np.degrees(ph), [-540.0, -170.0])
+
+
+def _synthetic_afc():
+    f = np.linspace(10, 200, 40)
+    f0, zeta = 100.0, 0.01
+    H = 1 / (1 - (f / f0) ** 2 + 2j * zeta * f / f0)
+    fine = np.linspace(10, 200, 2000)
+    Hf = 1 / (1 - (fine / f0) ** 2 + 2j * zeta * fine / f0)
+    return f, H, fine, Hf
+
+
+def _units_in(label):
+    return label.count("(") >= 1 and label.rstrip().endswith(")")
+
+
+def test_every_figure_names_the_unit_of_every_axis(tmp_path):
+    f, H, fine, Hf = _synthetic_afc()
+    figs = {
+        "afc": plots.afc_figure(f, H, np.full(f.size, 1e-3), model_frequency_hz=fine, model_H=Hf,
+                                natural_hz=[100.0],
+                                flagged=[plots.Flagged(12.0, 1.0 + 0j, "few_cycles")],
+                                values_text="D = 1 ± 0.1 N·m"),
+        "residuals": plots.residual_figure([
+            plots.StageResidual("declared model", f, 300 * np.sin(f), np.cos(f), 1e4),
+            plots.StageResidual("+ channel_delay", f, np.sin(f), np.cos(f), 1.0)]),
+        "convergence": plots.convergence_figure([("declared model", [[1e3, 10, 1], [1e3, 5]]),
+                                                 ("+ channel_delay", [[1e2, 1]])]),
+    }
+    for name, fig in figs.items():
+        labels = plots.axis_labels(fig)
+        assert labels, name
+        assert all(_units_in(t) for t in labels), (name, labels)
+        path = plots.save_png(fig, tmp_path / f"{name}.png")
+        data = open(path, "rb").read()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+    # one panel per loop stage, side by side
+    assert len(figs["residuals"].axes) == 2
+    # the AFC figure: |H| and phase against frequency
+    ax_mag, ax_ph = figs["afc"].axes[:2]
+    assert ax_ph.get_xlabel() == "frequency (Hz)"
+    assert ax_mag.get_yscale() == "log"
+
+
+def _report(name="s", D=17.97, tau=None):
+    effects = [] if tau is None else [
+        {"name": "channel_delay", "parameters": {"tau_s": {"value": tau, "std": 1e-9}}}]
+    stages = [{"added": None, "chi2_reduced": 812.0, "rel_rms_residual": 0.07,
+               "parameters": {"D": D * 0.99, "nu": 0.3, "beta": 0.005}}]
+    if tau is not None:
+        stages.append({"added": "channel_delay", "chi2_reduced": 1.04, "rel_rms_residual": 0.002,
+                       "parameters": {"D": D, "nu": 0.286, "beta": 0.003, "tau_s": tau}})
+    return {"format": "vibid.report", "format_version": 1, "session_id": f"id-{name}",
+            "declared_model": "isotropic", "model": "isotropic",
+            "afc": {"frequency_hz": [1.0], "re": [1.0], "im": [0.0], "std": [0.1]},
+            "parameters": {"D": {"value": D, "std": 0.01}, "nu": {"value": 0.286, "std": 0.004},
+                           "beta": {"value": 0.003, "std": 2e-5}},
+            "effects": effects, "loop": {"stages": stages, "unexplained_residual": False,
+                                         "rounds": [[]]}}
+
+
+def test_batch_summary_has_one_row_per_session_and_reads_back_exactly():
+    reports = [_report("a", 17.97, 2e-5), _report("b", 18.0123456789), None]
+    rows = [lab_report.summary_row("a", reports[0]), lab_report.summary_row("b", reports[1]),
+            lab_report.summary_row("c", None, error="VibidError: broken file")]
+    back = list(csv.DictReader(io.StringIO(lab_report.summary_csv(rows))))
+    assert [r["session"] for r in back] == ["a", "b", "c"]
+    assert float(back[1]["D"]) == 18.0123456789  # repr: exact
+    assert float(back[0]["tau_s"]) == 2e-5 and back[1]["tau_s"] == ""
+    assert back[0]["effects"] == "channel_delay" and back[1]["effects"] == "none"
+    assert float(back[0]["chi2_reduced_before"]) == 812.0
+    assert float(back[0]["chi2_reduced_after"]) == 1.04
+    assert back[2]["status"] == "failed: VibidError: broken file"
+    md = lab_report.summary_table_markdown(rows)
+    lines = md.strip().splitlines()
+    assert len(lines) == 2 + 3
+    assert "D (N·m)" in lines[0] and "tau_s (s)" in lines[0]
+    assert "17.970 ± 0.010" in lines[2] and "812 → 1.04" in lines[2]
+
+
+def test_summary_markdown_speaks_of_the_effect_and_what_it_changed():
+    text = lab_report.summary_markdown(_report("a", 17.97, 2e-5), figures=["afc.png"])
+    assert "**channel_delay**" in text and "time skew" in text
+    assert "from 812 to 1.04" in text
+    assert "D +1.01 %" in text  # 17.97 against the declared fit's 17.97 * 0.99
+    assert "![" in text and "(afc.png)" in text
+    assert text.index("## Details") > text.index("## Identified values")
+
+
+def test_artifact_keys_are_stable_per_specimen():
+    assert lab_report.artifact_key("steel strip 100x20x1", "report") == "steel-strip-100x20x1-report"
+    assert lab_report.artifact_key("", "parameters") == "specimen-parameters"
+
+
+def test_task_runner_setting():
+    from prefect.task_runners import ThreadPoolTaskRunner
+    from prefect_dask import DaskTaskRunner
+
+    from vibid.errors import VibidError
+    from vibid.flows.runners import make_task_runner
+
+    assert isinstance(make_task_runner(None), ThreadPoolTaskRunner)
+    assert isinstance(make_task_runner("threads"), ThreadPoolTaskRunner)
+    r = make_task_runner("tcp://10.0.0.5:8786")
+    assert isinstance(r, DaskTaskRunner) and r.address == "tcp://10.0.0.5:8786"
+    with pytest.raises(VibidError, match="scheduler address"):
+        make_task_runner("cluster-please")
+
+
+def test_replay_command_rejects_bad_input_in_one_line(tmp_path, capsys):
+    from vibid.cli import main
+
+    assert main(["replay", str(tmp_path / "missing.h5")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("vibid replay: error:") and "no such file" in err and "\n" not in err
+    assert main(["replay", str(tmp_path / "missing.h5"), "--candidates", "warp_drive"]) == 1
+    assert "unknown warp_drive" in capsys.readouterr().err
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not a session")
+    assert main(["replay", str(junk)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("vibid replay: error:") and "junk.h5" in err and "\n" not in err
