@@ -172,12 +172,14 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
     if peaks.count == 0:
         return []
 
+    thin = search_problem(problem)
+
     def score(U):
         # peak matching first; among parameter sets that match the peaks equally well
         # (fewer peaks in the band than stiffness parameters leave a family of them) the
         # AFC's chi2 decides, through a term too small to outweigh a visible mismatch
         f_hz, height = model.modes_batch(space.theta(U))
-        chi2 = np.maximum(problem.chi2_batch(U), 1e-300)
+        chi2 = np.maximum(thin.chi2_batch(U), 1e-300)
         return np.asarray(peak_score(f_hz, height, peaks)) + PEAK_CHI2_WEIGHT * np.log(chi2)
 
     result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,
