@@ -76,7 +76,9 @@ def _thick_strip():
 def test_transverse_shear_on_a_thick_strip_is_found():
     """The virtual specimen with the Reissner-Mindlin correction, declared Kirchhoff: the loop
     adds transverse_shear (no parameter of its own) and D, nu return to the truth."""
-    setup = _setup(np.linspace(40.0, 1500.0, 60), _thick_strip())
+    # up to 3 kHz: the second bending mode (1.5 kHz), where the shear shift is -0.4 %, and
+    # the third; on 40-1500 Hz the declared model absorbs the shift into nu
+    setup = _setup(np.linspace(40.0, 3000.0, 60), _thick_strip())
     f = np.asarray(setup.excitation.frequencies_hz)
     truth = {"D": 275.0, "nu": 0.33, "beta": 0.004}
     from vibid.hardware_mocks.simulated_session import true_afc as afc
@@ -86,6 +88,7 @@ def test_transverse_shear_on_a_thick_strip_is_found():
     loop = close_loop(setup, f, H, sd, seed=0, restarts=2)
     assert loop.effects == ("transverse_shear",)
     assert not loop.unexplained_residual
+    assert loop.stages[0].result.chi2_reduced > 10 and loop.final.chi2_reduced < 1.5
     _within(loop.final, truth)
 
 

@@ -110,11 +110,37 @@ def refreshed(problem: LeastSquaresProblem, theta) -> LeastSquaresProblem:
     return problem.with_model(problem.model.refresh(theta))
 
 
+#: The global search looks at no more than about this many points: on a long AFC (an FFT
+#: grid of 12 000 bins) it evaluates every resonance region and a thinned rest, and the
+#: polish that follows fits every point.
+SEARCH_POINTS = 2000
+
+
+def search_problem(problem: LeastSquaresProblem) -> LeastSquaresProblem:
+    """``problem`` on at most about :data:`SEARCH_POINTS` of its points (itself when it has
+    no more): the half with the largest ``|H|`` (the resonance regions, where the minima
+    are narrow) and every k-th of the others, with their weights, on the same basis."""
+    d, n = problem.data, problem.n_points
+    if n <= SEARCH_POINTS:
+        return problem
+    idx = np.flatnonzero(d.used)
+    keep = np.zeros(n, bool)
+    keep[:: int(np.ceil(2 * n / SEARCH_POINTS))] = True
+    mag = np.abs(d.H[idx])
+    keep |= mag >= np.sort(mag)[n - SEARCH_POINTS // 2]
+    used = np.zeros_like(d.used)
+    used[idx[keep]] = True
+    thin = FitData(d.frequency_hz, d.H, d.std, used, d.warnings)
+    return LeastSquaresProblem(problem.model.on_frequencies(d.frequency_hz[used]), thin,
+                               problem.space, problem.sigma[keep])
+
+
 def search(problem: LeastSquaresProblem, opts: Options):
-    """Global search on chi2 and the polish of each restart's best, then, if the best does
-    not fit the data, a search on the resonance peaks. Returns (GlobalResult, fits)."""
-    global_result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,
-                                           progress=opts.progress)
+    """Global search on chi2 (on at most :data:`SEARCH_POINTS` points) and the polish of
+    each restart's best on every point, then, if the best does not fit the data, a search
+    on the resonance peaks. Returns (GlobalResult, fits)."""
+    global_result = differential_evolution(search_problem(problem), restarts=opts.restarts,
+                                           rng=opts.rng, progress=opts.progress)
     found = _by_loss(polish(problem, distinct(global_result.u), opts))
     best = found[0]
     if fits(best.loss, best.problem.dof, best.problem.n_points, problem.data.noise_known):
@@ -146,12 +172,14 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
     if peaks.count == 0:
         return []
 
+    thin = search_problem(problem)
+
     def score(U):
         # peak matching first; among parameter sets that match the peaks equally well
         # (fewer peaks in the band than stiffness parameters leave a family of them) the
         # AFC's chi2 decides, through a term too small to outweigh a visible mismatch
         f_hz, height = model.modes_batch(space.theta(U))
-        chi2 = np.maximum(problem.chi2_batch(U), 1e-300)
+        chi2 = np.maximum(thin.chi2_batch(U), 1e-300)
         return np.asarray(peak_score(f_hz, height, peaks)) + PEAK_CHI2_WEIGHT * np.log(chi2)
 
     result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,

@@ -64,6 +64,7 @@ part).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from dataclasses import dataclass, field
@@ -288,6 +289,17 @@ class ForwardModel:
             log.info("refresh: reduced error %.1e at theta; rebuilding the basis", err)
         return ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds,
                             self.discretisation, theta, "local")
+
+    def on_frequencies(self, frequencies_hz) -> "ForwardModel":
+        """The same model (same basis) on other frequencies inside this one's band, Hz."""
+        f = np.asarray(frequencies_hz, float)
+        if f.size == 0 or f.max() > self.frequencies_hz.max() * (1 + 1e-12):
+            raise VibidError("on_frequencies: the new frequencies must lie in the model's band")
+        new = copy.copy(self)
+        new.frequencies_hz = f
+        new._reduced = ReducedAFC(self.basis, self.param, 2 * np.pi * f)
+        new._full_jax = new._finer = new._last_check = None
+        return new
 
     def model_error_parts(self, theta) -> tuple[np.ndarray, np.ndarray]:
         """``(d, reduction)``: the signed discretisation error ``H_finer − H`` (nf,)
