@@ -15,7 +15,7 @@ range"``, ``-113,"Undefined header"``, ``-104,"Data type error"``) to be read wi
 Simulation-only controls carry a ``sim_`` prefix: :meth:`sim_no_reply`,
 :meth:`sim_late_reply`, :meth:`sim_queue_error`, :meth:`sim_drop_connection`, :attr:`sim_reply_delay_s`,
 :attr:`sim_log`, and scheduled faults (:meth:`sim_schedule`) that fire at the N-th frequency
-command (a step of a campaign).
+command (a step of a campaign), once (:attr:`sim_fired`).
 
 Notes (where this differs from a real instrument): there is no output impedance or load, the
 amplitude is exact, a change of setting is instantaneous, and only the commands of
@@ -41,6 +41,7 @@ class _Fault:
     count: int = 1            #: no_reply: how many replies are lost
     code: int = -310
     message: str = "System error"
+    key: int = -1             #: its place in the stand configuration's list (for sim_fired)
 
 
 @dataclass
@@ -77,6 +78,9 @@ class SimulatedGenerator:
     _lost_replies: int = 0
     _late: int = 0
     _faults: list[_Fault] = field(default_factory=list)
+    #: keys of the scheduled faults that have fired (shared with a reopened stand, so that
+    #: each fault fires once: see :class:`~vibid.hardware_mocks.virtual_stand.VirtualStand`)
+    sim_fired: set[int] = field(default_factory=set)
 
     # -- what the specimen sees ---------------------------------------------------------
     def played_at(self, frequency_hz: float) -> float:
@@ -111,15 +115,16 @@ class SimulatedGenerator:
         """Unplug the instrument: the port raises on its next read or write."""
         self.connected = False
 
-    def sim_schedule(self, fault: dict) -> None:
+    def sim_schedule(self, fault: dict, key: int = -1) -> None:
         """Schedule a fault from the stand configuration, e.g. ``{"kind": "no_reply",
-        "at_step": 3}``: it fires when the ``at_step``-th frequency command arrives."""
+        "at_step": 3}``: it fires when the ``at_step``-th frequency command arrives; its
+        ``key`` goes into :attr:`sim_fired` then."""
         kind = fault.get("kind")
         if kind not in FAULT_KINDS:
             raise ValueError(f"unknown fault kind {kind!r}, expected one of {', '.join(FAULT_KINDS)}")
         self._faults.append(_Fault(kind, int(fault.get("at_step", 0)), int(fault.get("count", 1)),
                                    int(fault.get("code", -310)),
-                                   str(fault.get("message", "System error"))))
+                                   str(fault.get("message", "System error")), int(key)))
 
     # -- the instrument -----------------------------------------------------------------
     def handle(self, line: str) -> str | None:
@@ -185,6 +190,7 @@ class SimulatedGenerator:
         self.frequency_commands += 1
         for fault in [f for f in self._faults if f.at_step == step]:
             self._faults.remove(fault)
+            self.sim_fired.add(fault.key)
             if fault.kind == "no_reply":
                 self.sim_no_reply(fault.count)
             elif fault.kind == "error":

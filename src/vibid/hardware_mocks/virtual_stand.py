@@ -89,12 +89,15 @@ class VirtualStand:
     config : the stand configuration; its ``simulated`` section is the truth.
     clock : the stand's clock.
     accuracy : mesh accuracy of the virtual specimen.
+    fired : the places (in ``simulated.faults``) of the faults that fired already; they are
+        not scheduled again, and the ones that fire now are added.
     """
 
     iepe_offset_m_s2: float = 0.5   #: offset when the IEPE excitation switches on, m/s²
     iepe_settle_s: float = 0.2      #: its decay time, s
 
-    def __init__(self, setup: Setup, config: StandConfig, *, clock: Clock, accuracy: str = "fine"):
+    def __init__(self, setup: Setup, config: StandConfig, *, clock: Clock, accuracy: str = "fine",
+                 fired: set[int] | None = None):
         sim = config.simulated
         self.setup = setup
         self.config = config
@@ -102,8 +105,11 @@ class VirtualStand:
         self.conditions = StandConditions()
         self.instrument = SimulatedGenerator(clock, clock_offset_ppm=sim.clock_offset_ppm,
                                              changed_at_s=clock.now_s())
-        for fault in sim.faults:
-            self.instrument.sim_schedule(fault)
+        if fired is not None:
+            self.instrument.sim_fired = fired  # shared: a fault that fired stays fired
+        for key, fault in enumerate(sim.faults):
+            if key not in self.instrument.sim_fired:
+                self.instrument.sim_schedule(fault, key=key)
         self.truth = true_parameters(config)
         freqs = setup.excitation.frequencies_hz if setup.excitation else (setup.daq.sample_rate_hz / 2,)
         self.specimen = VirtualSpecimen(setup, self.truth, f_max_hz=1.05 * max(freqs),
@@ -218,6 +224,10 @@ class SimulatedStand(Stand):
 
 
 _STANDS: dict[str, VirtualStand] = {}
+#: per stand name, the faults of ``simulated.faults`` (by place) that have fired in this
+#: process: a stand reopened under the same name (a campaign retried after a fault, as a
+#: resume) does not fire them again, as a real instrument's glitch does not recur on cue
+_FIRED: dict[str, set[int]] = {}
 
 
 def lookup_stand(name: str) -> VirtualStand:
@@ -233,6 +243,8 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     clock (settle and record take their real time; the specimen is solved at every step's
     frequency first, which takes a while on a fine mesh), otherwise time is virtual. The
     :class:`VirtualStand` behind it is ``stand.virtual`` and :func:`lookup_stand` ``(NAME)``.
+    Each injected fault of ``simulated.faults`` fires once per ``NAME`` in a process: a
+    stand reopened under that name (a retried campaign) runs without the faults that fired.
     """
     url = config.generator.url
     parts = urllib.parse.urlsplit(url)
@@ -240,7 +252,7 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
         raise StandConfigError(f"generator.url: the simulated stand needs vibidsim://NAME, got {url!r}")
     try:
         virtual = VirtualStand(setup, config, clock=WallClock() if realtime else VirtualClock(),
-                               accuracy=accuracy)
+                               accuracy=accuracy, fired=_FIRED.setdefault(parts.netloc, set()))
     except StandConfigError:
         raise
     except (ValueError, VibidError) as exc:  # a bad fault or parameter of the simulated section
