@@ -54,7 +54,7 @@ def test_simulated_campaign_afc_equals_the_virtual_specimens_h(tmp_path, capsys,
     setup, stand_json = _write_setup(tmp_path), _write_stand(tmp_path, name, clock_offset_ppm=ppm)
     out = tmp_path / "s.h5"
     code = main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(out), "--operator", "T. Est", "--temperature-c", "22.5"])
+                 "--out", str(out), "--operator", "T. Est", "--temperature-c", "22.5", "--record-only"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert captured.out.strip() == f"{out}: complete, 10 of 10 steps"
@@ -104,7 +104,7 @@ def test_generator_fault_aborts_the_campaign_with_output_off(tmp_path, capsys):
     stand_json = _write_stand(tmp_path, "fault", faults=[{"kind": "no_reply", "at_step": 3, "count": 5}])
     out = tmp_path / "s.h5"
     code = main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(out)])
+                 "--out", str(out), "--record-only"])
     captured = capsys.readouterr()
     assert code == 1
     assert captured.out.startswith(f"{out}: aborted, 3 of 10 steps (stand fault: ")
@@ -117,7 +117,7 @@ def test_generator_fault_aborts_the_campaign_with_output_off(tmp_path, capsys):
 def _cli(*args):
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parent.parent / "src"), env.get("PYTHONPATH", "")])
-    return subprocess.Popen([sys.executable, "-m", "vibid", "campaign", *map(str, args)],
+    return subprocess.Popen([sys.executable, "-m", "vibid", "campaign", "--record-only", *map(str, args)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
 
 
@@ -148,7 +148,7 @@ def test_killed_campaign_process_is_continued_by_resume(tmp_path, capsys):
     assert stderr.strip().splitlines()[0].startswith(f"step {n_killed + 1}/{n}")
     reference = tmp_path / "reference.h5"
     assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(reference)]) == 0
+                 "--out", str(reference), "--record-only"]) == 0
     with read_session(out) as a, read_session(reference) as b:
         assert a.run_status == "complete" and len(a) == len(b) == n
         for i in range(n_killed):  # what was recorded before the kill is the uninterrupted run's
@@ -177,7 +177,7 @@ def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_av
                                   drive={"target_base_m_s2": 1.0, "initial_vpp": 0.04})
         out = tmp_path / f"{name}.h5"
         assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                     "--out", str(out)]) == 0
+                     "--out", str(out), "--record-only"]) == 0
         with read_session(out) as s:
             tables[name] = afc_from_session(s)
     f_n, _ = lookup_stand("q-rule").specimen.nearest_mode(75.0)

@@ -98,11 +98,19 @@ def test_simulate_refuses_an_existing_out_before_any_work(tmp_path, no_work, cap
     assert existing.read_bytes() == b"precious"
 
 
-def test_demo_refuses_an_out_that_is_a_file_before_any_work(tmp_path, no_work, capsys):
-    target = tmp_path / "vibid-demo"
+def test_campaign_refuses_a_report_that_is_a_file_before_the_stand_opens(tmp_path, capsys):
+    from vibid.hardware_mocks.virtual_stand import _STANDS
+
+    setup = tmp_path / "setup.json"
+    setup.write_text(example_setup().to_json())
+    stand = tmp_path / "stand.json"
+    stand.write_text(json.dumps({"generator": {"url": "vibidsim://report-is-a-file"}}))
+    target = tmp_path / "report"
     target.write_text("a file, not a folder")
-    assert main(["demo", "--out", str(target)]) == 1
-    assert capsys.readouterr().err == f"vibid demo: error: {target}: exists and is not a folder\n"
+    assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand),
+                 "--out", str(tmp_path / "s.h5"), "--report", str(target)]) == 1
+    assert capsys.readouterr().err == f"vibid campaign: error: {target}: exists and is not a folder\n"
+    assert "report-is-a-file" not in _STANDS and not (tmp_path / "s.h5").exists()
 
 
 def test_check_output_file_accepts_what_can_be_written(tmp_path):

@@ -323,6 +323,31 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
     return "\n".join(lines) + "\n"
 
 
+def console_summary(report: dict) -> str:
+    """A few lines for the console at the end of a job: the identified values with std and
+    units, the effects the loop found (with their values), χ²/dof before and after."""
+    stages = report["loop"]["stages"]
+    lines = ["identified (value ± std):"]
+    for q in parameter_table(report):
+        if q["source"] == "engineering":
+            continue
+        unit = _unit_text(q["unit"])
+        lines.append(f"  {q['quantity']:<20} {with_std(q['value'], q['std'])}{unit}"
+                     + ("" if q["source"] == "model" else f"   ({q['source']})"))
+    names = [e["name"] for e in report["effects"]]
+    if names:
+        lines.append("effects found: " + ", ".join(
+            f"{n} ({EFFECT_MEANING.get(n, n)})" for n in names))
+    elif report["loop"]["unexplained_residual"]:
+        lines.append("effects found: none, and the residual is above the noise "
+                     "(unexplained_residual)")
+    else:
+        lines.append("effects found: none needed (the declared model fits to the noise level)")
+    lines.append(f"chi2/dof: {_chi2(stages[0]['chi2_reduced'])} (declared model) -> "
+                 f"{_chi2(stages[-1]['chi2_reduced'])} (final)")
+    return "\n".join(lines)
+
+
 def write_lab_report(report_dir: str | os.PathLike, data, identified, report: dict, *,
                      session_path: str | None = None) -> dict[str, str]:
     """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``

@@ -1,15 +1,21 @@
-"""`vibid campaign SETUP.json --stand simulated|ni [--stand-config STAND.json] --out S.h5
-[--resume] [--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T] [--dry-run]`:
-the live stepped-sine campaign.
+"""`vibid campaign SETUP.json --stand simulated|ni [--stand-config STAND.json] [--out S.h5]
+[--report DIR] [--no-loop] [--candidates A,B] [--restarts N] [--seed N] [--resume]
+[--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T] [--dry-run]
+[--record-only]`: the live stepped-sine campaign, then its identification report.
 
 Plays the setup's frequencies on the stand and records the session step by step (each
 step is in the file by the time the next one has settled; a crash or Ctrl-C leaves a valid
-file that --resume continues). --stand simulated puts the simulated instruments and the virtual
-specimen of the stand configuration's "simulated" section behind the real drivers and runs
-as fast as it can, unless --realtime paces it like the real stand. One progress line per
-step on stderr: frequency, the step's |H| and phase, and the time left. Exit 0 when the
-campaign completes, 1 when it is interrupted or aborted (the reason is printed) or the input
-is bad.
+file that --resume continues), then fits the AFC, identifies the declared model, closes the
+loop and writes the report (report.md, report.json and PNG figures) into --report DIR
+(default: S-report beside the session file). It runs as the Prefect flow campaign_flow:
+on Prefect's embedded temporary server, or on the server of PREFECT_API_URL. --stand
+simulated puts the simulated instruments and the virtual specimen of the stand
+configuration's "simulated" section behind the real drivers and runs as fast as it can,
+unless --realtime paces it like the real stand. A transient stand fault is retried as a
+resume (no step is recorded twice). --record-only records the session without Prefect and
+without the report (one progress line per step on stderr). Exit 0 when the campaign
+completes (and the identification converges), 1 when it is interrupted or aborted (the
+reason is printed) or the input is bad.
 """
 
 from __future__ import annotations
@@ -29,7 +35,17 @@ def add_parser(sub):
                    help="the real NI stand, or the simulated one behind the same drivers")
     p.add_argument("--stand-config", metavar="STAND.json",
                    help="the stand configuration (default: every setting at its default)")
-    p.add_argument("--out", required=True, metavar="S.h5", help="the session file to write")
+    p.add_argument("--out", metavar="S.h5",
+                   help="the session file to write (default: runs/<setup name>-<UTC time>.h5)")
+    p.add_argument("--report", metavar="DIR",
+                   help="the report folder: report.md, report.json, PNG figures "
+                   "(default: <session name>-report beside the session file)")
+    p.add_argument("--no-loop", action="store_true",
+                   help="fit the declared model only (no search for missing effects)")
+    p.add_argument("--candidates", metavar="A,B",
+                   help="limit the closed loop's candidates (effect names, anisotropy)")
+    p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
+    p.add_argument("--seed", type=int, default=0, help="seed of the global search")
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted session --out from its first missing step")
     p.add_argument("--realtime", action="store_true",
@@ -41,7 +57,18 @@ def add_parser(sub):
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan (steps, settle and record times, the least duration) "
                    "and exit without opening the stand or writing --out")
+    p.add_argument("--record-only", action="store_true",
+                   help="record the session only: no Prefect flow, no identification or report")
     p.set_defaults(run=run)
+
+
+def default_out(setup_path: str, now=None) -> str:
+    """``runs/<setup file stem>-<UTC time YYYYmmdd-HHMMSS>.h5``: a new file on every run."""
+    import datetime
+
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    stem = os.path.splitext(os.path.basename(setup_path))[0] or "session"
+    return os.path.join("runs", f"{stem}-{now:%Y%m%d-%H%M%S}.h5")
 
 
 def check_out_path(path: str, resume: bool) -> None:
@@ -63,9 +90,8 @@ def check_out_path(path: str, resume: bool) -> None:
 
 
 def run(args) -> int:
-    from vibid.acquisition.campaign import run_campaign
-    from vibid.acquisition.stand import open_stand
     from vibid.acquisition.stand_config import load_stand_config
+    from vibid.pipeline import parse_candidates
     from vibid.session import load_setup
 
     setup = load_setup(args.setup)
@@ -76,10 +102,66 @@ def run(args) -> int:
         raise VibidError("--realtime paces the simulated stand; the real stand always runs in real time")
     if args.temperature_c is not None and not math.isfinite(args.temperature_c):
         raise VibidError("--temperature-c must be a finite number")
+    candidates = parse_candidates(args.candidates)
+    if args.restarts < 1:
+        raise VibidError("--restarts must be at least 1")
     if args.dry_run:
         print_plan(setup, config)
         return 0
+    if args.out is None:
+        if args.resume:
+            raise VibidError("--resume needs --out: the session file to continue")
+        args.out = default_out(args.setup)
+        os.makedirs(os.path.dirname(args.out), exist_ok=True)
     check_out_path(args.out, args.resume)
+    if args.record_only:
+        return record_only(args, setup, config)
+    from vibid.cli.paths import check_output_dir
+    from vibid.flows.campaign import default_report_dir
+
+    report_dir = args.report or default_report_dir(args.out)
+    check_output_dir(report_dir)
+    return run_flow(args, report_dir, None if candidates is None else list(candidates))
+
+
+def run_flow(args, report_dir: str, candidates) -> int:
+    """The campaign as the Prefect flow: acquisition, AFC, identification, report; then the
+    report's path and its summary on stdout."""
+    from vibid.identify import configure
+
+    configure()
+    # the embedded server sends no usage telemetry (an offline lab PC logs an error for it)
+    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    from vibid.flows import campaign_flow
+    from vibid.lab_report import console_summary
+
+    state = campaign_flow(args.setup, stand=args.stand, stand_config=args.stand_config,
+                          out=args.out, report_dir=report_dir, resume=args.resume,
+                          realtime=args.realtime, loop=not args.no_loop, candidates=candidates,
+                          operator=args.operator, notes=args.notes,
+                          temperature_c=args.temperature_c, restarts=args.restarts,
+                          seed=args.seed, return_state=True)
+    if not state.is_completed():
+        error = state.result(raise_on_failure=False)
+        message = str(error) if isinstance(error, BaseException) else (state.message or state.name)
+        print(f"vibid campaign: {' '.join(message.split())}", file=sys.stderr)
+        if os.path.exists(os.path.join(report_dir, "report.md")):
+            print(f"report: {os.path.join(report_dir, 'report.md')}")
+        elif os.path.exists(args.out):  # the campaign did not complete
+            print(resume_hint(args, args.out), file=sys.stderr)
+        return 1
+    report = state.result()
+    print(f"session: {args.out}")
+    print(f"report: {os.path.join(report_dir, 'report.md')}")
+    print(console_summary(report))
+    return 0
+
+
+def record_only(args, setup, config) -> int:
+    """The campaign without Prefect and without the report: the session file only."""
+    from vibid.acquisition.campaign import run_campaign
+    from vibid.acquisition.stand import open_stand
+
     if args.stand == "simulated":
         from vibid.identify import configure
 
@@ -96,10 +178,15 @@ def run(args) -> int:
         line += f" ({result.reason})"
     print(line)
     if result.run_status == "interrupted":
-        print(f"continue with: vibid campaign {args.setup} --stand {args.stand}"
-              f"{' --stand-config ' + args.stand_config if args.stand_config else ''} "
-              f"--out {result.path} --resume", file=sys.stderr)
+        print(resume_hint(args, result.path), file=sys.stderr)
     return 0 if result.run_status == "complete" else 1
+
+
+def resume_hint(args, path) -> str:
+    """The command that continues the session at ``path``."""
+    return (f"continue with: vibid campaign {args.setup} --stand {args.stand}"
+            f"{' --stand-config ' + args.stand_config if args.stand_config else ''} "
+            f"--out {path} --resume{' --record-only' if args.record_only else ''}")
 
 
 def print_plan(setup, config) -> None:

@@ -8,7 +8,11 @@ ends ``aborted`` with a ``stand fault: ...`` reason, e.g. an instrument that did
 is retried by reopening the stand and *resuming* the session: a written step is never
 recorded again. The abort limit (a response above ``drive.abort_response_m_s2``) is a safety
 stop and never retried. The stages after acquisition are those of a replay, so a campaign's
-report equals a replay of its session.
+report equals a replay of its session (same ``restarts`` and ``seed``).
+
+Progress: one log line per written step (frequency, |H|, phase, time left) and the
+identification's search progress, through Prefect's run logger: on the console, one line
+each (no carriage returns), and in the Prefect UI.
 """
 
 from __future__ import annotations
@@ -19,9 +23,8 @@ from pathlib import Path
 
 from prefect import flow
 
-from vibid.errors import VibidError
 from vibid.flows.tasks import afc_task, identify_task, publish_artifacts, report_task, run_logger
-from vibid.pipeline import read_setup, require_converged
+from vibid.pipeline import RESTARTS, SEED, read_setup, require_converged
 
 #: The reason prefix of a campaign ended by a driver's fault (retried as a resume).
 TRANSIENT_REASON = "stand fault:"
@@ -76,15 +79,22 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
                   realtime: bool = False, loop: bool = True,
                   candidates: list[str] | str | None = None, retries: int = 2,
                   operator: str | None = None, notes: str | None = None,
-                  temperature_c: float | None = None) -> dict:
+                  temperature_c: float | None = None, restarts: int = RESTARTS,
+                  seed: int = SEED):
     """Record a session of the setup at ``setup_path`` on ``stand`` (``"simulated"`` or
     ``"ni"``, configured by the STAND.json ``stand_config``) into ``out``, then identify it
     and write the report into ``report_dir`` (default: ``<out stem>-report`` beside ``out``).
 
+    ``restarts`` and ``seed`` are the identification's (as ``vibid replay``), so a replay
+    of the session with the same values gives the same report.
+
     Returns the report (a dict). A campaign that did not complete (interrupted, aborted)
-    fails the flow with its reason; the session keeps every step recorded (``resume=True``
-    continues it).
+    ends the flow run ``Failed`` with its reason (a returned state: no traceback in the
+    log; calling the flow raises, and ``return_state=True`` gives the state); the session
+    keeps every step recorded (``resume=True`` continues it).
     """
+    from prefect.states import Failed
+
     from vibid.acquisition.stand_config import load_stand_config
 
     logger = run_logger()
@@ -94,11 +104,14 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
                      realtime=realtime, retries=retries, logger=logger, operator=operator,
                      notes=notes, temperature_c=temperature_c)
     if result.run_status != "complete":
-        raise VibidError(f"campaign {result.run_status}: {result.reason}; {result.path} keeps "
-                         f"its {result.n_steps} steps (resume to continue)")
+        message = (f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
+                   f"{result.n_steps} steps (resume to continue)")
+        logger.error("%s", message)
+        return Failed(message=message)
     report_dir = default_report_dir(out) if report_dir is None else report_dir
     data = afc_task(os.fspath(out))
-    identified = identify_task(data, loop=loop, candidates=candidates)
+    identified = identify_task(data, loop=loop, candidates=candidates, restarts=restarts,
+                               seed=seed)
     # the folder gets report.json beside report.md
     report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)

@@ -13,8 +13,8 @@ from pathlib import Path
 from prefect import flow, task
 from prefect.cache_policies import NO_CACHE
 
-from vibid.flows.tasks import (afc_task, identify_task, progress_logger, publish_artifacts,
-                               report_task, run_logger)
+from vibid.flows.tasks import (afc_task, forwarded_logs, identify_task, progress_logger,
+                               publish_artifacts, report_task, run_logger)
 from vibid.pipeline import (RESTARTS, SEED, identify_afc, require_converged, session_afc,
                             write_outputs)
 
@@ -54,9 +54,10 @@ def replay_session(session_path, *, json_path=None, report_dir=None, loop: bool 
     report; a run that did not converge says so in it (``identification.converged``)."""
     logger = run_logger()
     data = session_afc(session_path)
-    identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
-                              local=local, restarts=restarts, seed=seed,
-                              progress=progress_logger(logger))
+    with forwarded_logs(logger):
+        identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
+                                  local=local, restarts=restarts, seed=seed,
+                                  progress=progress_logger(logger))
     logger.info("%s:\n%s", session_path, identified.summary)
     report, _ = write_outputs(data, identified, json_path=json_path, report_dir=report_dir,
                               session_path=session_path)

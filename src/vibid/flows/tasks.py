@@ -9,6 +9,8 @@ Outside a flow run the tasks log to ``logging.getLogger("vibid.flows")``.
 from __future__ import annotations
 
 import logging
+import threading
+from contextlib import contextmanager
 
 from prefect import task
 from prefect.cache_policies import NO_CACHE
@@ -42,6 +44,45 @@ def progress_logger(logger, *, every: float = 0.25):
     return progress
 
 
+class _Forward(logging.Handler):
+    """Passes one thread's records on to a (Prefect run) logger: the stages' INFO lines,
+    the model's own (``vibid.identify.model``: assembly, bases) only from WARNING up.
+    Other threads' records from WARNING up go to the root logger's handlers, as before."""
+
+    def __init__(self, target, thread_id: int):
+        super().__init__(logging.INFO)
+        self.target, self.thread_id = target, thread_id
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.thread != self.thread_id:
+            if record.levelno >= logging.WARNING:
+                logging.getLogger().handle(record)
+            return
+        if record.levelno >= logging.WARNING or not record.name.startswith("vibid.identify.model"):
+            self.target.log(record.levelno, "%s", record.getMessage())
+
+
+@contextmanager
+def forwarded_logs(logger, name: str = "vibid.identify"):
+    """While the block runs in this thread, the INFO records of the ``name`` loggers (the
+    identification's stages: peak matching, valley walk, each loop candidate) go to
+    ``logger`` instead of the root logger, so the console and Prefect show, once, what a
+    long search is doing."""
+    source = logging.getLogger(name)
+    handler = _Forward(logger, threading.get_ident())
+    level, propagate = source.level, source.propagate
+    source.addHandler(handler)
+    source.propagate = False
+    if source.getEffectiveLevel() > logging.INFO:
+        source.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        source.removeHandler(handler)
+        source.setLevel(level)
+        source.propagate = propagate
+
+
 @task(name="afc", cache_policy=NO_CACHE)
 def afc_task(session_path: str) -> SessionAfc:
     """Signal stage: read the session and fit every step's AFC."""
@@ -57,9 +98,10 @@ def identify_task(data: SessionAfc, *, loop: bool = True, candidates=None,
                   seed: int = SEED) -> Identified:
     """Identification stage: the declared model, then the closed loop (with ``loop``)."""
     logger = run_logger()
-    identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
-                              local=local, restarts=restarts, seed=seed,
-                              progress=progress_logger(logger))
+    with forwarded_logs(logger):
+        identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
+                                  local=local, restarts=restarts, seed=seed,
+                                  progress=progress_logger(logger))
     logger.info("%s", identified.summary)
     return identified
 
