@@ -58,6 +58,8 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
                     p.eta_s)
 
     for attempt in range(retries + 1):
+        logger.info("opening the %s stand%s", stand, " (solving the virtual specimen)"
+                    if stand == "simulated" else "")
         with open_stand(stand, setup, config, realtime=realtime) as st:
             result = run_campaign(setup, st, out, config, resume=resume, progress=step_logged,
                                   **campaign_options)
