@@ -171,3 +171,24 @@ def test_the_default_session_file_is_new_on_every_run(tmp_path, capsys):
     setup, _ = _write_inputs(tmp_path, "flow-default")
     assert main(["campaign", str(setup), "--stand", "simulated", "--resume"]) == 1
     assert capsys.readouterr().err == "vibid campaign: error: --resume needs --out: the session file to continue\n"
+
+
+def test_the_quick_starts_files_are_a_campaign_of_the_papers_strip(capsys):
+    """README's first command: examples/ load, and its plan is 80 steps to 1500 Hz."""
+    from pathlib import Path
+
+    from vibid.acquisition.stand_config import load_stand_config
+    from vibid.session import load_setup
+    from vibid.setup_model import example_setup
+
+    examples = Path(__file__).parent.parent / "examples"
+    setup = load_setup(str(examples / "strip_setup.json"))
+    paper = example_setup()
+    assert (setup.specimen, setup.sensors, setup.identification) == (
+        paper.specimen, paper.sensors, paper.identification)
+    assert setup.excitation.frequencies_hz == tuple(18.75 * k for k in range(1, 81))
+    config = load_stand_config(str(examples / "simulated_stand.json"))
+    assert config.simulated.effects == {"channel_delay": {"tau_s": 2e-5}}  # not in the setup
+    assert main(["campaign", str(examples / "strip_setup.json"), "--stand", "simulated",
+                 "--stand-config", str(examples / "simulated_stand.json"), "--dry-run"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].startswith("80 steps: ")
