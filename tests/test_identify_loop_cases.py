@@ -120,11 +120,11 @@ def test_an_effect_outside_the_library_is_never_a_wrong_claimed_fit():
     H, sd = _noisy(_viscous_afc(_setup(), TRUTH, F, 2 * TRUTH["beta"] * 2 * np.pi * f1), 5)
     loop = close_loop(_setup(), F, H, sd, seed=0, restarts=2)
     assert not loop.stages[0].fits_noise  # the declared model cannot explain it
-    if loop.unexplained_residual:
-        return
-    assert loop.stages[-1].fits_noise
+    # whatever it adds is defensible: a loss that varies with frequency (air damping is one)
     assert set(loop.effects) <= {"frequency_dependent_loss"}, loop.effects
-    _within(loop.final, {"D": TRUTH["D"], "nu": TRUTH["nu"]})
+    if not loop.unexplained_residual:
+        assert loop.stages[-1].fits_noise
+        _within(loop.final, {"D": TRUTH["D"], "nu": TRUTH["nu"]})
 
 
 def test_too_few_points_for_every_candidate_is_reported_not_fitted():

@@ -14,9 +14,14 @@ and after.
    collinearity is how much of its sensitivity the current parameters already explain.
 3. Refit the best few candidates from the current fit (several starts along the new
    parameter), keep the one whose likelihood-ratio ``Δχ²`` (same weights) passes the 99 %
-   quantile and is largest, provided its refit converged and lowers chi2 under its own
-   weights too; repeat until the residual fits the noise or nothing helps
+   quantile and is largest, provided its refit converged, lowers chi2 under its own
+   weights too, lies 3 std from its null value and removes at least a tenth of the chi2
+   above the noise; repeat until the residual fits the noise or nothing helps
    (``unexplained_residual``).
+
+A candidate without parameters of its own (``transverse_shear`` on an isotropic plate) is
+scored along the secant from the current model to the extended one (one dof) and kept on
+its likelihood ratio.
 
 A candidate is an effect of :mod:`vibid.identify.effects`, or ``anisotropy`` (the isotropic
 material replaced by the orthotropic one, started from the isotropic fit).
@@ -61,6 +66,11 @@ REFITS_PER_ROUND = 3
 #: A candidate's score must pass this quantile of chi-square to be refitted, and its
 #: refit's likelihood ratio the same to be kept.
 KEEP_QUANTILE = 0.99
+#: A kept effect must explain at least this share of the chi2 above the noise (chi2 - dof):
+#: where a residual no candidate explains remains, every extra parameter lowers chi2 a
+#: little and passes the likelihood-ratio test, which assumes the extended model is right;
+#: an effect that removes a few per cent of a misfit is no explanation of it.
+KEEP_SHARE = 0.10
 #: A kept effect must lie this many standard deviations from its null value (Wald): a
 #: refit that lowers chi2 while its effect stays at the null (a different reduced basis
 #: fitting the mesh error a little better) adds nothing physical.
@@ -327,14 +337,19 @@ def _round(setup, data, current: Stage, todo, box, local):
         # significant under the current weights, and lower under the stage's own (the
         # extended model's error re-estimated): an effect must explain data, not mesh error
         z = cand.distance_from_null(stage.result)
+        excess = max(res.chi2 - res.dof, 0.0)
         passes = (gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and stage.result.converged
-                  and stage.result.chi2 < res.chi2 and z > KEEP_Z)
+                  and stage.result.chi2 < res.chi2 and z > KEEP_Z
+                  and gain >= KEEP_SHARE * excess)
         if passes:
             note = ""
         elif not stage.result.converged:
             note = f"the refit did not converge ({stage.result.message})"
         elif z <= KEEP_Z:
             note = f"the refit leaves it at its null value ({z:.2g} std from it)"
+        elif gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and stage.result.chi2 < res.chi2:
+            note = (f"it explains only {100 * gain / excess:.2g} % of the chi2 above the noise "
+                    f"(an effect must explain {100 * KEEP_SHARE:.0f} %)")
         else:
             note = "the refit does not improve chi2 significantly"
         if not search or passes or s.name not in done:
