@@ -70,3 +70,27 @@ def run_status_of(attrs, n_steps: int, n_frequencies: int) -> tuple[str, str]:
         return "interrupted", (f"stopped before closing the session, {n_steps} of "
                                f"{n_frequencies} steps recorded")
     return "complete", ""
+
+
+#: vibid's own root attribute: the SHA-256 of the ``setup`` text as written. HDF5 keeps
+#: variable-length strings in its global heap, which has no checksum in any layout, so a
+#: changed digit in the setup would otherwise read back as written.
+SETUP_DIGEST = "vibid_setup_sha256"
+
+
+def setup_digest(setup_text: str) -> str:
+    """The SHA-256 (hex) of a setup's JSON text, as stored in :data:`SETUP_DIGEST`."""
+    import hashlib
+
+    return hashlib.sha256(setup_text.encode("utf-8")).hexdigest()
+
+
+def setup_digest_problem(attrs) -> str | None:
+    """Why the file's setup does not match its stored digest (damage), or None (no digest:
+    a file written before vibid stored one, or by another program)."""
+    if SETUP_DIGEST not in attrs or "setup" not in attrs:
+        return None
+    if text(attrs[SETUP_DIGEST]) != setup_digest(text(attrs["setup"])):
+        return "the setup does not match its checksum (the file is damaged)"
+    return None
+

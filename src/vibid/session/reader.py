@@ -48,6 +48,8 @@ class Session:
         self._file = f
         with reading(path, "/"):
             attrs = f.attrs
+            if why := fmt.setup_digest_problem(attrs):
+                raise SessionFileError(path, [Problem("/@setup", why)])
             self.setup: Setup = parse_setup(fmt.text(attrs["setup"]))
             self.session_id = fmt.text(attrs["session_id"])
             self.created_utc = fmt.text(attrs["created_utc"])

@@ -132,6 +132,7 @@ def _root_problems(f: h5py.File) -> Iterator[Problem]:
             elif name == "created_utc" and not _is_iso_time(value):
                 yield Problem("/@created_utc", f"{value!r} is not an ISO 8601 time")
     if "setup" in attrs:
+        yield from _setup_digest_problems(attrs)
         yield from _setup_problems(attrs["setup"])
     yield from _optional_root_problems(attrs)
 
@@ -146,6 +147,12 @@ def _optional_root_problems(attrs) -> Iterator[Problem]:
         if value is not None and value not in fmt.RUN_STATUSES:
             yield Problem(f"/@{fmt.RUN_STATUS}",
                           f"unknown run status {value!r}, expected one of {', '.join(fmt.RUN_STATUSES)}")
+
+
+def _setup_digest_problems(attrs) -> Iterator[Problem]:
+    why = fmt.setup_digest_problem(attrs)
+    if why:
+        yield Problem("/@setup", why)
 
 
 def _setup_problems(raw) -> Iterator[Problem]:

@@ -93,6 +93,7 @@ class SessionWriter:
             f.attrs["session_id"] = self.session_id
             f.attrs["software"] = software or f"vibid {__version__}"
             f.attrs["setup"] = setup.to_json(indent=None)
+            f.attrs[fmt.SETUP_DIGEST] = fmt.setup_digest(setup.to_json(indent=None))
             for name, value in (("operator", operator), ("notes", notes)):
                 if value is not None:
                     f.attrs[name] = str(value)
