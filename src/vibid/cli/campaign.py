@@ -20,6 +20,8 @@ reason is printed) or the input is bad.
 
 from __future__ import annotations
 
+from vibid.cli.options import add_identification_options
+
 import math
 import os
 import sys
@@ -40,12 +42,7 @@ def add_parser(sub):
     p.add_argument("--report", metavar="DIR",
                    help="the report folder: report.md, report.json, PNG figures "
                    "(default: <session name>-report beside the session file)")
-    p.add_argument("--no-loop", action="store_true",
-                   help="fit the declared model only (no search for missing effects)")
-    p.add_argument("--candidates", metavar="A,B",
-                   help="limit the closed loop's candidates (effect names, anisotropy)")
-    p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
-    p.add_argument("--seed", type=int, default=0, help="seed of the global search")
+    add_identification_options(p, methods=False)
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted session --out from its first missing step")
     p.add_argument("--realtime", action="store_true",

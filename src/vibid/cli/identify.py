@@ -7,6 +7,8 @@ another system (:mod:`vibid.signal.imported`)."""
 
 from __future__ import annotations
 
+from vibid.cli.options import add_identification_options
+
 
 def add_parser(sub):
     p = sub.add_parser(
@@ -22,17 +24,8 @@ def add_parser(sub):
                    "instead of a session; needs --setup")
     p.add_argument("--setup", metavar="SETUP.json", help="the declared setup of --afc")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
-    p.add_argument("--method", choices=("global", "local"), default="global",
-                   help="global search then polish (default), or a local run from the box centre")
-    p.add_argument("--local", choices=("newton", "bfgs", "lm"), default="newton",
-                   help="local method (default: trust-region Newton, exact Hessian)")
-    p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
-    p.add_argument("--seed", type=int, default=0, help="seed of the global search")
+    add_identification_options(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--no-loop", action="store_true",
-                   help="fit the declared model only (no search for missing effects)")
-    p.add_argument("--candidates", metavar="A,B",
-                   help="limit the closed loop's candidates (effect names, anisotropy)")
     p.set_defaults(run=run)
 
 

@@ -9,6 +9,8 @@ run); with ``PREFECT_API_URL`` set, on that server, where the run and its artifa
 
 from __future__ import annotations
 
+from vibid.cli.options import add_identification_options
+
 
 def add_parser(sub):
     p = sub.add_parser(
@@ -20,16 +22,7 @@ def add_parser(sub):
     p.add_argument("--json", metavar="REPORT.json", help="write the JSON report here")
     p.add_argument("--report", metavar="DIR",
                    help="write report.md, report.json and the PNG figures into this folder")
-    p.add_argument("--no-loop", action="store_true",
-                   help="fit the declared model only (no search for missing effects)")
-    p.add_argument("--candidates", metavar="A,B",
-                   help="limit the closed loop's candidates (effect names, anisotropy)")
-    p.add_argument("--method", choices=("global", "local"), default="global",
-                   help="global search then polish (default), or a local run from the box centre")
-    p.add_argument("--local", choices=("newton", "bfgs", "lm"), default="newton",
-                   help="local method (default: trust-region Newton, exact Hessian)")
-    p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
-    p.add_argument("--seed", type=int, default=0, help="seed of the global search")
+    add_identification_options(p)
     p.set_defaults(run=run)
 
 

@@ -1,0 +1,20 @@
+"""Options shared by the commands that identify (``identify``, ``replay``, ``campaign``)."""
+
+from __future__ import annotations
+
+
+def add_identification_options(p, *, methods: bool = True) -> None:
+    """The closed loop's switches and the global search's settings; with ``methods`` also
+    the choice of search and local method."""
+    p.add_argument("--no-loop", action="store_true",
+                   help="fit the declared model only (no search for missing effects)")
+    p.add_argument("--candidates", metavar="A,B",
+                   help="limit the closed loop's candidates (effect names, anisotropy)")
+    if methods:
+        p.add_argument("--method", choices=("global", "local"), default="global",
+                       help="global search then polish (default), or a local run from the box "
+                       "centre")
+        p.add_argument("--local", choices=("newton", "bfgs", "lm"), default="newton",
+                       help="local method (default: trust-region Newton, exact Hessian)")
+    p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
+    p.add_argument("--seed", type=int, default=0, help="seed of the global search")
