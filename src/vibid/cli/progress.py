@@ -8,7 +8,8 @@ from contextlib import contextmanager
 @contextmanager
 def search_progress(enabled: bool = True):
     """Yield a ``progress(label, done, total, best)`` callback drawing a tqdm bar per search
-    (or None when disabled); the bars are closed on exit."""
+    (``best`` None for work that is not a search: counted in steps), or None when disabled;
+    the bars are closed on exit."""
     if not enabled:
         yield None
         return
@@ -16,13 +17,14 @@ def search_progress(enabled: bool = True):
 
     bars: dict = {}
 
-    def progress(label: str, done: int, total: int, best: float) -> None:
+    def progress(label: str, done: int, total: int, best: float | None) -> None:
         bar = bars.get(label)
         if bar is None:
-            bar = bars[label] = tqdm(total=total, desc=label, unit="gen", leave=False,
-                                     dynamic_ncols=True)
+            bar = bars[label] = tqdm(total=total, desc=label, unit="gen" if best is not None
+                                     else "step", leave=False, dynamic_ncols=True)
         bar.update(done - bar.n)
-        bar.set_postfix(best=f"{best:.4g}")
+        if best is not None:
+            bar.set_postfix(best=f"{best:.4g}")
 
     try:
         yield progress

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import sys
 from pathlib import Path
 
 from vibid.errors import VibidError
@@ -88,7 +89,11 @@ def run(args) -> int:
     base = StandConditions()
     conditions = dataclasses.replace(
         base, noise_std_m_s2=(args.noise * base.base_amplitude_m_s2,) * 2)
-    simulate_session(out, setup, truth, conditions=conditions, seed=args.seed, effects=effects)
+    from vibid.cli.progress import search_progress
+
+    with search_progress(sys.stderr.isatty()) as progress:
+        simulate_session(out, setup, truth, conditions=conditions, seed=args.seed,
+                         effects=effects, progress=progress)
     sidecar.write_text(json.dumps({"parameters": truth, "effects": list(effects),
                                    "noise": args.noise, "seed": args.seed}, indent=1) + "\n")
     print(f"{out}: {len(setup.excitation.frequencies_hz)} steps; truth in {sidecar}")

@@ -56,9 +56,11 @@ def true_afc(setup: Setup, params: dict, frequencies_hz, *, accuracy: str = "def
 
 def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,
                      conditions: StandConditions = StandConditions(), seed: int = 0,
-                     accuracy: str = "fine", effects=()) -> str:
+                     accuracy: str = "fine", effects=(), progress=None) -> str:
     """Write a session of ``setup``'s stepped sine on a plate with material ``params`` (and
     the effects their names imply, plus ``effects`` by name: see :func:`true_afc`).
+    ``progress(label, done, total, None)`` is called as the specimen is solved (most of the
+    time) and the steps are written.
 
     Returns the path written. The same arguments and seed give the same file contents
     (but for times and the session id).
@@ -68,7 +70,13 @@ def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,
     commanded = np.asarray(setup.excitation.frequencies_hz, float)
     # the specimen answers at the frequency the generator really plays
     played = np.array([true_frequency_hz(f, c.clock_offset_ppm) for f in commanded])
-    h = true_afc(setup, params, played, accuracy=accuracy, effects=effects)
+    specimen = VirtualSpecimen(setup, params, f_max_hz=float(np.max(played)), accuracy=accuracy,
+                               effects=effects)
+    h = np.empty(played.size, complex)
+    for done, idx in enumerate(np.array_split(np.arange(played.size), -(-played.size // 10)), 1):
+        h[idx] = specimen.h(played[idx])  # ten frequencies at a time, for the progress
+        if progress is not None:
+            progress("solving the virtual specimen", int(idx[-1]) + 1, played.size, None)
     n = max(1, int(round(c.record_s * fs)))
     start = datetime.now(timezone.utc)
     step_s = setup.excitation.settle_s + c.record_s
