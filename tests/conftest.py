@@ -1,4 +1,5 @@
 import os
+import sys
 
 # Tests run on the CPU in float64, whatever the machine has.
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
@@ -20,5 +21,33 @@ def prefect_harness():
     tests ask for it, the others never start it."""
     from prefect.testing.utilities import prefect_test_harness
 
+    _prefect_console_follows_stderr()
     with prefect_test_harness(server_startup_timeout=120):
+        _prefect_console_follows_stderr()
         yield
+
+
+class _CurrentStderr:
+    """Whatever ``sys.stderr`` is when written to (each test's capture in turn)."""
+
+    def write(self, text):
+        return sys.stderr.write(text)
+
+    def __getattr__(self, name):
+        return getattr(sys.stderr, name)
+
+
+def _prefect_console_follows_stderr() -> None:
+    """Prefect's console handler keeps the ``sys.stderr`` it found when Prefect set up its
+    logging, which in a test run is some earlier test's capture, closed since: its next
+    line then fails with a 'Logging error' traceback. Point it at the current stderr."""
+    import logging
+
+    from prefect.logging.handlers import PrefectConsoleHandler
+
+    for logger in [logging.getLogger()] + [logging.getLogger(n) for n in
+                                          list(logging.root.manager.loggerDict)]:
+        for handler in getattr(logger, "handlers", []):
+            if isinstance(handler, PrefectConsoleHandler):
+                handler.stream = _CurrentStderr()  # not setStream: it flushes the closed one
+                handler.console.file = _CurrentStderr()
