@@ -43,7 +43,7 @@ import numpy as np
 from vibid import __version__
 from vibid.errors import VibidError
 from vibid.session import format as fmt
-from vibid.setup_model import Setup, parse_setup
+from vibid.setup_model import Setup
 
 #: Environment variable naming a write phase at which the process kills itself with SIGKILL
 #: (crash-safety tests): ``step<index>:<phase>``, e.g. ``step3:after_fsync``; see
@@ -92,8 +92,9 @@ class SessionWriter:
             f.attrs["created_utc"] = created_utc or utc_now()
             f.attrs["session_id"] = self.session_id
             f.attrs["software"] = software or f"vibid {__version__}"
-            f.attrs["setup"] = setup.to_json(indent=None)
-            f.attrs[fmt.SETUP_DIGEST] = fmt.setup_digest(setup.to_json(indent=None))
+            text = setup.to_json(indent=None)
+            f.attrs["setup"] = text
+            f.attrs[fmt.SETUP_DIGEST] = fmt.setup_digest(text)
             for name, value in (("operator", operator), ("notes", notes)):
                 if value is not None:
                     f.attrs[name] = str(value)
