@@ -47,6 +47,7 @@ MEANING = {
     "D26": "coupling stiffness 26", "E_Pa": "Young's modulus", "G_Pa": "shear modulus",
     "E1_Pa": "Young's modulus along the length", "E2_Pa": "Young's modulus across",
     "G12_Pa": "in-plane shear modulus", "nu12": "Poisson's ratio 12",
+    "sensor_dy_m": "sensor offset across the width",
 }
 #: What each effect of the loop is, in a lab's words (shared/spec/report-format.md).
 EFFECT_MEANING = {
@@ -57,6 +58,7 @@ EFFECT_MEANING = {
     "frequency_dependent_loss": "a loss factor that varies with frequency",
     "anisotropy": "an orthotropic material instead of the declared isotropic one",
     "transverse_shear": "shear deformation of a thick plate (Reissner–Mindlin)",
+    "sensor_position": "the response sensor off its declared place across the width",
 }
 
 

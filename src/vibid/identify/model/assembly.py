@@ -11,7 +11,8 @@ For the clamped plate under base excitation (relative motion ``u = 1 + u_rel``, 
   ∇u·∇v`` (kg), ``"sensor"``, the sensor disc's ``m/(π r²) ∫_disc (u v + h²/12 ∇u·∇v)``,
   then the effects' own;
 * the rigid-translation load of each inertia matrix, ``(M_full · 1)[free]``;
-* the probe ``c`` with ``u(x_s, y_s) = c · u`` at the sensor centre.
+* the probe ``c`` with ``u(x_s, y_s) = c · u`` at the sensor centre, and the effects' own
+  probe vectors (a sensor displaced from its declared place).
 
 The plate's own matrices are assembled once per (geometry, discretisation) on all degrees
 of freedom (:func:`assemble_all`); a model's terms then choose the free degrees of freedom
@@ -29,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from vibid.identify.model.disc import assemble_disc
+from vibid.identify.model.disc import assemble_disc, shifted_disc
 from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, rotary_inertia,
                                         translational_inertia)
@@ -74,6 +75,22 @@ class AssemblyContext:
     basis: object  # skfem CellBasis
     probe: np.ndarray  # (N,) displacement at the sensor centre
 
+    def sensor_shift(self, direction, places) -> dict:
+        """``{k: M_k}`` (kg/m^k, k = 1..2n): the declared sensor's inertia matrix when its
+        disc moves by ``s`` along the unit vector ``direction`` is ``M_sensor + Σ s^k M_k``,
+        interpolated through ``s = 0`` and the n ``places`` (m; the disc must lie on the
+        plate there; :func:`~vibid.identify.model.disc.shifted_disc`)."""
+        g = self.geometry
+        centre = np.array([g.sensor_x_m, g.sensor_y_m])
+        parts = shifted_disc(self.basis, centre, g.sensor_radius_m, direction, places)
+        scale = g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2)
+        rot = g.thickness_m**2 / 12.0
+        return {k: (scale * (uv + rot * grad)).tocsr() for k, (uv, grad) in parts.items()}
+
+    def probe_at(self, centre_m) -> np.ndarray:
+        """(N,) the probe ``c`` with ``u(x, y) = c · u`` at ``centre_m`` = (x, y)."""
+        return _probe(self.basis, np.asarray(centre_m, float))
+
     def edge_rotation_matrix(self) -> sp.csr_matrix:
         """``∫_{x=0} ∂u/∂x ∂v/∂x dy`` (a rotational spring along the clamp, N·m/rad per
         metre of edge per unit stiffness)."""
@@ -97,6 +114,8 @@ class PlateMatrices:
     load : dict name -> (n,) the rigid unit translation's inertia load of each inertia term.
     probe : (n,) displacement at the sensor centre; ``probe_rigid`` its value on the rigid
         unit translation (1 up to round-off).
+    probes : dict name -> (n,), one per probe name of the model (``"sensor"`` is ``probe``);
+        ``probes_rigid`` each one's value on the rigid unit translation.
     n_dof : number of free degrees of freedom; ``n_dof_total`` all of them.
     sensor_area_m2 : the integrated area of the sensor disc.
     rigid_mass_kg : dict name -> ``1ᵀ M 1`` of each inertia term on all dofs (the mass the
@@ -110,6 +129,8 @@ class PlateMatrices:
     load: dict
     probe: np.ndarray
     probe_rigid: float
+    probes: dict
+    probes_rigid: dict
     n_dof: int
     n_dof_total: int
     sensor_area_m2: float
@@ -132,6 +153,12 @@ class PlateMatrices:
     def inertia_load(self, coefficients: dict | None = None) -> np.ndarray:
         c = coefficients or {k: 1.0 for k in self.inertia}
         return sum(v * self.load[k] for k, v in c.items())
+
+    def probe_vector(self, coefficients: dict | None = None) -> tuple[np.ndarray, float]:
+        """``(Σ c_k probe_k, Σ c_k probe_k · 1)`` (default: the declared sensor's probe)."""
+        c = coefficients or {"sensor": 1.0}
+        vec = sum(v * self.probes[k] for k, v in c.items())
+        return vec, float(sum(v * self.probes_rigid[k] for k, v in c.items()))
 
 
 def make_element(kind: str):
@@ -175,13 +202,22 @@ def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs
     plate = g.mass_per_area_kg_m2 * (translational_inertia.assemble(basis)
                                      + h**2 / 12.0 * rotary_inertia.assemble(basis))
     centre = np.array([g.sensor_x_m, g.sensor_y_m])
-    disc_uv, disc_grad, area = assemble_disc(basis, centre, g.sensor_radius_m)
-    sensor = g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2) * (disc_uv + h**2 / 12.0 * disc_grad)
+    sensor, area = _sensor_inertia(basis, g, centre)
     one = np.zeros(basis.N)
     one[basis.nodal_dofs[0]] = 1.0  # the rigid unit translation: 'u' is the first nodal dof
-    probe = np.asarray(basis.probes(centre[:, None]).todense()).ravel()
-    ctx = AssemblyContext(g, d, basis, probe)
+    ctx = AssemblyContext(g, d, basis, _probe(basis, centre))
     return _AllDofs(ctx, stiffness, {"plate": plate, "sensor": sensor}, one, area)
+
+
+def _sensor_inertia(basis, g: Geometry, centre: np.ndarray):
+    """The sensor disc's ``m/(π r²) ∫_disc (u v + h²/12 ∇u·∇v)`` (kg) and its area (m²)."""
+    disc_uv, disc_grad, area = assemble_disc(basis, centre, g.sensor_radius_m)
+    scale = g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2)
+    return (scale * (disc_uv + g.thickness_m**2 / 12.0 * disc_grad)).tocsr(), area
+
+
+def _probe(basis, centre: np.ndarray) -> np.ndarray:
+    return np.asarray(basis.probes(centre[:, None]).todense()).ravel()
 
 
 def plate_basis(geometry: Geometry, discretisation: Discretisation):
@@ -206,9 +242,13 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
     clamped = _clamped_dofs(basis, [n for n in CLAMPED_DOFS if n not in released])
     free = np.setdiff1d(np.arange(basis.N), clamped)
     stiffness, inertia = dict(full.stiffness), dict(full.inertia)
+    probes = {"sensor": full.context.probe}
     for t in effects:
         for name, matrix in t.assemble(full.context).items():
-            (stiffness if name in t.stiffness_matrices else inertia)[name] = matrix
+            if name in t.probe_vectors:
+                probes[name] = np.asarray(matrix, float)
+            else:
+                (stiffness if name in t.stiffness_matrices else inertia)[name] = matrix
 
     def restrict(a):
         return a[free][:, free].tocsr()
@@ -220,6 +260,8 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
         inertia={k: restrict(a) for k, a in inertia.items()},
         load={k: (a @ one)[free] for k, a in inertia.items()},
         probe=full.context.probe[free], probe_rigid=float(full.context.probe @ one),
+        probes={k: c[free] for k, c in probes.items()},
+        probes_rigid={k: float(c @ one) for k, c in probes.items()},
         n_dof=free.size, n_dof_total=basis.N, sensor_area_m2=full.sensor_area_m2,
         rigid_mass_kg={k: float(one @ (a @ one)) for k, a in inertia.items()}, free=free,
     )

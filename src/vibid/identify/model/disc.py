@@ -224,3 +224,65 @@ def assemble_disc(basis, centre, radius: float):
     mass = coo_matrix((m_loc.ravel(), (rows, cols)), shape=shape).tocsr()
     grad = coo_matrix((g_loc.ravel(), (rows, cols)), shape=shape).tocsr()
     return mass, grad, float(W.sum())
+
+
+def _fields_at(basis, points: np.ndarray):
+    """Values and gradients of every basis function at ``points`` (2, n), as sparse
+    (n, N) matrices ``(value, d/dx, d/dy)``."""
+    from scipy.sparse import csr_matrix
+
+    mesh, mapping, elem = basis.mesh, basis.mapping, basis.elem
+    cells = mesh.element_finder(mapping=mapping)(*points)
+    X = mapping.invF(points[:, :, None], tind=cells)
+    fields = [elem.gbasis(mapping, X, i, tind=cells)[0] for i in range(basis.Nbfun)]
+    rows = np.tile(np.arange(points.shape[1]), basis.Nbfun)
+    cols = basis.element_dofs[:, cells].ravel()
+    shape = (points.shape[1], basis.N)
+
+    def mat(parts):
+        return csr_matrix((np.array(parts).ravel(), (rows, cols)), shape=shape)
+
+    return (mat([f.value[:, 0] for f in fields]), mat([f.grad[0][:, 0] for f in fields]),
+            mat([f.grad[1][:, 0] for f in fields]))
+
+
+def polynomial_through(f0, others, places) -> list:
+    """``[c_1, ..., c_n]`` of ``f(t) = f0 + Σ_k c_k t^k`` through ``(0, f0)`` and
+    ``(places[i], others[i])`` (n places, none of them 0; arrays or sparse matrices)."""
+    t = np.asarray(places, float)
+    n = t.size
+    inv = np.linalg.inv(t[:, None] ** np.arange(1, n + 1)[None, :])
+    diffs = [f - f0 for f in others]
+    return [sum(inv[k, i] * diffs[i] for i in range(n)) for k in range(n)]
+
+
+def shifted_disc(basis, centre, radius: float, direction, places) -> dict:
+    """The disc's ``∫ φ_i φ_j`` and ``∫ ∇φ_i · ∇φ_j`` when it moves by ``s`` along the unit
+    vector ``direction`` (m), as polynomials in ``s``.
+
+    At each of the disc's quadrature points ``p`` the basis functions are interpolated by
+    the polynomial through ``s = 0`` and the n ``places`` (m): ``a(s) = φ(p) + Σ s^k c_k``;
+    then ``∫ a aᵀ = Σ_k s^k M_k`` (k = 0..2n; a Gram matrix, so positive for every ``s``,
+    and exact wherever the field is a polynomial of degree n along ``direction``).
+
+    Returns ``{k: (uv_k, grad_k)}`` for k = 1..2n, sparse (N, N) in m²/m^k and 1/m^k
+    (``M_0`` is :func:`assemble_disc`'s).
+    """
+    from scipy.sparse import diags
+
+    cells, P, W = disc_quadrature(basis.mesh, centre, radius)
+    keep = W.ravel() != 0
+    pts = P.reshape(2, -1)[:, keep]
+    w = diags(W.ravel()[keep])
+    e = np.asarray(direction, float)[:, None]
+    here = _fields_at(basis, pts)
+    there = [_fields_at(basis, pts + t * e) for t in places]
+    n = len(places)
+    out = {k: [0.0, 0.0] for k in range(1, 2 * n + 1)}
+    for comp in range(3):  # value, d/dx, d/dy
+        a = [here[comp]] + polynomial_through(here[comp], [f[comp] for f in there], places)
+        for i in range(n + 1):
+            for j in range(n + 1):
+                if i + j:
+                    out[i + j][0 if comp == 0 else 1] += a[i].T @ w @ a[j]
+    return {k: (uv.tocsr(), grad.tocsr()) for k, (uv, grad) in out.items()}

@@ -26,14 +26,16 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 
-def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=False):
-    """``coefficients``: (T,) complex, or (nf, T) per frequency, over ``mats.stiffness``."""
+def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=False,
+               probe=None):
+    """``coefficients``: (T,) complex, or (nf, T) per frequency, over ``mats.stiffness``;
+    ``inertia`` and ``probe``: dicts of coefficients by name (default: the declared ones)."""
     names = list(mats.stiffness)
     omega = 2 * np.pi * np.asarray(frequencies_hz, float)
     C = np.broadcast_to(np.asarray(coefficients, complex), (omega.size, len(names)))
     M = mats.inertia_matrix(inertia)
     f = mats.inertia_load(inertia)
-    c = mats.probe
+    c, c_rigid = mats.probe_vector(probe)
     H = np.empty(omega.size, complex)
     S = np.empty((omega.size, len(names)), complex) if sensitivities else None
     K = None
@@ -42,14 +44,14 @@ def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=F
             K = mats.stiffness_matrix(dict(zip(names, C[k])))
         lu = spla.splu((K - w**2 * M).tocsc())
         u = lu.solve((w**2 * f).astype(complex))
-        H[k] = mats.probe_rigid + c @ u
+        H[k] = c_rigid + c @ u
         if sensitivities:
             z = lu.solve(c.astype(complex), trans="T")  # adjoint: A^T z = c
             S[k] = [-(z @ (mats.stiffness[name] @ u)) for name in names]
     return H, S
 
 
-def afc_full(mats, complex_moduli, frequencies_hz, inertia=None) -> np.ndarray:
+def afc_full(mats, complex_moduli, frequencies_hz, inertia=None, probe=None) -> np.ndarray:
     """The plate's AFC ``H(f)`` of the full model (before any term's map on H).
 
     Parameters
@@ -59,18 +61,20 @@ def afc_full(mats, complex_moduli, frequencies_hz, inertia=None) -> np.ndarray:
         in its order (the six moduli in N·m first), or (nf, T) one row per frequency.
     frequencies_hz : (nf,) excitation frequencies in Hz.
     inertia : dict name -> coefficient of ``mats.inertia`` (default: all 1).
+    probe : dict name -> coefficient of ``mats.probes`` (default: the declared sensor's).
 
     Returns
     -------
     (nf,) complex128: sensor displacement over base displacement.
     """
-    return _solve_all(mats, complex_moduli, frequencies_hz, inertia)[0]
+    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, probe=probe)[0]
 
 
-def afc_full_with_sensitivities(mats, complex_moduli, frequencies_hz, inertia=None):
+def afc_full_with_sensitivities(mats, complex_moduli, frequencies_hz, inertia=None, probe=None):
     """``H`` (nf,) and ``∂H/∂c_k`` (nf, T) by the adjoint method (``A`` is complex
     symmetric, so ``∂H/∂c_k = −zᵀ K_k u`` with ``Aᵀ z = c``)."""
-    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, sensitivities=True)
+    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, sensitivities=True,
+                      probe=probe)
 
 
 def stiffness_coefficients(model, theta, omega, xp=np):
@@ -87,7 +91,9 @@ def model_afc_full(mats, model, theta, frequencies_hz) -> np.ndarray:
     theta = np.asarray(theta, float)
     omega = 2 * np.pi * np.asarray(frequencies_hz, float)
     inertia = dict(zip(model.inertia_names, model.inertia(theta)))
-    H = afc_full(mats, stiffness_coefficients(model, theta, omega), frequencies_hz, inertia)
+    probe = dict(zip(model.probe_names, model.probe(theta)))
+    H = afc_full(mats, stiffness_coefficients(model, theta, omega), frequencies_hz, inertia,
+                 probe)
     return model.afc_map(theta, omega, H, np)
 
 
@@ -95,7 +101,7 @@ def make_full_afc_jax(mats, model, frequencies_hz):
     """A JAX function ``theta -> H (nf,)`` of ``model`` backed by the sparse solver.
 
     Differentiable once (forward or reverse mode) through an exact adjoint JVP with
-    respect to the stiffness coefficients (inertia parameters are held); the sparse solves
+    respect to the stiffness coefficients (inertia and probe parameters are held); the sparse solves
     run on the host via :func:`jax.pure_callback`. For verification, not speed.
     """
     import jax
@@ -107,25 +113,27 @@ def make_full_afc_jax(mats, model, frequencies_hz):
     out_h = jax.ShapeDtypeStruct((nf,), jnp.complex128)
     out_s = jax.ShapeDtypeStruct((nf, T), jnp.complex128)
 
-    def host(C, m):
+    def host(C, m, c):
         inertia = dict(zip(model.inertia_names, np.asarray(m)))
-        h, s = afc_full_with_sensitivities(mats, np.asarray(C), freqs, inertia)
+        probe = dict(zip(model.probe_names, np.asarray(c)))
+        h, s = afc_full_with_sensitivities(mats, np.asarray(C), freqs, inertia, probe)
         return h.astype(np.complex128), s.astype(np.complex128)
 
     @jax.custom_jvp
-    def plate(C, m):
-        return jax.pure_callback(lambda c_, m_: host(c_, m_)[0], out_h, C, m)
+    def plate(C, m, c):
+        return jax.pure_callback(lambda c_, m_, p_: host(c_, m_, p_)[0], out_h, C, m, c)
 
     @plate.defjvp
     def _plate_jvp(primals, tangents):
-        (C, m), (tC, _) = primals, tangents
-        h, s = jax.pure_callback(host, (out_h, out_s), C, m)
+        (C, m, c), (tC, _, _) = primals, tangents
+        h, s = jax.pure_callback(host, (out_h, out_s), C, m, c)
         return h, jnp.sum(s * tC, axis=1)
 
     def fn(theta):
         theta = jnp.asarray(theta, jnp.float64)
         C = stiffness_coefficients(model, theta, jnp.asarray(omega), jnp)
-        H = plate(C, jax.lax.stop_gradient(model.inertia(theta, jnp)))
+        H = plate(C, jax.lax.stop_gradient(model.inertia(theta, jnp)),
+                  jax.lax.stop_gradient(model.probe(theta, jnp)))
         return model.afc_map(theta, jnp.asarray(omega), H, jnp)
 
     return fn

@@ -7,7 +7,7 @@ model's terms, :class:`~vibid.identify.model.terms.PlateModel`):
   that the band ``[0, f_max]`` stays covered, with margin, for the softest parameters in
   the prior box;
 * the static correction ``K0⁻¹ M 1`` (the quasi-static response to the base motion, which
-  carries the truncated modes' share) and its Krylov successors, and the same for the probe;
+  carries the truncated modes' share) and its Krylov successors, and the same for each probe;
 * parameter-sensitivity vectors ``K0⁻¹ (∂K/∂θ_j) φ`` (and ``K0⁻¹ (∂M/∂θ_j) φ``) for every
   parameter that moves a stiffness or inertia coefficient, which span the first-order
   changes of the mode shapes;
@@ -16,7 +16,7 @@ model's terms, :class:`~vibid.identify.model.terms.PlateModel`):
 
 The basis is made orthonormal in an energy norm (directions below a relative tolerance
 dropped) and every term's matrix is projected once: ``K_k → Vᵀ K_k V``, ``M_k → Vᵀ M_k V``,
-loads ``Vᵀ M_k 1``, probe ``Vᵀ c``.
+loads ``Vᵀ M_k 1``, probes ``Vᵀ c_k``.
 
 Evaluation (JAX, float64, pure, jit-able, differentiable to any order), by
 :class:`ReducedKernel`:
@@ -54,8 +54,9 @@ class ReducedBasis:
         ``K(θ0) + ω_max² M`` (so that the projected matrices are well conditioned).
     K : (T, n, n) projected stiffness per stiffness term (``PlateModel.stiffness_names``).
     M : (S, n, n) projected inertia per inertia term (``PlateModel.inertia_names``).
-    load : (S, n) projected inertia loads ``Vᵀ M_k 1``; probe : (n,) projected probe ``Vᵀ c``.
-    probe_rigid : value of the probe on the rigid translation (1).
+    load : (S, n) projected inertia loads ``Vᵀ M_k 1``; probe : (P, n) projected probes
+        ``Vᵀ c_k`` (``PlateModel.probe_names``, the declared sensor's first).
+    probe_rigid : (P,) value of each probe on the rigid translation (1, then 0s).
     n_modes : how many modes it holds; f_top_hz : the highest of them at ``theta0``.
     theta0 : where it was built; moduli0 : (T,) and inertia0 : (S,) the coefficients there.
     """
@@ -65,7 +66,7 @@ class ReducedBasis:
     M: np.ndarray
     load: np.ndarray
     probe: np.ndarray
-    probe_rigid: float
+    probe_rigid: np.ndarray
     n_modes: int
     f_top_hz: float
     theta0: np.ndarray
@@ -206,6 +207,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
     """
     theta0 = np.asarray(theta0, float)
     names, inertia_names = list(mats.stiffness), list(mats.inertia)
+    probe_names = list(model.probe_names)
     ratio = stiffness_scale_ratio(model, theta0, bounds) if scale_ratio is None else scale_ratio
     f_top = margin * f_max_hz * np.sqrt(ratio)
     points = snapshot_points(model, theta0, bounds) if snapshots else [theta0]
@@ -229,7 +231,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
                             n_modes, f_reached, f_top)
         Phi = Phi[:, :n_modes]
         statics = []
-        for rhs in (f, mats.probe):
+        for rhs in [f] + [mats.probes[k] for k in probe_names]:
             v = lu.solve(rhs)
             for _ in range(krylov):
                 statics.append(v)
@@ -258,8 +260,9 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
     basis = ReducedBasis(
         V=V, K=np.array([project(mats.stiffness[k]) for k in names]),
         M=np.array([project(mats.inertia[k]) for k in inertia_names]),
-        load=np.array([V.T @ mats.load[k] for k in inertia_names]), probe=V.T @ mats.probe,
-        probe_rigid=mats.probe_rigid, n_modes=n_modes, f_top_hz=f_reached, theta0=theta0,
+        load=np.array([V.T @ mats.load[k] for k in inertia_names]),
+        probe=np.array([V.T @ mats.probes[k] for k in probe_names]),
+        probe_rigid=np.array([mats.probes_rigid[k] for k in probe_names]), n_modes=n_modes, f_top_hz=f_reached, theta0=theta0,
         moduli0=s0, inertia0=m0,
     )
     log.info("reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
@@ -291,15 +294,16 @@ class ReducedKernel:
         theta = jnp.asarray(theta, jnp.float64)
         s = model.moduli(theta, jnp)
         Mr, load = self._inertia(a, theta)
+        probe, rigid = self._probe(a, theta)
         w2 = a["w2"]
         omega = jnp.sqrt(w2)
         law = model.loss_law(theta, omega, jnp)
         if model.proportional:
             beta = model.common_loss(theta, jnp)
-            mu, weight = self._modal(a, s, Mr, load)
+            mu, weight = self._modal(a, s, Mr, load, probe)
             loss = 1.0 + 1j * beta * (1.0 if law is None else law)
             denom = loss[..., None] * jnp.ones((w2.shape[0], 1)) - w2[:, None] * mu[None, :]
-            H = a["probe_rigid"] + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
+            H = rigid + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
         else:
             b = model.losses(theta, jnp)
             c = s[None, :] * (1.0 + 1j * b[None, :] * (1.0 if law is None else law[:, None]))
@@ -308,7 +312,7 @@ class ReducedKernel:
             sys = A - w2[:, None, None] * Mr[None]
             rhs = (w2[:, None] * load[None, :]).astype(jnp.complex128)
             q = jnp.linalg.solve(sys, rhs[..., None])[..., 0]
-            H = a["probe_rigid"] + q @ a["probe"]
+            H = rigid + q @ probe
         return model.afc_map(theta, omega, H, jnp)
 
     def _inertia(self, a: dict, theta):
@@ -317,8 +321,15 @@ class ReducedKernel:
         m = self.model.inertia(theta, jnp)
         return jnp.tensordot(m, a["M"], axes=1) + a["M_pad"], m @ a["load"]
 
+    def _probe(self, a: dict, theta):
+        """The probe vector (m,) and its rigid-translation value at ``theta``."""
+        import jax.numpy as jnp
+
+        c = self.model.probe(theta, jnp)
+        return c @ a["probe"], c @ a["probe_rigid"]
+
     @staticmethod
-    def _modal(a: dict, s, Mr, load):
+    def _modal(a: dict, s, Mr, load, probe):
         """``(mu, weight)``: inverse eigenvalues ``mu = 1/λ`` (s²/rad², ascending) of the
         real pencil ``(Σ s_k K_k, M)`` and each mode's weight (probe x load) in H.
 
@@ -331,7 +342,7 @@ class ReducedKernel:
         solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
         B = solve(solve(Mr).T)
         mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
-        return mu, (Z.T @ solve(a["probe"])) * (Z.T @ solve(load))
+        return mu, (Z.T @ solve(probe)) * (Z.T @ solve(load))
 
     def modes(self, arrays: dict, theta):
         """Natural frequencies (Hz, ascending) of the reduced model and the height of each
@@ -342,7 +353,8 @@ class ReducedKernel:
         theta = jnp.asarray(theta, jnp.float64)
         beta = self.model.common_loss(theta, jnp)
         Mr, load = self._inertia(arrays, theta)
-        mu, weight = self._modal(arrays, self.model.moduli(theta, jnp), Mr, load)
+        probe, _ = self._probe(arrays, theta)
+        mu, weight = self._modal(arrays, self.model.moduli(theta, jnp), Mr, load, probe)
         mu, weight = mu[::-1], weight[::-1]  # largest mu = lowest frequency first
         f_hz = 1.0 / jnp.sqrt(jnp.abs(mu)) / (2 * jnp.pi)
         return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)
@@ -374,11 +386,11 @@ def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> d
         pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
     load = np.zeros((basis.load.shape[0], m))
     load[:, :n] = basis.load
-    probe = np.zeros(m)
-    probe[:n] = basis.probe
+    probe = np.zeros((basis.probe.shape[0], m))
+    probe[:, :n] = basis.probe
     return {"K": jnp.asarray(K), "M": jnp.asarray(M), "M_pad": jnp.asarray(M_pad),
             "pad": jnp.asarray(pad), "load": jnp.asarray(load), "probe": jnp.asarray(probe),
-            "probe_rigid": jnp.asarray(float(basis.probe_rigid)),
+            "probe_rigid": jnp.asarray(np.asarray(basis.probe_rigid, float)),
             "w2": jnp.asarray(np.asarray(omega, float) ** 2)}
 
 

@@ -14,6 +14,9 @@ and what it contributes, any of:
 * ``assemble(ctx) -> {matrix name: sparse matrix on all dofs}``: its own matrices,
   assembled once with scikit-fem (:class:`~vibid.identify.model.assembly.AssemblyContext`);
 * ``released``: names of the clamp's degrees of freedom that it frees;
+* ``probe(p, xp) -> {probe name: coefficient}``: the term adds probe vectors (assembled by
+  ``assemble``) to the declared sensor's, ``c = c_sensor + Σ_k c_k(p) c_k`` (a sensor
+  that is not where the setup says);
 * ``loss_law(p, omega, xp) -> (nf,)``: a frequency law multiplying every loss factor;
 * ``afc_map(p, omega, H, xp) -> H``: a map applied to the plate's AFC (delay, gain).
 
@@ -85,6 +88,7 @@ class Term:
     #: names of the stiffness and inertia matrices it scales (keys of its contributions)
     stiffness_matrices: tuple[str, ...] = ()
     inertia_matrices: tuple[str, ...] = ()
+    probe_vectors: tuple[str, ...] = ()
     released: tuple[str, ...] = ()
 
     @property
@@ -98,6 +102,9 @@ class Term:
         return {}
 
     def assemble(self, ctx) -> dict:
+        return {}
+
+    def probe(self, p: dict, xp) -> dict:
         return {}
 
     def loss_law(self, p: dict, omega, xp):
@@ -119,6 +126,9 @@ MODULI = ("D11", "D12", "D16", "D22", "D26", "D66")
 #: The inertia matrices every plate has (coefficient 1): the plate's own, and the
 #: declared sensor's (:mod:`vibid.identify.model.assembly`).
 BASE_INERTIA = ("plate", "sensor")
+
+#: The probe every plate has (coefficient 1): the declared sensor's centre.
+BASE_PROBE = ("sensor",)
 
 
 @dataclass(frozen=True)
@@ -183,6 +193,11 @@ class PlateModel:
         return tuple(dict.fromkeys(BASE_INERTIA + tuple(
             k for t in self.effects for k in t.inertia_matrices)))
 
+    @property
+    def probe_names(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(BASE_PROBE + tuple(
+            k for t in self.effects for k in t.probe_vectors)))
+
     def values(self, theta) -> dict:
         """``{name: theta[i]}`` (entries of a numpy or JAX vector)."""
         return {n: theta[i] for i, n in enumerate(self.names)}
@@ -225,6 +240,15 @@ class PlateModel:
             entries.update(t.inertia(p, xp))
         zero = 0.0 * theta[0]
         return xp.stack([xp.asarray(entries[k]) + zero for k in self.inertia_names])
+
+    def probe(self, theta, xp=np):
+        """(P,) coefficients of :attr:`probe_names` (1 for the declared sensor)."""
+        p = self.values(theta)
+        entries = {k: 1.0 for k in BASE_PROBE}
+        for t in self.effects:
+            entries.update(t.probe(p, xp))
+        zero = 0.0 * theta[0]
+        return xp.stack([xp.asarray(entries[k]) + zero for k in self.probe_names])
 
     def loss_law(self, theta, omega, xp=np):
         """(nf,) multiplier of every loss factor at ``omega`` (rad/s), or None (1)."""
