@@ -17,7 +17,11 @@ and after.
    quantile and is largest, provided its refit converged, lowers chi2 under its own
    weights too, lies 3 std from its null value and removes at least a tenth of the chi2
    above the noise; repeat until the residual fits the noise or nothing helps
-   (``unexplained_residual``).
+   (``unexplained_residual``). Where the current estimate has left its prior box (the
+   declared model bending a parameter to mimic what it lacks), the refit also starts with
+   those parameters just inside the box, and its minimum inside the box is kept unless
+   one outside fits significantly better (chi2 differences in units of the reduced chi2,
+   as the misfit, not the noise, then sets their scale).
 
 A candidate without parameters of its own (``transverse_shear`` on an isotropic plate) is
 scored along the secant from the current model to the extended one (one dof) and kept on
@@ -25,6 +29,11 @@ its likelihood ratio.
 
 A candidate is an effect of :mod:`vibid.identify.effects`, or ``anisotropy`` (the isotropic
 material replaced by the orthotropic one, started from the isotropic fit).
+
+When the loop ends with a residual no candidate explains, the final model's covariance is
+scaled by its reduced chi2 (the Birge ratio squared): the misfit is then the measure of
+how far the model is from the data, and the Fisher covariance alone, which assumes the
+model right, would be a confident answer the fit has not earned.
 """
 
 from __future__ import annotations
@@ -32,13 +41,14 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from vibid.errors import VibidError
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.local import LOCAL_METHODS
+from vibid.identify.fit.minima import best_inside_prior
 from vibid.identify.fit.noise import QUANTILE, fits_noise, ljung_box_p
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import IdentificationResult
@@ -77,6 +87,9 @@ KEEP_SHARE = 0.10
 KEEP_Z = 3.0
 #: Starts of a refit along the new parameter, in the coordinates u of its prior box.
 REFIT_STARTS_U = (-0.75, -0.25, 0.25, 0.75)
+#: Where a refit restarts a current parameter found outside its prior box (u = ±1 are
+#: the box's faces).
+INSIDE_U = 0.9
 
 
 # -- candidates ---------------------------------------------------------------------------
@@ -271,6 +284,8 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
         box = box | next(c for c in todo if c.name == best.added).bounds(box)
     final = stages[-1]
     unexplained = not final.fits_noise
+    if unexplained:
+        stages[-1] = replace(final, result=scaled_by_misfit(final.result))
     for s in rounds[-1] if rounds else ():
         if s.kept and s.collinearity > 0.9:
             warnings.append(
@@ -280,6 +295,26 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
                 "the others cannot mimic; its std and theirs include that")
     return LoopResult(tuple(stages), tuple(rounds), unexplained, tuple(warnings),
                       time.perf_counter() - t0)
+
+
+def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:
+    """``result`` with its covariance scaled by its reduced chi2 when that exceeds 1 (the
+    standard deviations by the Birge ratio ``√chi2_red``), the warning saying so in place of
+    the one that they understate the error."""
+    k = float(result.chi2_reduced)
+    if not (result.noise_known and np.isfinite(k) and k > 1.0):
+        return result
+    note = (f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(k):.3g}: "
+            "the residual holds more than the noise, and the misfit measures the error")
+    kept = tuple(w for w in result.warnings if "understate the error" not in w)
+    std = result.std * math.sqrt(k)
+    poor = tuple(
+        f"{n} is poorly determined by these data (scaled std {sd:.2g} = "
+        f"{100 * sd / abs(v):.0f} % of its value)"
+        for n, v, sd, s0 in zip(result.parameter_names, result.values, std, result.std)
+        if abs(v) > 0 and np.isfinite(sd) and sd > 0.3 * abs(v) and not s0 > 0.3 * abs(v))
+    return replace(result, std=std, covariance=result.covariance * k,
+                   warnings=kept + (note,) + poor)
 
 
 def _stage(added, result: IdentificationResult) -> Stage:
@@ -443,6 +478,29 @@ def _collinearity(J_old, J_new) -> float:
     return float(min(cos)) if cos else math.nan
 
 
+def _refit_starts(space, u0, new, current_names) -> list[np.ndarray]:
+    """Starts of a refit: the current estimate, and it with the new parameters at
+    :data:`REFIT_STARTS_U`. Where current parameters lie outside their prior box (an
+    effect the declared model lacked pushed them there), the same again with those moved
+    just inside it: the extended model may explain the data inside the box, in a basin the
+    current estimate does not reach."""
+    outside = [i for i, n in enumerate(space.names)
+               if n in current_names and n in space.out_of_bounds(space.theta(u0))]
+    bases = [u0]
+    if outside:
+        moved = u0.copy()
+        moved[outside] = np.clip(moved[outside], -INSIDE_U, INSIDE_U)
+        bases.append(moved)
+    starts = []
+    for base in bases:
+        starts.append(base)
+        for v in REFIT_STARTS_U if new else ():
+            u = base.copy()
+            u[new] = v
+            starts.append(u)
+    return starts
+
+
 def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     """Local fits of the extended model from the current estimate (several starts along the
     new parameters), then the full identification from the best; returns (stage, Δχ²).
@@ -456,14 +514,12 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     with np.errstate(divide="ignore"):  # a null on a log parameter's edge: u = -inf
         u0 = space.to_u(np.array([start[n] for n in names]))
     new = [i for i, n in enumerate(names) if n not in res.parameter_names]
-    starts = [np.clip(u0, -5, 5)]
-    for v in REFIT_STARTS_U if new else ():
-        u = u0.copy()
-        u[new] = v
-        starts.append(u)
+    starts = _refit_starts(space, np.clip(u0, -5, 5), new, res.parameter_names)
     run = LOCAL_METHODS[local]
     runs = [run(problem.with_model(problem.model.refresh(space.theta(u))), u) for u in starts]
-    best = min(runs, key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
+    runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
+    inside = best_inside_prior(runs, space, max(1.0, float(res.chi2_reduced)))
+    best = inside if inside is not None else runs[0]
     fm = problem.model.refresh(best.theta)
     result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                       model=fm.param.model, forward_model=fm, method="local",
