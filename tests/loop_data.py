@@ -19,6 +19,11 @@ from plate_helpers import strip_setup
 
 TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
 F = np.linspace(1500.0 / 60, 1500.0, 60)
+#: Restarts of the declared model's global search (and peak matching) in the loop tests: on
+#: these data every restart reaches the same basin, so a second one only repeats the first
+#: (about 8 s a fit); a search that missed it would fail the tests, not pass them. The
+#: loop's own global refits keep their restarts.
+RESTARTS = 1
 
 
 def strip_on(freqs=F, setup=None):
@@ -66,7 +71,7 @@ def _declared(key: tuple, seed: int, restarts: int):
     return identify(strip_on(), F, H, sd, restarts=restarts, seed=0)
 
 
-def declared_fit(effects: dict, seed: int, restarts: int = 2):
+def declared_fit(effects: dict, seed: int, restarts: int = RESTARTS):
     """The declared model's fit of :func:`data` ``(effects, seed)``: what
     ``close_loop(strip_on(), F, H, sd, seed=0, restarts=restarts)`` fits first (a frozen
     result that neither the loop nor the tests write to, so it is shared as it is)."""

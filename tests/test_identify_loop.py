@@ -5,7 +5,7 @@ data get nothing added; and the whole path session -> AFC -> loop -> report."""
 import json
 
 import pytest
-from loop_data import F, TRUTH, data, declared_fit, strip_on
+from loop_data import RESTARTS, F, TRUTH, data, declared_fit, strip_on
 
 from vibid.identify.loop import close_loop
 
@@ -25,7 +25,7 @@ def _truth_within(result, sigmas=3.0):
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
 def test_clean_data_get_nothing_added(seed):
     H, sd = _data({}, seed)
-    loop = close_loop(_setup(), F, H, sd, seed=seed, restarts=2)
+    loop = close_loop(_setup(), F, H, sd, seed=seed, restarts=RESTARTS)
     assert loop.effects == () and not loop.unexplained_residual
     assert loop.rounds == ()  # the declared model fits the noise: nothing is even scored
 
@@ -37,7 +37,8 @@ def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect
     H, sd = _data(value, 7)
     # the declared fit (what close_loop fits first) of the delay's data is shared with
     # test_identify_loop_cases' failing refit
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=2, declared=declared_fit(value, 7))
+    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
+                      declared=declared_fit(value, 7))
     before, after = loop.stages[0].result, loop.final
     assert loop.effects == (effect,)
     assert not loop.unexplained_residual and loop.stages[-1].fits_noise
@@ -69,7 +70,7 @@ def test_the_session_path_reports_the_loop(tmp_path):
     assert truth["parameters"]["tau_s"] == 3e-5
     report = tmp_path / "report.json"
     assert main(["identify", str(path), "--json", str(report), "--no-progress",
-                 "--restarts", "2"]) == 0
+                 "--restarts", str(RESTARTS)]) == 0
     doc = json.loads(report.read_text())
     assert [e["name"] for e in doc["effects"]] == ["channel_delay"]
     tau = doc["effects"][0]["parameters"]["tau_s"]
@@ -82,7 +83,7 @@ def test_the_session_path_reports_the_loop(tmp_path):
     assert {r["candidate"] for r in doc["loop"]["rounds"][0]} >= {"channel_delay", "anisotropy"}
     # --no-loop: the declared model alone
     assert main(["identify", str(path), "--json", str(report), "--no-progress",
-                 "--restarts", "2", "--no-loop"]) == 0
+                 "--restarts", str(RESTARTS), "--no-loop"]) == 0
     doc = json.loads(report.read_text())
     assert doc["effects"] == [] and len(doc["loop"]["stages"]) == 1
     assert doc["loop"]["unexplained_residual"] is True

@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 import pytest
-from loop_data import F, TRUTH, data, declared_fit, noisy, strip_on
+from loop_data import RESTARTS, F, TRUTH, data, declared_fit, noisy, strip_on
 from plate_helpers import strip_setup
 
 from vibid.hardware_mocks.simulated_session import true_afc
@@ -39,7 +39,7 @@ def _no_nan(doc):
 def test_two_effects_at_once_are_both_found():
     effects = {"tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4}
     H, sd = data(effects, 11)
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=2)
+    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS)
     assert set(loop.effects) == {"channel_delay", "clamp_compliance"}
     assert not loop.unexplained_residual
     assert loop.stages[0].result.chi2_reduced > 10 and loop.final.chi2_reduced < 1.5
@@ -73,7 +73,7 @@ def test_transverse_shear_on_a_thick_strip_is_found():
 
     H0 = afc(setup, truth, f, accuracy="fine", effects=("transverse_shear",))
     H, sd = _noisy(H0, 3)
-    loop = close_loop(setup, f, H, sd, seed=0, restarts=2)
+    loop = close_loop(setup, f, H, sd, seed=0, restarts=RESTARTS)
     assert loop.effects == ("transverse_shear",)
     assert not loop.unexplained_residual
     assert loop.stages[0].result.chi2_reduced > 10 and loop.final.chi2_reduced < 1.5
@@ -109,7 +109,7 @@ def test_an_effect_outside_the_library_is_never_a_wrong_claimed_fit():
     that varies with frequency) and the stiffness right, or says unexplained_residual."""
     f1 = 82.0  # the strip's first resonance, Hz (about)
     H, sd = _noisy(_viscous_afc(_setup(), TRUTH, F, 2 * TRUTH["beta"] * 2 * np.pi * f1), 5)
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=2)
+    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS)
     assert not loop.stages[0].fits_noise  # the declared model cannot explain it
     # whatever it adds is defensible: a loss that varies with frequency (air damping is one)
     assert set(loop.effects) <= {"frequency_dependent_loss"}, loop.effects
@@ -128,7 +128,7 @@ def test_too_few_points_for_every_candidate_is_reported_not_fitted():
     setup = _setup(f)
     H, sd = _noisy(true_afc(setup, TRUTH | {"tau_s": 1e-4}, f, accuracy="fine"), 2, rel=1e-4,
                    floor=1e-6)
-    loop = close_loop(setup, f, H, sd, seed=0, restarts=2,
+    loop = close_loop(setup, f, H, sd, seed=0, restarts=RESTARTS,
                       candidates=["anisotropy", "channel_delay"])
     if loop.stages[0].fits_noise:
         pytest.fail("the declared model fitted a 1e-4 rad delay on two points to the noise")
@@ -155,7 +155,7 @@ def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
 
     monkeypatch.setattr(loop_module, "_refit", refit)
     # the declared fit is no refit: the same as test_identify_loop's, computed once
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=2,
+    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
                       declared=declared_fit({"tau_s": 2e-5}, 7))
     first = {s.name: s for s in loop.rounds[0]}
     assert "simulated solver failure" in first["channel_delay"].note
