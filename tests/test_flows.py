@@ -26,7 +26,7 @@ TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
 TAU_S = 2e-5
 FREQUENCIES_HZ = (30.0,) + tuple(45.0 * k for k in range(1, 21))
 SPECIMEN_KEY = "steel-strip-100x20x1"
-LOOP_OPTIONS = ["--candidates", "channel_delay", "--restarts", "2"]
+LOOP_OPTIONS = ["--candidates", "channel_delay", "--restarts", "1"]
 
 
 @pytest.fixture(scope="module")

@@ -2,34 +2,17 @@
 the declared parameters move back to the truth, the residual ends at the noise level; clean
 data get nothing added; and the whole path session -> AFC -> loop -> report."""
 
-import dataclasses
 import json
 
-import numpy as np
 import pytest
-from plate_helpers import strip_setup
+from loop_data import RESTARTS, F, TRUTH, data, declared_fit, strip_on
 
-from vibid.hardware_mocks.simulated_session import true_afc
 from vibid.identify.loop import close_loop
 
-TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
-F = np.linspace(1500.0 / 60, 1500.0, 60)
-
-
-def _setup(freqs=F):
-    s = strip_setup()
-    return dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                                 frequencies_hz=tuple(freqs)))
-
-
-def _data(effects: dict, seed: int):
-    """The strip's AFC from the full FE model on a finer mesh than the fit's, with noise of
-    0.3 % of |H| per point (and a floor), as the signal stage reports for a 0.3 % channel
-    noise."""
-    H = true_afc(_setup(), TRUTH | effects, F, accuracy="fine")
-    sd = 0.003 * np.abs(H) + 1e-3
-    rng = np.random.default_rng(seed)
-    return H + sd * (rng.standard_normal(F.size) + 1j * rng.standard_normal(F.size)), sd
+_setup = strip_on
+#: The strip's AFC from the full FE model on a finer mesh than the fit's, with noise of
+#: 0.3 % of |H| per point (and a floor): see loop_data.
+_data = data
 
 
 def _truth_within(result, sigmas=3.0):
@@ -42,7 +25,7 @@ def _truth_within(result, sigmas=3.0):
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
 def test_clean_data_get_nothing_added(seed):
     H, sd = _data({}, seed)
-    loop = close_loop(_setup(), F, H, sd, seed=seed, restarts=2)
+    loop = close_loop(_setup(), F, H, sd, seed=seed, restarts=RESTARTS)
     assert loop.effects == () and not loop.unexplained_residual
     assert loop.rounds == ()  # the declared model fits the noise: nothing is even scored
 
@@ -52,7 +35,10 @@ def test_clean_data_get_nothing_added(seed):
                                            ("clamp_compliance", {"k_theta_N_per_rad": 1.6e4})])
 def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect, value):
     H, sd = _data(value, 7)
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=2)
+    # the declared fit (what close_loop fits first) of the delay's data is shared with
+    # test_identify_loop_cases' failing refit
+    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
+                      declared=declared_fit(value, 7))
     before, after = loop.stages[0].result, loop.final
     assert loop.effects == (effect,)
     assert not loop.unexplained_residual and loop.stages[-1].fits_noise
@@ -84,7 +70,7 @@ def test_the_session_path_reports_the_loop(tmp_path):
     assert truth["parameters"]["tau_s"] == 3e-5
     report = tmp_path / "report.json"
     assert main(["identify", str(path), "--json", str(report), "--no-progress",
-                 "--restarts", "2"]) == 0
+                 "--restarts", str(RESTARTS)]) == 0
     doc = json.loads(report.read_text())
     assert [e["name"] for e in doc["effects"]] == ["channel_delay"]
     tau = doc["effects"][0]["parameters"]["tau_s"]
@@ -97,7 +83,7 @@ def test_the_session_path_reports_the_loop(tmp_path):
     assert {r["candidate"] for r in doc["loop"]["rounds"][0]} >= {"channel_delay", "anisotropy"}
     # --no-loop: the declared model alone
     assert main(["identify", str(path), "--json", str(report), "--no-progress",
-                 "--restarts", "2", "--no-loop"]) == 0
+                 "--restarts", str(RESTARTS), "--no-loop"]) == 0
     doc = json.loads(report.read_text())
     assert doc["effects"] == [] and len(doc["loop"]["stages"]) == 1
     assert doc["loop"]["unexplained_residual"] is True
