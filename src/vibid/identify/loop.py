@@ -484,8 +484,8 @@ def _refit_starts(space, u0, new, current_names) -> list[np.ndarray]:
     effect the declared model lacked pushed them there), the same again with those moved
     just inside it: the extended model may explain the data inside the box, in a basin the
     current estimate does not reach."""
-    outside = [i for i, n in enumerate(space.names)
-               if n in current_names and n in space.out_of_bounds(space.theta(u0))]
+    out = set(space.out_of_bounds(space.theta(u0))) & set(current_names)
+    outside = [i for i, n in enumerate(space.names) if n in out]
     bases = [u0]
     if outside:
         moved = u0.copy()

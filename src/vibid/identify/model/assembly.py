@@ -83,9 +83,7 @@ class AssemblyContext:
         g = self.geometry
         centre = np.array([g.sensor_x_m, g.sensor_y_m])
         parts = shifted_disc(self.basis, centre, g.sensor_radius_m, direction, places)
-        scale = g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2)
-        rot = g.thickness_m**2 / 12.0
-        return {k: (scale * (uv + rot * grad)).tocsr() for k, (uv, grad) in parts.items()}
+        return {k: _disc_inertia(g, uv, grad) for k, (uv, grad) in parts.items()}
 
     def probe_at(self, centre_m) -> np.ndarray:
         """(N,) the probe ``c`` with ``u(x, y) = c · u`` at ``centre_m`` = (x, y)."""
@@ -112,10 +110,10 @@ class PlateMatrices:
     stiffness : dict name -> (n, n) CSR, one per stiffness term.
     inertia : dict name -> (n, n) CSR, one per inertia term.
     load : dict name -> (n,) the rigid unit translation's inertia load of each inertia term.
-    probe : (n,) displacement at the sensor centre; ``probe_rigid`` its value on the rigid
-        unit translation (1 up to round-off).
-    probes : dict name -> (n,), one per probe name of the model (``"sensor"`` is ``probe``);
-        ``probes_rigid`` each one's value on the rigid unit translation.
+    probes : dict name -> (n,), one per probe name of the model, ``"sensor"`` the
+        displacement at the declared sensor's centre; ``probes_rigid`` each one's value on
+        the rigid unit translation (1 up to round-off for the sensor's).
+    probe, probe_rigid : the declared sensor's (properties).
     n_dof : number of free degrees of freedom; ``n_dof_total`` all of them.
     sensor_area_m2 : the integrated area of the sensor disc.
     rigid_mass_kg : dict name -> ``1ᵀ M 1`` of each inertia term on all dofs (the mass the
@@ -127,8 +125,6 @@ class PlateMatrices:
     stiffness: dict
     inertia: dict
     load: dict
-    probe: np.ndarray
-    probe_rigid: float
     probes: dict
     probes_rigid: dict
     n_dof: int
@@ -153,6 +149,14 @@ class PlateMatrices:
     def inertia_load(self, coefficients: dict | None = None) -> np.ndarray:
         c = coefficients or {k: 1.0 for k in self.inertia}
         return sum(v * self.load[k] for k, v in c.items())
+
+    @property
+    def probe(self) -> np.ndarray:
+        return self.probes["sensor"]
+
+    @property
+    def probe_rigid(self) -> float:
+        return self.probes_rigid["sensor"]
 
     def probe_vector(self, coefficients: dict | None = None) -> tuple[np.ndarray, float]:
         """``(Σ c_k probe_k, Σ c_k probe_k · 1)`` (default: the declared sensor's probe)."""
@@ -210,10 +214,16 @@ def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs
 
 
 def _sensor_inertia(basis, g: Geometry, centre: np.ndarray):
-    """The sensor disc's ``m/(π r²) ∫_disc (u v + h²/12 ∇u·∇v)`` (kg) and its area (m²)."""
+    """The sensor disc's inertia matrix (kg, :func:`_disc_inertia`) and its area (m²)."""
     disc_uv, disc_grad, area = assemble_disc(basis, centre, g.sensor_radius_m)
+    return _disc_inertia(g, disc_uv, disc_grad), area
+
+
+def _disc_inertia(g: Geometry, uv, grad) -> sp.csr_matrix:
+    """``m/(π r²) (uv + h²/12 grad)``: the sensor's mass spread over its disc, from the
+    disc integrals ``∫ u v`` and ``∫ ∇u·∇v``."""
     scale = g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2)
-    return (scale * (disc_uv + g.thickness_m**2 / 12.0 * disc_grad)).tocsr(), area
+    return (scale * (uv + g.thickness_m**2 / 12.0 * grad)).tocsr()
 
 
 def _probe(basis, centre: np.ndarray) -> np.ndarray:
@@ -259,7 +269,6 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
         stiffness={k: restrict(a) for k, a in stiffness.items()},
         inertia={k: restrict(a) for k, a in inertia.items()},
         load={k: (a @ one)[free] for k, a in inertia.items()},
-        probe=full.context.probe[free], probe_rigid=float(full.context.probe @ one),
         probes={k: c[free] for k, c in probes.items()},
         probes_rigid={k: float(c @ one) for k, c in probes.items()},
         n_dof=free.size, n_dof_total=basis.N, sensor_area_m2=full.sensor_area_m2,

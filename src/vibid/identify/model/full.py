@@ -101,8 +101,8 @@ def make_full_afc_jax(mats, model, frequencies_hz):
     """A JAX function ``theta -> H (nf,)`` of ``model`` backed by the sparse solver.
 
     Differentiable once (forward or reverse mode) through an exact adjoint JVP with
-    respect to the stiffness coefficients (inertia and probe parameters are held); the sparse solves
-    run on the host via :func:`jax.pure_callback`. For verification, not speed.
+    respect to the stiffness coefficients (inertia and probe parameters are held); the
+    sparse solves run on the host via :func:`jax.pure_callback`. For verification, not speed.
     """
     import jax
     import jax.numpy as jnp

@@ -262,8 +262,8 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         M=np.array([project(mats.inertia[k]) for k in inertia_names]),
         load=np.array([V.T @ mats.load[k] for k in inertia_names]),
         probe=np.array([V.T @ mats.probes[k] for k in probe_names]),
-        probe_rigid=np.array([mats.probes_rigid[k] for k in probe_names]), n_modes=n_modes, f_top_hz=f_reached, theta0=theta0,
-        moduli0=s0, inertia0=m0,
+        probe_rigid=np.array([mats.probes_rigid[k] for k in probe_names]), n_modes=n_modes,
+        f_top_hz=f_reached, theta0=theta0, moduli0=s0, inertia0=m0,
     )
     log.info("reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
              n_modes, f_reached, len(points), basis.size, n_candidates)

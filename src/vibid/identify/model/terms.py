@@ -234,21 +234,21 @@ class PlateModel:
 
     def inertia(self, theta, xp=np):
         """(S,) coefficients of :attr:`inertia_names` (1 for the plate and the sensor)."""
-        p = self.values(theta)
-        entries = {k: 1.0 for k in BASE_INERTIA}
-        for t in self.effects:
-            entries.update(t.inertia(p, xp))
-        zero = 0.0 * theta[0]
-        return xp.stack([xp.asarray(entries[k]) + zero for k in self.inertia_names])
+        return self._effect_coefficients(theta, xp, BASE_INERTIA, self.inertia_names, "inertia")
 
     def probe(self, theta, xp=np):
         """(P,) coefficients of :attr:`probe_names` (1 for the declared sensor)."""
+        return self._effect_coefficients(theta, xp, BASE_PROBE, self.probe_names, "probe")
+
+    def _effect_coefficients(self, theta, xp, base, names, contribution):
+        """Coefficients of ``names``: 1 for the ``base`` ones, then each effect's
+        ``contribution`` (its method of that name) at ``theta``."""
         p = self.values(theta)
-        entries = {k: 1.0 for k in BASE_PROBE}
+        entries = {k: 1.0 for k in base}
         for t in self.effects:
-            entries.update(t.probe(p, xp))
+            entries.update(getattr(t, contribution)(p, xp))
         zero = 0.0 * theta[0]
-        return xp.stack([xp.asarray(entries[k]) + zero for k in self.probe_names])
+        return xp.stack([xp.asarray(entries[k]) + zero for k in names])
 
     def loss_law(self, theta, omega, xp=np):
         """(nf,) multiplier of every loss factor at ``omega`` (rad/s), or None (1)."""
