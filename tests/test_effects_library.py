@@ -29,6 +29,7 @@ TYPICAL = {
 def test_every_effect_has_a_typical_size_and_declares_its_parameters():
     assert set(TYPICAL) == set(EFFECTS)
     for term in EFFECTS.values():
+        assert term.meaning and term.meaning != term.name  # the report's words for it
         if TYPICAL[term.name] is None:
             assert term.parameters == ()
             continue

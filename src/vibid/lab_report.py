@@ -49,17 +49,12 @@ MEANING = {
     "G12_Pa": "in-plane shear modulus", "nu12": "Poisson's ratio 12",
     "sensor_dy_m": "sensor offset across the width",
 }
-#: What each effect of the loop is, in a lab's words (shared/spec/report-format.md).
-EFFECT_MEANING = {
-    "channel_delay": "a time skew between the two measurement channels",
-    "sensor_gain": "a sensitivity error of the response sensor against the base sensor",
-    "clamp_compliance": "an elastic clamp (a rotational spring along the clamped edge)",
-    "added_mass": "an undeclared mass at the response sensor (glue, cable)",
-    "frequency_dependent_loss": "a loss factor that varies with frequency",
-    "anisotropy": "an orthotropic material instead of the declared isotropic one",
-    "transverse_shear": "shear deformation of a thick plate (Reissner–Mindlin)",
-    "sensor_position": "the response sensor off its declared place across the width",
-}
+
+def _meaning_of(name: str) -> str:
+    """What a candidate effect is, in a lab's words (each effect's term says it)."""
+    from vibid.identify.loop import meaning_of
+
+    return meaning_of(name)
 
 
 # -- numbers a person reads -------------------------------------------------------------------
@@ -226,7 +221,7 @@ def _effect_text(report: dict) -> list[str]:
     for e in report["effects"]:
         vals = ", ".join(f"{n} = {with_std(p['value'], p['std'])}{_unit_text(unit_of(n))}"
                          for n, p in e["parameters"].items())
-        lines.append(f"- **{e['name']}**: {EFFECT_MEANING.get(e['name'], e['name'])}"
+        lines.append(f"- **{e['name']}**: {_meaning_of(e['name'])}"
                      + (f"; {vals}" if vals else ""))
     lines.append("")
     lines.append(f"With it χ²/dof went from {_chi2(first['chi2_reduced'])} to "
@@ -339,7 +334,7 @@ def console_summary(report: dict) -> str:
     names = [e["name"] for e in report["effects"]]
     if names:
         lines.append("effects found: " + ", ".join(
-            f"{n} ({EFFECT_MEANING.get(n, n)})" for n in names))
+            f"{n} ({_meaning_of(n)})" for n in names))
     elif report["loop"]["unexplained_residual"]:
         lines.append("effects found: none, and the residual is above the noise "
                      "(unexplained_residual)")

@@ -23,6 +23,7 @@ class AddedMass(Term):
     """A point mass ``mass_kg`` at the response sensor's centre."""
 
     name = "added_mass"
+    meaning = "an undeclared mass at the response sensor (glue, cable)"
     parameters = (MASS,)
     inertia_matrices = ("point_mass",)
 

@@ -21,6 +21,7 @@ class ChannelDelay(Term):
     """``H → H exp(-i ω τ_s)``."""
 
     name = "channel_delay"
+    meaning = "a time skew between the two measurement channels"
     parameters = (TAU,)
 
     def afc_map(self, p: dict, omega, H, xp):

@@ -32,6 +32,7 @@ class ClampCompliance(Term):
     """A rotational spring ``k_θ`` (N/rad) per metre along the clamped edge ``x = 0``."""
 
     name = "clamp_compliance"
+    meaning = "an elastic clamp (a rotational spring along the clamped edge)"
     parameters = (K_THETA,)
     stiffness_matrices = ("clamp_edge",)
     released = SLOPE_DOFS

@@ -24,6 +24,7 @@ class FrequencyDependentLoss(Term):
     """Loss factors times ``(f / 1 kHz)^alpha``."""
 
     name = "frequency_dependent_loss"
+    meaning = "a loss factor that varies with frequency"
     parameters = (ALPHA,)
 
     def loss_law(self, p: dict, omega, xp):

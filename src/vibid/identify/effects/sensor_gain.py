@@ -20,6 +20,7 @@ class SensorGain(Term):
     """``H → gain H``."""
 
     name = "sensor_gain"
+    meaning = "a sensitivity error of the response sensor against the base sensor"
     parameters = (GAIN,)
 
     def afc_map(self, p: dict, omega, H, xp):

@@ -57,6 +57,7 @@ class SensorPosition(Term):
     """The response sensor ``sensor_dy_m`` across the width from its declared centre."""
 
     name = "sensor_position"
+    meaning = "the response sensor off its declared place across the width"
     parameters = (DY,)
     inertia_matrices = tuple(f"sensor_dy{k}" for k in POWERS)
     probe_vectors = tuple(f"probe_dy{k}" for k in range(1, DEGREE + 1))

@@ -44,6 +44,7 @@ class TransverseShear(Term):
 
     orthotropic: bool = False
     name = "transverse_shear"
+    meaning = "shear deformation of a thick plate (Reissner–Mindlin)"
     inertia_matrices = ("shear_x", "shear_y")
     all_parameters = (G13,)
 

@@ -84,6 +84,8 @@ class Term:
     a model's compiled code is shared by every model of the same terms)."""
 
     name = ""
+    #: what the term is, in a lab's words (the report's list of effects found)
+    meaning = ""
     parameters: tuple[Parameter, ...] = ()
     #: names of the stiffness and inertia matrices it scales (keys of its contributions)
     stiffness_matrices: tuple[str, ...] = ()
