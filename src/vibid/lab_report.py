@@ -50,12 +50,6 @@ MEANING = {
     "sensor_dy_m": "sensor offset across the width",
 }
 
-def _meaning_of(name: str) -> str:
-    """What a candidate effect is, in a lab's words (each effect's term says it)."""
-    from vibid.identify.loop import meaning_of
-
-    return meaning_of(name)
-
 
 # -- numbers a person reads -------------------------------------------------------------------
 def unit_of(name: str) -> str:
@@ -203,6 +197,8 @@ def _param_rows(params: dict) -> list[str]:
 
 
 def _effect_text(report: dict) -> list[str]:
+    from vibid.identify.effects import meaning_of
+
     stages = report["loop"]["stages"]
     first, last = stages[0], stages[-1]
     lines = []
@@ -221,7 +217,7 @@ def _effect_text(report: dict) -> list[str]:
     for e in report["effects"]:
         vals = ", ".join(f"{n} = {with_std(p['value'], p['std'])}{_unit_text(unit_of(n))}"
                          for n, p in e["parameters"].items())
-        lines.append(f"- **{e['name']}**: {_meaning_of(e['name'])}"
+        lines.append(f"- **{e['name']}**: {meaning_of(e['name'])}"
                      + (f"; {vals}" if vals else ""))
     lines.append("")
     lines.append(f"With it χ²/dof went from {_chi2(first['chi2_reduced'])} to "
@@ -323,6 +319,8 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
 def console_summary(report: dict) -> str:
     """A few lines for the console at the end of a job: the identified values with std and
     units, the effects the loop found (with their values), χ²/dof before and after."""
+    from vibid.identify.effects import meaning_of
+
     stages = report["loop"]["stages"]
     lines = ["identified (value ± std):"]
     for q in parameter_table(report):
@@ -334,7 +332,7 @@ def console_summary(report: dict) -> str:
     names = [e["name"] for e in report["effects"]]
     if names:
         lines.append("effects found: " + ", ".join(
-            f"{n} ({_meaning_of(n)})" for n in names))
+            f"{n} ({meaning_of(n)})" for n in names))
     elif report["loop"]["unexplained_residual"]:
         lines.append("effects found: none, and the residual is above the noise "
                      "(unexplained_residual)")

@@ -168,19 +168,6 @@ class Candidate:
         return {q.name: tuple(box.get(q.name, q.bounds)) for q in EFFECTS[self.name].parameters}
 
 
-#: What ``anisotropy`` is, in a lab's words (an effect's own is its term's ``meaning``).
-ANISOTROPY_MEANING = "an orthotropic material instead of the declared isotropic one"
-
-
-def meaning_of(name: str) -> str:
-    """What a candidate is, in a lab's words (its name when unknown)."""
-    if name == "anisotropy":
-        return ANISOTROPY_MEANING
-    from vibid.identify.effects import EFFECTS
-
-    return EFFECTS[name].meaning if name in EFFECTS else name
-
-
 def all_candidates() -> tuple[Candidate, ...]:
     from vibid.identify.effects import EFFECTS
 

@@ -41,3 +41,15 @@ def effects_for(names) -> tuple:
 
 
 __all__ = ["EFFECTS", "EFFECT_PARAMETERS", "effects_for"]
+
+
+#: What ``anisotropy`` (the report's other effect name: a material, not a term) is, in a
+#: lab's words; an effect's own is its term's ``meaning``.
+ANISOTROPY_MEANING = "an orthotropic material instead of the declared isotropic one"
+
+
+def meaning_of(name: str) -> str:
+    """What an effect of the report is, in a lab's words (its name when unknown)."""
+    if name == "anisotropy":
+        return ANISOTROPY_MEANING
+    return EFFECTS[name].meaning if name in EFFECTS else name
