@@ -13,7 +13,8 @@ and after.
    (χ² with as many degrees of freedom as the candidate adds, under the null). Its
    collinearity is how much of its sensitivity the current parameters already explain.
 3. Refit the best few candidates from the current fit (several starts along the new
-   parameter), keep the one whose likelihood-ratio ``Δχ²`` (same weights) passes the 99 %
+   parameter; in order of score, stopping at one that fits the residual to the noise
+   level), keep the one whose likelihood-ratio ``Δχ²`` (same weights) passes the 99 %
    quantile and is largest, provided its refit converged, lowers chi2 under its own
    weights too, lies 3 std from its null value and removes at least a tenth of the chi2
    above the noise; repeat until the residual fits the noise or nothing helps
@@ -393,7 +394,16 @@ def _round(setup, data, current: Stage, todo, box, local):
 
     # local refits of the best few; a global search of the top candidate only when none of
     # them explains the data (an orthotropic plate fitted as isotropic)
-    kept = [attempt(s, False) for s in ranked]
+    kept = []
+    for k, s in enumerate(ranked):
+        kept.append(attempt(s, False))
+        if kept[-1][0] is not None and kept[-1][0].fits_noise:
+            # the residual is explained to the noise level: another candidate could at
+            # best tie with it, for the price of its refit
+            for rest in ranked[k + 1:]:
+                done[rest.name] = (math.nan, f"not refitted: {s.name} already fits the "
+                                             "residual to the noise level")
+            break
     if ranked and not any(st is not None and st.fits_noise for st, _ in kept):
         kept.append(attempt(ranked[0], True))
     kept = [(st, gain) for st, gain in kept if st is not None]
