@@ -137,3 +137,17 @@ def test_the_same_model_built_twice_is_the_same_to_the_last_bit(local):
     f, _ = local.natural_frequencies(PAPER_THETA, 3)
     f2, _ = again.natural_frequencies(PAPER_THETA, 3)
     assert np.array_equal(f, f2)
+
+
+def test_largest_eigenvalue_of_a_pencil_whose_mass_rounding_left_indefinite():
+    # K = diag(1, 4, 9), M = diag(1, 1, -1e-18): eigh needs a Cholesky factor of M and
+    # fails; the pencil's eigenvalues are 1, 4 and -9e18, the largest |λ| 9e18
+    from vibid.identify.model.reduced import largest_eigenvalue
+
+    K, M = np.diag([1.0, 4.0, 9.0]), np.diag([1.0, 1.0, -1e-18])
+    with pytest.raises(np.linalg.LinAlgError):
+        import scipy.linalg as sla
+
+        sla.eigh(K, M)
+    assert largest_eigenvalue(K, M) == pytest.approx(9e18, rel=1e-12)
+    assert largest_eigenvalue(K, np.diag([1.0, 2.0, 3.0])) == pytest.approx(3.0, rel=1e-12)

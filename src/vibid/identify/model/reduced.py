@@ -360,6 +360,19 @@ class ReducedKernel:
         return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)
 
 
+def largest_eigenvalue(K, M) -> float:
+    """The largest finite |λ| of the pencil ``(K, M)`` (rad²/s²). A reduced mass that
+    rounding left a hair indefinite (a basis direction with almost no mass: the clamp's
+    slope at an extreme spring stiffness) has no Cholesky factor, which ``eigh`` needs;
+    the QZ algorithm does not."""
+    try:
+        lam = sla.eigh(K, M, eigvals_only=True)
+    except np.linalg.LinAlgError:
+        lam = sla.eigvals(K, M)
+    lam = np.abs(lam[np.isfinite(lam)])
+    return float(lam.max()) if lam.size else 1.0
+
+
 def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> dict:
     """The kernel's arrays for ``basis`` on angular frequencies ``omega`` (rad/s), the basis
     padded with decoupled dummy unknowns up to a multiple of ``multiple``.
@@ -380,9 +393,8 @@ def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> d
     M_pad[n:, n:] = np.eye(n_pad)
     pad = np.zeros((m, m))
     if n_pad:
-        lam_max = float(abs(sla.eigh(np.tensordot(basis.moduli0, basis.K, axes=1),
-                                     np.tensordot(basis.inertia0, basis.M, axes=1),
-                                     eigvals_only=True)).max())
+        lam_max = largest_eigenvalue(np.tensordot(basis.moduli0, basis.K, axes=1),
+                                     np.tensordot(basis.inertia0, basis.M, axes=1))
         pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
     load = np.zeros((basis.load.shape[0], m))
     load[:, :n] = basis.load
