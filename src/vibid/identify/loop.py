@@ -22,7 +22,15 @@ and after.
    declared model bending a parameter to mimic what it lacks), the refit also starts with
    those parameters just inside the box, and its minimum inside the box is kept unless
    one outside fits significantly better (chi2 differences in units of the reduced chi2,
-   as the misfit, not the noise, then sets their scale).
+   as the misfit, not the noise, then sets their scale). While the estimate is outside its
+   box, every candidate that passes the score test is refitted (the effect behind the
+   excursion may score low: the bent parameter already mimics it), and a kept effect that
+   brings the estimate back inside the box goes before one that gains more chi2 but leaves
+   it outside (which stays a candidate for the next round). Such an effect is kept even
+   when it gains nothing, provided its chi2 is one the data cannot tell from the current
+   one (:func:`~vibid.identify.fit.minima.indistinct_chi2` in units of the reduced chi2):
+   the excursion was that effect, and the prior box prefers it. Those refits also start
+   with the bent parameters at their box's centre, a physical value far from the bent one.
 
 A candidate without parameters of its own (``transverse_shear`` on an isotropic plate) is
 scored along the secant from the current model to the extended one (one dof) and kept on
@@ -49,7 +57,7 @@ import numpy as np
 from vibid.errors import VibidError
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.local import LOCAL_METHODS
-from vibid.identify.fit.minima import best_inside_prior
+from vibid.identify.fit.minima import best_inside_prior, indistinct_chi2
 from vibid.identify.fit.noise import QUANTILE, fits_noise, ljung_box_p
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import IdentificationResult
@@ -358,9 +366,13 @@ def _round(setup, data, current: Stage, todo, box, local):
         if n >= n_residuals:
             done[s.name] = (math.nan, f"not refitted: too few points for its {n} parameters "
                                       f"({n_residuals} real residuals)")
+    # while the estimate lies outside its prior box, every candidate that passes is
+    # refitted: the one that explains the excursion may score low (the parameter bent out
+    # of its box already mimics it)
+    outside = _outside_prior(res, box)
     ranked = sorted((s for s in scores if np.isfinite(s.score) and s.name not in done
                      and s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof)),
-                    key=lambda s: -s.score)[:REFITS_PER_ROUND]
+                    key=lambda s: -s.score)[:None if outside else REFITS_PER_ROUND]
 
     def attempt(s: Score, search: bool):
         """Refit one candidate: (its stage if it is kept, else None, delta chi2)."""
@@ -377,7 +389,18 @@ def _round(setup, data, current: Stage, todo, box, local):
         passes = (gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and stage.result.converged
                   and stage.result.chi2 < res.chi2 and z > KEEP_Z
                   and gain >= KEEP_SHARE * excess)
-        if passes:
+        # while the estimate is outside its prior box: an effect that brings it back inside
+        # at a chi2 the data cannot tell from the current one explains the excursion (the
+        # declared model bent a parameter to mimic it), though it gains nothing in chi2
+        back_inside = (bool(outside) and not passes and stage.result.converged and z > KEEP_Z
+                       and not _outside_prior(stage.result, box | cand.bounds(box))
+                       and gain >= -indistinct_chi2(len(stage.result.values),
+                                                    max(1.0, float(res.chi2_reduced))))
+        passes = passes or back_inside
+        if back_inside:
+            note = (f"it brings {', '.join(outside)} back inside the prior box at a chi2 the "
+                    "data cannot tell from the current one: the excursion was this effect")
+        elif passes:
             note = ""
         elif not stage.result.converged:
             note = f"the refit did not converge ({stage.result.message})"
@@ -407,6 +430,19 @@ def _round(setup, data, current: Stage, todo, box, local):
     if ranked and not any(st is not None and st.fits_noise for st, _ in kept):
         kept.append(attempt(ranked[0], True))
     kept = [(st, gain) for st, gain in kept if st is not None]
+    if outside:
+        # an effect that brings the estimate back inside its prior box explains the
+        # excursion; it goes first, whatever the others gain (they stay candidates)
+        boxes = {c.name: box | c.bounds(box) for c in todo}
+        inside = [k for k in kept if not _outside_prior(k[0].result, boxes[k[0].added])]
+        if inside:
+            for st, _ in kept:
+                if all(st is not k[0] for k in inside):
+                    done[st.added] = (done[st.added][0], (
+                        f"kept back: it leaves {', '.join(_outside_prior(st.result, boxes[st.added]))} "
+                        "outside the prior box, and an effect that brings the estimate back "
+                        "inside it goes first"))
+            kept = inside
     best = max(kept, key=lambda k: k[1])[0] if kept else None
     out = []
     for s in scores:
@@ -416,6 +452,14 @@ def _round(setup, data, current: Stage, todo, box, local):
                       best is not None and best.added == s.name, note)
         out.append(s)
     return out, best
+
+
+def _outside_prior(result: IdentificationResult, box: dict) -> list[str]:
+    """Names of ``result``'s parameters outside (or on a face of) their prior box."""
+    bounds = result.plate_model.default_bounds(box)
+    space = ParameterSpace.from_bounds(result.parameter_names, bounds,
+                                       {q.name: q.kind for q in result.plate_model.parameters})
+    return space.out_of_bounds(result.values)
 
 
 def _extended_problem(setup, data, res, cand, values, box, weights):
@@ -500,7 +544,9 @@ def _refit_starts(space, u0, new, current_names) -> list[np.ndarray]:
     if outside:
         moved = u0.copy()
         moved[outside] = np.clip(moved[outside], -INSIDE_U, INSIDE_U)
-        bases.append(moved)
+        centred = u0.copy()
+        centred[outside] = 0.0  # a physical value, far from the bent one
+        bases += [moved, centred]
     starts = []
     for base in bases:
         starts.append(base)
