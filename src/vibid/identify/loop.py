@@ -438,10 +438,10 @@ def _round(setup, data, current: Stage, todo, box, local):
         if inside:
             for st, _ in kept:
                 if all(st is not k[0] for k in inside):
+                    left = ", ".join(_outside_prior(st.result, boxes[st.added]))
                     done[st.added] = (done[st.added][0], (
-                        f"kept back: it leaves {', '.join(_outside_prior(st.result, boxes[st.added]))} "
-                        "outside the prior box, and an effect that brings the estimate back "
-                        "inside it goes first"))
+                        f"kept back: it leaves {left} outside the prior box, and an effect "
+                        "that brings the estimate back inside it goes first"))
             kept = inside
     best = max(kept, key=lambda k: k[1])[0] if kept else None
     out = []
