@@ -66,6 +66,9 @@ def test_the_titanium_strip_gets_an_honest_report(tmp_path):
     assert declared["parameters"]["nu"] < 0
     assert 0 < report["parameters"]["nu"]["value"] < 0.5
     assert "added_mass" in [e["name"] for e in report["effects"]]
+    kept = [c for rnd in loop["rounds"] for c in rnd
+            if c["candidate"] == "added_mass" and c["kept"]]
+    assert "back inside the prior box" in kept[0]["note"]
     # an unexplained residual scales the std by the misfit (Birge) and says so
     if loop["unexplained_residual"]:
         assert "scaled by sqrt(reduced chi2)" in warnings
