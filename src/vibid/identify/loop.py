@@ -375,13 +375,14 @@ def _round(setup, data, current: Stage, todo, box, local):
                     key=lambda s: -s.score)[:None if outside else REFITS_PER_ROUND]
 
     def attempt(s: Score, search: bool):
-        """Refit one candidate: (its stage if it is kept, else None, delta chi2)."""
+        """Refit one candidate: (its stage if it is kept, else None, delta chi2, the
+        refitted estimate's parameters outside their prior box)."""
         cand = next(c for c in todo if c.name == s.name)
         try:
             stage, gain = _refit(setup, data, res, cand, values, box, local, search=search)
         except Exception as exc:  # noqa: BLE001
             done.setdefault(s.name, (math.nan, f"refit failed: {exc}"))
-            return None, math.nan
+            return None, math.nan, []
         # significant under the current weights, and lower under the stage's own (the
         # extended model's error re-estimated): an effect must explain data, not mesh error
         z = cand.distance_from_null(stage.result)
@@ -392,8 +393,9 @@ def _round(setup, data, current: Stage, todo, box, local):
         # while the estimate is outside its prior box: an effect that brings it back inside
         # at a chi2 the data cannot tell from the current one explains the excursion (the
         # declared model bent a parameter to mimic it), though it gains nothing in chi2
+        left = _outside_prior(stage.result, box | cand.bounds(box)) if outside else []
         back_inside = (bool(outside) and not passes and stage.result.converged and z > KEEP_Z
-                       and not _outside_prior(stage.result, box | cand.bounds(box))
+                       and not left
                        and gain >= -indistinct_chi2(len(stage.result.values),
                                                     max(1.0, float(res.chi2_reduced))))
         passes = passes or back_inside
@@ -413,7 +415,7 @@ def _round(setup, data, current: Stage, todo, box, local):
             note = "the refit does not improve chi2 significantly"
         if not search or passes or s.name not in done:
             done[s.name] = (gain, note + (" (global search)" if search else ""))
-        return (stage if passes else None), gain
+        return (stage if passes else None), gain, left
 
     # local refits of the best few; a global search of the top candidate only when none of
     # them explains the data (an orthotropic plate fitted as isotropic)
@@ -427,22 +429,18 @@ def _round(setup, data, current: Stage, todo, box, local):
                 done[rest.name] = (math.nan, f"not refitted: {s.name} already fits the "
                                              "residual to the noise level")
             break
-    if ranked and not any(st is not None and st.fits_noise for st, _ in kept):
+    if ranked and not any(st is not None and st.fits_noise for st, _, _ in kept):
         kept.append(attempt(ranked[0], True))
-    kept = [(st, gain) for st, gain in kept if st is not None]
-    if outside:
+    kept = [k for k in kept if k[0] is not None]
+    if outside and any(not left for _, _, left in kept):
         # an effect that brings the estimate back inside its prior box explains the
         # excursion; it goes first, whatever the others gain (they stay candidates)
-        boxes = {c.name: box | c.bounds(box) for c in todo}
-        inside = [k for k in kept if not _outside_prior(k[0].result, boxes[k[0].added])]
-        if inside:
-            for st, _ in kept:
-                if all(st is not k[0] for k in inside):
-                    left = ", ".join(_outside_prior(st.result, boxes[st.added]))
-                    done[st.added] = (done[st.added][0], (
-                        f"kept back: it leaves {left} outside the prior box, and an effect "
-                        "that brings the estimate back inside it goes first"))
-            kept = inside
+        for st, _, left in kept:
+            if left:
+                done[st.added] = (done[st.added][0], (
+                    f"kept back: it leaves {', '.join(left)} outside the prior box, and an "
+                    "effect that brings the estimate back inside it goes first"))
+        kept = [k for k in kept if not k[2]]
     best = max(kept, key=lambda k: k[1])[0] if kept else None
     out = []
     for s in scores:

@@ -40,9 +40,6 @@ def effects_for(names) -> tuple:
     return tuple(t for t in EFFECTS.values() if {q.name for q in _all_parameters(t)} & names)
 
 
-__all__ = ["EFFECTS", "EFFECT_PARAMETERS", "effects_for"]
-
-
 #: What ``anisotropy`` (the report's other effect name: a material, not a term) is, in a
 #: lab's words; an effect's own is its term's ``meaning``.
 ANISOTROPY_MEANING = "an orthotropic material instead of the declared isotropic one"
@@ -53,3 +50,6 @@ def meaning_of(name: str) -> str:
     if name == "anisotropy":
         return ANISOTROPY_MEANING
     return EFFECTS[name].meaning if name in EFFECTS else name
+
+
+__all__ = ["EFFECTS", "EFFECT_PARAMETERS", "effects_for", "meaning_of"]
