@@ -127,8 +127,9 @@ def run_flow(args, report_dir: str, candidates) -> int:
     from vibid.identify import configure
 
     configure()
-    # the embedded server sends no usage telemetry (an offline lab PC logs an error for it)
-    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    from vibid.flows import embedded_server_defaults
+
+    embedded_server_defaults()
     from vibid.flows import campaign_flow
     from vibid.lab_report import console_summary
 

@@ -17,6 +17,19 @@ when one of the names below is first used.
 from __future__ import annotations
 
 import importlib
+import os
+
+#: Seconds Prefect waits for its embedded server (its default, 20 s, is about what a fresh
+#: install's first start-up takes on a busy 2-core PC, the modules compiling on import).
+EMBEDDED_SERVER_STARTUP_S = 120
+
+
+def embedded_server_defaults() -> None:
+    """Settings for Prefect's embedded server unless the lab set them: no usage telemetry
+    (an offline lab PC logs an error for it) and a start-up wait a busy PC meets."""
+    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS",
+                          str(EMBEDDED_SERVER_STARTUP_S))
 
 _EXPORTS = {
     "replay_flow": "vibid.flows.replay",
@@ -28,7 +41,7 @@ _EXPORTS = {
     "make_task_runner": "vibid.flows.runners",
 }
 
-__all__ = sorted(_EXPORTS)
+__all__ = sorted(_EXPORTS) + ["embedded_server_defaults"]
 
 
 def __getattr__(name: str):
