@@ -127,9 +127,6 @@ def run_flow(args, report_dir: str, candidates) -> int:
     from vibid.identify import configure
 
     configure()
-    from vibid.flows import embedded_server_defaults
-
-    embedded_server_defaults()
     from vibid.flows import campaign_flow
     from vibid.lab_report import console_summary
 

@@ -41,9 +41,6 @@ def run(args) -> int:
 
     with read_session(args.session):  # a file that is no session: one line, before Prefect starts
         pass
-    from vibid.flows import embedded_server_defaults
-
-    embedded_server_defaults()
     from vibid.flows import replay_flow
 
     replay_flow(args.session, json_path=args.json, report_dir=args.report,

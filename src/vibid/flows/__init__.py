@@ -11,7 +11,8 @@ The stages are Prefect tasks (:mod:`vibid.flows.tasks`) that wrap the plain func
 :mod:`vibid.pipeline` and :mod:`vibid.lab_report`; the numerical core never imports Prefect.
 With no configuration the flows run on Prefect's embedded temporary server; with
 ``PREFECT_API_URL`` set, against that server. Importing this package loads Prefect only
-when one of the names below is first used.
+when one of the names below is first used, and sets the embedded server's defaults
+(:func:`embedded_server_defaults`) before then.
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ def embedded_server_defaults() -> None:
     os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
     os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS",
                           str(EMBEDDED_SERVER_STARTUP_S))
+
+
+# before any flow module imports Prefect, which reads its settings once, on import
+embedded_server_defaults()
 
 _EXPORTS = {
     "replay_flow": "vibid.flows.replay",
