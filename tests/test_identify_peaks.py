@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vibid.identify.fit.peaks import measured_peaks, peak_score
+from vibid.identify.fit.peaks import measured_peaks, peak_score, peaks_matched
 
 F_MODES = np.array([123.4, 456.7])
 BETA = 0.01
@@ -47,3 +47,21 @@ def test_score_is_zero_at_a_match_and_penalises_misses_and_spurious_modes():
         np.min(np.log(300.0 / p.frequency_hz) ** 2), rel=1e-9)  # the nearest peak, 456.7 Hz
     weak = np.array([[100.0, 100.0, 1e-6]])  # the same mode, too weak to be seen: no penalty
     assert float(peak_score(extra, weak, p)[0]) == pytest.approx(0.0, abs=1e-20)
+
+
+def test_peaks_matched_to_the_grid_resolution():
+    # a 10 Hz grid: each peak is placed to within one step of the grid (its resolution is
+    # half the distance between the maximum's two neighbours, in ln f)
+    f = np.arange(10.0, 600.0, 10.0)
+    p = measured_peaks(f, two_mode_afc(f))
+    assert p.count == 2
+    step = np.array([np.log((g + 10) / (g - 10)) / 2 for g in np.round(p.frequency_hz, -1)])
+    np.testing.assert_allclose(p.resolution, step, rtol=1e-12)
+    strong = np.array([100.0, 100.0])
+    assert peaks_matched(F_MODES, strong, p)  # the true modes
+    assert peaks_matched(F_MODES * 1.015, strong, p)  # 1.8 Hz off: inside a 10 Hz step
+    assert not peaks_matched(F_MODES * [1.0, 1.05], strong, p)  # 23 Hz off: a wrong basin
+    # a strong third mode in the band where the AFC has no peak: not this basin
+    assert not peaks_matched([*F_MODES, 300.0], [*strong, 100.0], p)
+    assert peaks_matched([*F_MODES, 300.0], [*strong, 1e-6], p)  # too weak to be seen
+    assert not peaks_matched(F_MODES[:1], strong[:1], p)  # a measured peak left unexplained

@@ -41,6 +41,9 @@ class Peaks:
     frequency_hz: np.ndarray
     height: np.ndarray
     f_max_hz: float
+    #: (m,) how well the grid places each peak (ln-frequency units): the resonance lies
+    #: between the maximum's two grid neighbours, so half their distance
+    resolution: np.ndarray | None = None
 
     @property
     def count(self) -> int:
@@ -55,7 +58,7 @@ def measured_peaks(frequency_hz, H, std=None) -> Peaks:
     f, mag = f[order], mag[order]
     s = None if std is None else np.asarray(std, float)[order]
     floor = MIN_PEAK_RATIO * float(np.median(mag))
-    found_f, found_h = [], []
+    found_f, found_h, found_r = [], [], []
     for i in range(1, f.size - 1):
         if not (mag[i] > mag[i - 1] and mag[i] >= mag[i + 1] and mag[i] > floor):
             continue
@@ -66,7 +69,8 @@ def measured_peaks(frequency_hz, H, std=None) -> Peaks:
         shift = -b / (2 * a) if a < 0 else 0.0
         found_f.append(x[1] + float(np.clip(shift, x[0] - x[1], x[2] - x[1])))
         found_h.append(mag[i])
-    return Peaks(np.array(found_f), np.array(found_h), float(f.max()))
+        found_r.append(0.5 * np.log(x[2] / x[0]))
+    return Peaks(np.array(found_f), np.array(found_h), float(f.max()), np.array(found_r))
 
 
 def peak_score(f_model_hz, height_model, peaks: Peaks):
@@ -80,3 +84,20 @@ def peak_score(f_model_hz, height_model, peaks: Peaks):
     spurious = jnp.where(visible, jnp.min(d2, axis=2), 0.0).sum(axis=1)
     score = explained + spurious
     return jnp.where(jnp.isfinite(score), score, jnp.inf)
+
+
+def peaks_matched(f_model_hz, height_model, peaks: Peaks) -> bool:
+    """Whether one model's modes ((n,) frequencies and peak heights) already reproduce the
+    measured peaks to the grid's resolution: every measured peak has a mode within its
+    :attr:`Peaks.resolution`, and every visible mode (as in :func:`peak_score`) a measured
+    peak within that peak's. A search on the peaks would then find this basin again."""
+    if peaks.count == 0 or peaks.resolution is None:
+        return False
+    F = np.log(peaks.frequency_hz)
+    fm = np.log(np.maximum(np.asarray(f_model_hz, float), 1e-12))
+    d = np.abs(fm[:, None] - F[None, :])  # (n, m)
+    if not np.all(np.min(d, axis=0) <= peaks.resolution):
+        return False
+    visible = (np.exp(fm) <= peaks.f_max_hz) & (np.asarray(height_model) >= 0.5 * float(peaks.height.min()))
+    nearest = np.argmin(d, axis=1)
+    return bool(np.all(d[visible, nearest[visible]] <= peaks.resolution[nearest[visible]]))

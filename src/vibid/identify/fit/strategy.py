@@ -13,7 +13,9 @@ with the changes that make it work from a vague prior):
    (:mod:`~vibid.identify.fit.local`); if the best of those does not fit the data
    (:func:`vibid.identify.fit.noise.fits`), and the model gives its modes, a second search
    on the match of the measured resonance peaks (:mod:`~vibid.identify.fit.peaks`), which
-   finds the basin where chi2's needle-like minima defeat the search (orthotropic plates);
+   finds the basin where chi2's needle-like minima defeat the search (orthotropic plates),
+   unless the best's modes already lie on the measured peaks to the grid's resolution
+   (then the misfit is not a wrong basin: an effect the model lacks, say);
    or, with ``method="local"``, one local run from the caller's start;
 3. :func:`walk_valley`: local fits from steps along the flattest direction of chi2 at the
    best minimum (:mod:`~vibid.identify.fit.minima`), which find a lower one the search
@@ -45,7 +47,7 @@ from vibid.identify.fit.global_search import differential_evolution
 from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_by_continuation
 from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
 from vibid.identify.fit.noise import fits
-from vibid.identify.fit.peaks import measured_peaks, peak_score
+from vibid.identify.fit.peaks import measured_peaks, peak_score, peaks_matched
 from vibid.identify.fit.problem import ForwardModel, LeastSquaresProblem
 from vibid.identify.fit.result import IdentificationResult, LocalResult
 from vibid.identify.fit.space import ParameterSpace
@@ -145,8 +147,13 @@ def search(problem: LeastSquaresProblem, opts: Options):
     best = found[0]
     if fits(best.loss, best.problem.dof, best.problem.n_points, problem.data.noise_known):
         return global_result, found
-    # the chi2 search missed the basin (its minima are needles when beta is small and there
-    # are several stiffnesses): search on the resonance peaks too
+    # the chi2 search may have missed the basin (its minima are needles when beta is small
+    # and there are several stiffnesses): search on the resonance peaks too, unless the
+    # best already puts its modes on the measured peaks (the misfit is something else)
+    if peaks_already_matched(problem, best.run.theta):
+        log.info("peak matching skipped: the best fit's modes already lie on the measured "
+                 "peaks")
+        return global_result, found
     starts = peak_starts(problem, opts)
     if starts and SMOOTHING_PARAMETER in problem.space.names:
         # the peak frequencies say little about the loss factor, which the chi2 search's
@@ -159,16 +166,30 @@ def search(problem: LeastSquaresProblem, opts: Options):
     return global_result, _by_loss(found)
 
 
+def _measured_peaks(problem: LeastSquaresProblem):
+    data, u = problem.data, problem.data.used
+    return measured_peaks(data.frequency_hz[u], data.H[u],
+                          None if data.std is None else data.std[u])
+
+
+def peaks_already_matched(problem: LeastSquaresProblem, theta) -> bool:
+    """Whether the model at ``theta`` has its modes on the measured resonance peaks, to the
+    frequency grid's resolution (:func:`vibid.identify.fit.peaks.peaks_matched`)."""
+    model = problem.model
+    if not hasattr(model, "modes_batch") or not model.param.proportional:
+        return False
+    f_hz, height = model.modes_batch(np.asarray(theta)[None, :])
+    return peaks_matched(np.asarray(f_hz)[0], np.asarray(height)[0], _measured_peaks(problem))
+
+
 def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]:
     """Starts from a global search that matches the measured resonance peaks
     (:mod:`vibid.identify.fit.peaks`); none when the model cannot give its modes or the AFC
     shows no peak."""
-    model, data, space = problem.model, problem.data, problem.space
+    model, space = problem.model, problem.space
     if not hasattr(model, "modes_batch") or not model.param.proportional:
         return []
-    u = data.used
-    peaks = measured_peaks(data.frequency_hz[u], data.H[u],
-                           None if data.std is None else data.std[u])
+    peaks = _measured_peaks(problem)
     if peaks.count == 0:
         return []
 
