@@ -24,7 +24,9 @@ and after.
    one outside fits significantly better (chi2 differences in units of the reduced chi2,
    as the misfit, not the noise, then sets their scale). While the estimate is outside its
    box, every candidate that passes the score test is refitted (the effect behind the
-   excursion may score low: the bent parameter already mimics it), and a kept effect that
+   excursion may score low: the bent parameter already mimics it; the top candidate's
+   global search then comes first, so that the others are refitted only when it does not
+   explain the data), and a kept effect that
    brings the estimate back inside the box goes before one that gains more chi2 but leaves
    it outside (which stays a candidate for the next round). Such an effect is kept even
    when it gains nothing, provided its chi2 is one the data cannot tell from the current
@@ -418,10 +420,13 @@ def _round(setup, data, current: Stage, todo, box, local):
         return (stage if passes else None), gain, left
 
     # local refits of the best few; a global search of the top candidate only when none of
-    # them explains the data (an orthotropic plate fitted as isotropic)
+    # them explains the data (an orthotropic plate fitted as isotropic). While the estimate
+    # is outside its box (every passing candidate is refitted) that search comes first,
+    # right after the top candidate's local refit: the others need not be refitted when
+    # it explains the data
     kept = []
     for k, s in enumerate(ranked):
-        kept.append(attempt(s, False))
+        kept.append(attempt(s, bool(outside) and k == 0))
         if kept[-1][0] is not None and kept[-1][0].fits_noise:
             # the residual is explained to the noise level: another candidate could at
             # best tie with it, for the price of its refit
@@ -429,7 +434,7 @@ def _round(setup, data, current: Stage, todo, box, local):
                 done[rest.name] = (math.nan, f"not refitted: {s.name} already fits the "
                                              "residual to the noise level")
             break
-    if ranked and not any(st is not None and st.fits_noise for st, _, _ in kept):
+    if ranked and not outside and not any(st is not None and st.fits_noise for st, _, _ in kept):
         kept.append(attempt(ranked[0], True))
     kept = [k for k in kept if k[0] is not None]
     if outside and any(not left for _, _, left in kept):
