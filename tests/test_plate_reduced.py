@@ -151,3 +151,29 @@ def test_largest_eigenvalue_of_a_pencil_whose_mass_rounding_left_indefinite():
         sla.eigh(K, M)
     assert largest_eigenvalue(K, M) == pytest.approx(9e18, rel=1e-12)
     assert largest_eigenvalue(K, np.diag([1.0, 2.0, 3.0])) == pytest.approx(3.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("material", ["isotropic", "orthotropic"])
+def test_coefficient_derivatives_by_complex_step_equal_autodiff(material):
+    """The basis's stiffness and inertia sensitivities (complex step) against jax.jacfwd, for
+    a model with every effect of the library at once, at a point off every null."""
+    from vibid.identify.effects import EFFECTS
+    from vibid.identify.model.materials import Material
+    from vibid.identify.model.reduced import _coefficient_jacobians
+    from vibid.identify.model.terms import PlateModel
+
+    model = PlateModel(Material(material, False), ())
+    for term in EFFECTS.values():
+        model = model.with_effect(term)
+    rng = np.random.default_rng(3)
+    theta = np.array([{"nu": 0.3, "beta": 0.01, "sensor_dy_m": 2e-3, "G13_Pa": 4e10,
+                       "mass_kg": 3e-4, "tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4}.get(n, 1.0)
+                      * rng.uniform(0.8, 1.2) * (18.0 if n.startswith("D") else 1.0)
+                      for n in model.names])
+    Js, Jm = _coefficient_jacobians(model, theta)
+    th = jnp.asarray(theta)
+    np.testing.assert_allclose(Js, jax.jacfwd(lambda t: model.moduli(t, jnp))(th),
+                               rtol=1e-13, atol=1e-13 * np.abs(Js).max())
+    np.testing.assert_allclose(Jm, jax.jacfwd(lambda t: model.inertia(t, jnp))(th),
+                               rtol=1e-13, atol=1e-13 * np.abs(Jm).max())
+    assert np.count_nonzero(Jm) >= 3  # the added mass, the shear's and the moved sensor's

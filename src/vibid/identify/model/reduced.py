@@ -140,14 +140,20 @@ def _positive_definite(m) -> bool:
 
 
 def _coefficient_jacobians(model, theta0):
-    """(T, p) and (S, p) derivatives of the stiffness and inertia coefficients."""
-    import jax
-    import jax.numpy as jnp
-
-    th = jnp.asarray(theta0, jnp.float64)
-    Js = jax.jacfwd(lambda t: model.moduli(t, jnp))(th)
-    Jm = jax.jacfwd(lambda t: model.inertia(t, jnp))(th)
-    return np.asarray(Js), np.asarray(Jm)
+    """(T, p) and (S, p) derivatives of the stiffness and inertia coefficients, by complex
+    step: ``∂c/∂θ_i = Im c(θ + i h e_i) / h`` is exact to rounding for the analytic
+    coefficient laws of the terms (products, quotients, powers of the parameters), and
+    costs microseconds where tracing a new model through ``jax.jacfwd`` cost 0.4 s (the
+    closed loop builds a basis for every candidate it scores)."""
+    th = np.asarray(theta0, float)
+    Js, Jm = [], []
+    for i in range(th.size):
+        h = 1e-30 * max(abs(th[i]), 1.0)
+        t = th.astype(complex)
+        t[i] += 1j * h
+        Js.append(np.imag(np.asarray(model.moduli(t, np), complex)) / h)
+        Jm.append(np.imag(np.asarray(model.inertia(t, np), complex)) / h)
+    return np.column_stack(Js), np.column_stack(Jm)
 
 
 def _modes(K, M, lu, n_min, n_max, f_top):
