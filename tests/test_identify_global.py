@@ -101,3 +101,37 @@ def test_wrong_model_leaves_unexplained_residual(strip_1000):
     report = build_report(res)
     assert report["loop"]["unexplained_residual"] is True
     assert any("does not fit the data to their noise level" in w for w in res.warnings)
+
+
+class _Stub:
+    """A problem for the search alone: a space and no model (the score replaces chi2)."""
+
+    def __init__(self, names):
+        from vibid.identify.fit.space import ParameterSpace
+
+        self.space = ParameterSpace.from_bounds(names, {n: (0.0, 1.0) for n in names})
+
+
+def test_restarts_stop_once_three_agree_and_run_on_while_they_differ():
+    from vibid.identify.fit.global_search import differential_evolution
+
+    stub = _Stub(("a", "b"))
+
+    def bowl(U):  # one basin, at u = (0.2, -0.4)
+        return np.sum((U - np.array([0.2, -0.4])) ** 2, axis=1)
+
+    one = differential_evolution(stub, restarts=5, rng=0, score=bowl)
+    assert len(one.messages) == 3  # three restarts on the same point: the other two skipped
+    np.testing.assert_allclose(one.u[0], [0.2, -0.4], atol=0.02)
+    every = differential_evolution(stub, restarts=5, rng=0, score=bowl, agree=None)
+    assert len(every.messages) == 5
+
+    def two_wells(U):  # two basins as deep as each other: restarts split between them
+        return np.minimum(np.sum((U - 0.6) ** 2, axis=1), np.sum((U + 0.6) ** 2, axis=1))
+
+    split = differential_evolution(stub, restarts=5, rng=3, score=two_wells)
+    ends = np.sign(split.u[:, 0])
+    # the first three did not all end in one basin, so a fourth ran: then three agreed
+    assert len(split.messages) == 4
+    assert sorted(np.count_nonzero(ends == e) for e in (-1, 1)) == [1, 3]
+    assert np.count_nonzero(ends == ends[0]) == 3  # the best one's basin

@@ -5,7 +5,8 @@ the coordinates ``u`` of the parameter space, where the prior box is [-1, 1]^p. 
 population of a generation is one vectorised model call (``afc_batch``). Settings follow
 the paper's section 6.3: population 15 per searched parameter, mutation factor drawn in
 (0.7, 1.0), a loose tolerance of 1e-2 (the result only has to land in the right basin),
-several restarts with different initial populations.
+several restarts with different initial populations, which stop early once three of them
+have ended on one point (the others would find it again).
 
 All parameters are searched, the loss factor too (over its log box): the loss is very
 multimodal in D (each model peak sliding past a data peak makes a local minimum), and
@@ -28,6 +29,11 @@ from vibid.identify.fit.result import GlobalResult
 from vibid.identify.fit.problem import LeastSquaresProblem
 
 log = logging.getLogger(__name__)
+
+#: The restarts stop once this many have ended within :data:`AGREE_TOL` of the best.
+AGREE = 3
+#: ... in the coordinates ``u`` of the prior box ([-1, 1]: 1 % of its width).
+AGREE_TOL = 0.02
 
 
 def latin_hypercube_u(space, n: int, rng: np.random.Generator, free: np.ndarray) -> np.ndarray:
@@ -62,6 +68,8 @@ def differential_evolution(
     progress=None,
     score=None,
     label: str = "global search",
+    agree: int | None = AGREE,
+    agree_tol: float = AGREE_TOL,
 ) -> GlobalResult:
     """Search the prior box for the minimum of chi2, ``restarts`` times.
 
@@ -80,6 +88,10 @@ def differential_evolution(
     score: another population score ``score(U (S, p)) -> (S,)`` to minimise instead of
         chi2 (e.g. :func:`vibid.identify.fit.peaks.peak_score`); ``loss`` then holds it.
     label: the progress report's and the log's name of this search.
+    agree, agree_tol: the restarts stop early once ``agree`` of them (None: never) have
+        ended within ``agree_tol`` (inf-norm in ``u``) of the best one: independent
+        populations converging on one point say the box holds no better basin they could
+        reach, and the rest would find it again.
 
     Returns
     -------
@@ -141,6 +153,15 @@ def differential_evolution(
         messages.append(f"restart {r + 1}: {sol.message} ({sol.nit} generations)")
         log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
                  space.as_dict(space.theta(u)), sol.nit)
+        best = us[int(np.argmin(losses))]
+        if agree and r + 1 < restarts and sum(
+                np.max(np.abs(v - best)) <= agree_tol for v in us) >= agree:
+            log.info("%s: %d restarts agree, the other %d skipped", label, agree,
+                     restarts - r - 1)
+            if progress is not None:
+                done[0] = total
+                progress(label, done[0], total, float(min(losses)))
+            break
     order = np.argsort(losses)
     U = np.array(us)[order]
     return GlobalResult(U, space.theta(U), np.array(losses)[order], n_eval[0],
