@@ -96,6 +96,9 @@ KEEP_SHARE = 0.10
 #: refit that lowers chi2 while its effect stays at the null (a different reduced basis
 #: fitting the mesh error a little better) adds nothing physical.
 KEEP_Z = 3.0
+#: The top candidate is searched globally (its extended model over the whole box) only
+#: when no local refit explains this share of the chi2 above the noise.
+SEARCH_SHARE = 0.5
 #: Starts of a refit along the new parameter, in the coordinates u of its prior box.
 REFIT_STARTS_U = (-0.75, -0.25, 0.25, 0.75)
 #: Where a refit restarts a current parameter found outside its prior box (u = ±1 are
@@ -420,7 +423,9 @@ def _round(setup, data, current: Stage, todo, box, local):
         return (stage if passes else None), gain, left
 
     # local refits of the best few; a global search of the top candidate only when none of
-    # them explains the data (an orthotropic plate fitted as isotropic). While the estimate
+    # them explains the data, nor most of its misfit (an orthotropic plate fitted as
+    # isotropic; a kept refit that explains most of it is in its basin, and what it leaves
+    # is the next round's: a second effect). While the estimate
     # is outside its box (every passing candidate is refitted) that search comes first,
     # right after the top candidate's local refit: the others need not be refitted when
     # it explains the data
@@ -434,7 +439,10 @@ def _round(setup, data, current: Stage, todo, box, local):
                 done[rest.name] = (math.nan, f"not refitted: {s.name} already fits the "
                                              "residual to the noise level")
             break
-    if ranked and not outside and not any(st is not None and st.fits_noise for st, _, _ in kept):
+    excess = max(res.chi2 - res.dof, 0.0)
+    explained = max((g for st, g, _ in kept if st is not None), default=0.0)
+    if (ranked and not outside and explained < SEARCH_SHARE * excess
+            and not any(st is not None and st.fits_noise for st, _, _ in kept)):
         kept.append(attempt(ranked[0], True))
     kept = [k for k in kept if k[0] is not None]
     if outside and any(not left for _, _, left in kept):
