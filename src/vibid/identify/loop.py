@@ -17,7 +17,10 @@ and after.
    level), keep the one whose likelihood-ratio ``Δχ²`` (same weights) passes the 99 %
    quantile and is largest, provided its refit converged, lowers chi2 under its own
    weights too, lies 3 std from its null value and removes at least a tenth of the chi2
-   above the noise; repeat until the residual fits the noise or nothing helps
+   above the noise. When no refit fits the noise nor explains half of the chi2 above it,
+   the top candidate's extended model is also searched globally over its box (the
+   current estimate may lie in a wrong basin of it: an orthotropic plate fitted as
+   isotropic). Repeat until the residual fits the noise or nothing helps
    (``unexplained_residual``). Where the current estimate has left its prior box (the
    declared model bending a parameter to mimic what it lacks), the refit also starts with
    those parameters just inside the box, and its minimum inside the box is kept unless
@@ -26,9 +29,9 @@ and after.
    box, every candidate that passes the score test is refitted (the effect behind the
    excursion may score low: the bent parameter already mimics it; the top candidate's
    global search then comes first, so that the others are refitted only when it does not
-   explain the data), and a kept effect that
-   brings the estimate back inside the box goes before one that gains more chi2 but leaves
-   it outside (which stays a candidate for the next round). Such an effect is kept even
+   explain the data), and a kept effect that brings the estimate back inside the box goes
+   before one that gains more chi2 but leaves it outside (which stays a candidate for the
+   next round). Such an effect is kept even
    when it gains nothing, provided its chi2 is one the data cannot tell from the current
    one (:func:`~vibid.identify.fit.minima.indistinct_chi2` in units of the reduced chi2):
    the excursion was that effect, and the prior box prefers it. Those refits also start
@@ -425,10 +428,9 @@ def _round(setup, data, current: Stage, todo, box, local):
     # local refits of the best few; a global search of the top candidate only when none of
     # them explains the data, nor most of its misfit (an orthotropic plate fitted as
     # isotropic; a kept refit that explains most of it is in its basin, and what it leaves
-    # is the next round's: a second effect). While the estimate
-    # is outside its box (every passing candidate is refitted) that search comes first,
-    # right after the top candidate's local refit: the others need not be refitted when
-    # it explains the data
+    # is the next round's: a second effect). While the estimate is outside its box (every
+    # passing candidate is refitted) that search comes first, right after the top
+    # candidate's local refit: the others need not be refitted when it explains the data
     kept = []
     for k, s in enumerate(ranked):
         kept.append(attempt(s, bool(outside) and k == 0))
