@@ -68,11 +68,18 @@ def test_effect_in_every_evaluator(name, plain):
     # of the full model (which differs by the reduced model's error, larger in relative
     # terms for a derivative that is small away from the resonances)
     J = np.asarray(jax.jacfwd(fm.afc)(th))[:, 3]
-    h = 1e-5 * abs(value)  # round-off in H near a peak (~1e-13 relative) stays below 1e-7
+    # central differences with steps h and 2h, Richardson-extrapolated (truncation O(h⁴)),
+    # so that h can be large enough for round-off (~1e-13 of H near a peak, over h) to stay
+    # small: one plain difference with h = 1e-5 left round-off at 1e-6 of the moved
+    # sensor's derivative, and one with 1e-4 truncation at 1e-6 of the clamp's
+    h = 1e-4 * abs(value)
     step = np.array([0, 0, 0, h])
-    Jr = (np.asarray(fm.afc(th + step)) - np.asarray(fm.afc(th - step))) / (2 * h)
-    step = step * 10
-    Jfd = (fm.afc_full(th + step) - fm.afc_full(th - step)) / (20 * h)
+
+    def central(k):
+        return (np.asarray(fm.afc(th + k * step)) - np.asarray(fm.afc(th - k * step))) / (2 * k * h)
+
+    Jr = (4 * central(1) - central(2)) / 3
+    Jfd = (fm.afc_full(th + step) - fm.afc_full(th - step)) / (2 * h)
     assert np.abs(J - Jr).max() < 1e-6 * np.abs(Jr).max()
     assert np.abs(J - Jfd).max() < 1e-2 * np.abs(Jfd).max()
 
