@@ -31,9 +31,8 @@ and after.
    global search then comes first, so that the others are refitted only when it does not
    explain the data), and a kept effect that brings the estimate back inside the box goes
    before one that gains more chi2 but leaves it outside (which stays a candidate for the
-   next round). Such an effect is kept even
-   when it gains nothing, provided its chi2 is one the data cannot tell from the current
-   one (:func:`~vibid.identify.fit.minima.indistinct_chi2` in units of the reduced chi2):
+   next round). Such an effect is kept even when it gains nothing, provided its chi2 is one
+   the data cannot tell from the current one (:func:`~vibid.identify.fit.minima.indistinct_chi2` in units of the reduced chi2):
    the excursion was that effect, and the prior box prefers it. Those refits also start
    with the bent parameters at their box's centre, a physical value far from the bent one.
 
@@ -382,6 +381,8 @@ def _round(setup, data, current: Stage, todo, box, local):
                      and s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof)),
                     key=lambda s: -s.score)[:None if outside else REFITS_PER_ROUND]
 
+    excess = max(res.chi2 - res.dof, 0.0)  # the chi2 above the noise
+
     def attempt(s: Score, search: bool):
         """Refit one candidate: (its stage if it is kept, else None, delta chi2, the
         refitted estimate's parameters outside their prior box)."""
@@ -394,7 +395,6 @@ def _round(setup, data, current: Stage, todo, box, local):
         # significant under the current weights, and lower under the stage's own (the
         # extended model's error re-estimated): an effect must explain data, not mesh error
         z = cand.distance_from_null(stage.result)
-        excess = max(res.chi2 - res.dof, 0.0)
         passes = (gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and stage.result.converged
                   and stage.result.chi2 < res.chi2 and z > KEEP_Z
                   and gain >= KEEP_SHARE * excess)
@@ -441,7 +441,6 @@ def _round(setup, data, current: Stage, todo, box, local):
                 done[rest.name] = (math.nan, f"not refitted: {s.name} already fits the "
                                              "residual to the noise level")
             break
-    excess = max(res.chi2 - res.dof, 0.0)
     explained = max((g for st, g, _ in kept if st is not None), default=0.0)
     if (ranked and not outside and explained < SEARCH_SHARE * excess
             and not any(st is not None and st.fits_noise for st, _, _ in kept)):

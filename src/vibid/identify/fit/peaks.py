@@ -73,6 +73,12 @@ def measured_peaks(frequency_hz, H, std=None) -> Peaks:
     return Peaks(np.array(found_f), np.array(found_h), float(f.max()), np.array(found_r))
 
 
+def _visible(f_model_hz, height_model, peaks: Peaks):
+    """Which model modes the AFC would show: in the band, with a resonance peak at least
+    half as high as the lowest measured one (numpy or JAX arrays)."""
+    return (f_model_hz <= peaks.f_max_hz) & (height_model >= 0.5 * float(peaks.height.min()))
+
+
 def peak_score(f_model_hz, height_model, peaks: Peaks):
     """The score of the module docstring for a population: (S, n) model frequencies and
     peak heights -> (S,) scores (JAX or numpy arrays)."""
@@ -80,7 +86,7 @@ def peak_score(f_model_hz, height_model, peaks: Peaks):
     fm = jnp.maximum(jnp.asarray(f_model_hz), 1e-12)
     d2 = (jnp.log(fm)[:, :, None] - jnp.log(F)[None, None, :]) ** 2  # (S, n, m)
     explained = jnp.min(d2, axis=1).sum(axis=1)
-    visible = (fm <= peaks.f_max_hz) & (jnp.asarray(height_model) >= 0.5 * float(peaks.height.min()))
+    visible = _visible(fm, jnp.asarray(height_model), peaks)
     spurious = jnp.where(visible, jnp.min(d2, axis=2), 0.0).sum(axis=1)
     score = explained + spurious
     return jnp.where(jnp.isfinite(score), score, jnp.inf)
@@ -98,6 +104,6 @@ def peaks_matched(f_model_hz, height_model, peaks: Peaks) -> bool:
     d = np.abs(fm[:, None] - F[None, :])  # (n, m)
     if not np.all(np.min(d, axis=0) <= peaks.resolution):
         return False
-    visible = (np.exp(fm) <= peaks.f_max_hz) & (np.asarray(height_model) >= 0.5 * float(peaks.height.min()))
+    visible = _visible(np.exp(fm), np.asarray(height_model), peaks)
     nearest = np.argmin(d, axis=1)
     return bool(np.all(d[visible, nearest[visible]] <= peaks.resolution[nearest[visible]]))
