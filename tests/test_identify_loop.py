@@ -31,8 +31,13 @@ def test_clean_data_get_nothing_added(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, value", [("channel_delay", {"tau_s": 2e-5}),
-                                           ("clamp_compliance", {"k_theta_N_per_rad": 1.6e4})])
+@pytest.mark.parametrize("effect, value", [
+    ("channel_delay", {"tau_s": 2e-5}),                   # 20 us between the channels
+    ("clamp_compliance", {"k_theta_N_per_rad": 1.6e4}),   # first frequency about 2 % low
+    ("sensor_gain", {"gain": 1.02}),                      # a 2 % calibration error
+    ("added_mass", {"mass_kg": 3e-4}),                    # 30 % of the sensor's mass
+    ("frequency_dependent_loss", {"alpha": 0.3}),
+])
 def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect, value):
     H, sd = _data(value, 7)
     # the declared fit (what close_loop fits first) of the delay's data is shared with

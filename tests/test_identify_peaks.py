@@ -65,3 +65,28 @@ def test_peaks_matched_to_the_grid_resolution():
     assert not peaks_matched([*F_MODES, 300.0], [*strong, 100.0], p)
     assert peaks_matched([*F_MODES, 300.0], [*strong, 1e-6], p)  # too weak to be seen
     assert not peaks_matched(F_MODES[:1], strong[:1], p)  # a measured peak left unexplained
+
+
+@pytest.mark.slow
+def test_a_search_on_the_peaks_alone_ends_in_chi2s_estimate_or_says_it_does_not_fit():
+    """identify(peaks_only=...): the search on the peaks alone (the loss factor held at 0.02,
+    against 0.003), no chi2 search. On the 25 Hz steps of the loop tests a resonance
+    anywhere between two steps matches its peak, so the peaks may leave the search in a
+    neighbouring basin: then its chi2 says so (the loop searches chi2 as well); otherwise it
+    is chi2's search's estimate."""
+    from loop_data import F, data, strip_on
+
+    from vibid.identify.fit import identify
+    from vibid.identify.fit.noise import fits_noise
+
+    H, sd = data({}, 1)
+    plain = identify(strip_on(), F, H, sd, restarts=1, seed=0)
+    first = identify(strip_on(), F, H, sd, restarts=1, seed=0,
+                     peaks_only={"D": 10.0, "nu": 0.1, "beta": 0.02})
+    assert first.global_result.messages[0].startswith("peak matching")  # no chi2 search
+    assert plain.global_result.messages[0].startswith("global search")
+    assert fits_noise(plain.chi2, plain.dof, True)
+    if fits_noise(first.chi2, first.dof, True):
+        assert np.all(np.abs(first.values - plain.values) < 0.01 * plain.std)
+    else:  # a neighbouring basin, and chi2 tells
+        assert first.chi2 > 10 * plain.chi2

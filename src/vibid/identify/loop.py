@@ -20,7 +20,8 @@ and after.
    above the noise. When no refit fits the noise nor explains half of the chi2 above it,
    the top candidate's extended model is also searched globally over its box (the
    current estimate may lie in a wrong basin of it: an orthotropic plate fitted as
-   isotropic). Repeat until the residual fits the noise or nothing helps
+   isotropic; anisotropy's search matches the resonance peaks first, with the current
+   loss factor, and searches chi2 too only if that fit does not reach the noise). Repeat until the residual fits the noise or nothing helps
    (``unexplained_residual``). Where the current estimate has left its prior box (the
    declared model bending a parameter to mimic what it lacks), the refit also starts with
    those parameters just inside the box, and its minimum inside the box is kept unless
@@ -126,6 +127,13 @@ class Candidate:
         from vibid.identify.effects import EFFECTS
 
         return model.with_effect(EFFECTS[self.name])
+
+    @property
+    def peaks_first(self) -> bool:
+        """Whether its global search should match the resonance peaks first: the
+        anisotropic material moves every resonance its own way, and the isotropic fit lies
+        far from the orthotropic basin, where chi2's minima are needles."""
+        return self.name == "anisotropy"
 
     def at_null(self, values: dict, box: dict, thickness_m: float) -> dict:
         """The extended model's parameters where it equals the current model: the null
@@ -598,14 +606,19 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
 
         wide = build_forward_model(setup, data.frequency_hz[data.used], model=fm.param,
                                    bounds=ext_box)
-        found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
-                         model=fm.param.model, forward_model=wide, bounds=ext_box,
-                         restarts=3, seed=0, local=local)
-        local_model = problem.model.refresh(found.values)
-        found_loss = problem.with_model(local_model).chi2(space.to_u(found.values))
-        log.info("loop: %s searched globally, chi2 %.6g (local refit %.6g)", cand.name,
-                 found_loss, loss)
-        if found.converged and found_loss < loss:
-            result, loss = found, found_loss
+        # anisotropy: the resonance peaks first (cheap), chi2's search if that fit does
+        # not reach the noise (on a coarse grid the peaks leave neighbouring basins open)
+        for peaks_only in ([start] if cand.peaks_first else []) + [None]:
+            found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
+                             model=fm.param.model, forward_model=wide, bounds=ext_box,
+                             restarts=3, seed=0, local=local, peaks_only=peaks_only)
+            local_model = problem.model.refresh(found.values)
+            found_loss = problem.with_model(local_model).chi2(space.to_u(found.values))
+            log.info("loop: %s searched globally%s, chi2 %.6g (local refit %.6g)", cand.name,
+                     " on its peaks" if peaks_only else "", found_loss, loss)
+            if found.converged and found_loss < loss:
+                result, loss = found, found_loss
+            if fits_noise(result.chi2, result.dof, True):
+                break
     log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
     return _stage(cand.name, result), float(res.chi2 - loss)

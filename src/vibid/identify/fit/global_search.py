@@ -150,7 +150,7 @@ def differential_evolution(
         u[free] = sol.x
         us.append(u)
         losses.append(float(sol.fun))
-        messages.append(f"restart {r + 1}: {sol.message} ({sol.nit} generations)")
+        messages.append(f"{label}, restart {r + 1}: {sol.message} ({sol.nit} generations)")
         log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
                  space.as_dict(space.theta(u)), sol.nit)
         best = us[int(np.argmin(losses))]

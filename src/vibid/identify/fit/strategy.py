@@ -16,7 +16,9 @@ with the changes that make it work from a vague prior):
    finds the basin where chi2's needle-like minima defeat the search (orthotropic plates),
    unless the best's modes already lie on the measured peaks to the grid's resolution
    (then the misfit is not a wrong basin: an effect the model lacks, say);
-   or, with ``method="local"``, one local run from the caller's start;
+   or, with ``method="local"``, one local run from the caller's start; or, with
+   ``peaks_only`` (the closed loop's search of an orthotropic plate from an isotropic fit),
+   :func:`search_peaks_only`: a small search on the peaks alone, the loss factor held;
 3. :func:`walk_valley`: local fits from steps along the flattest direction of chi2 at the
    best minimum (:mod:`~vibid.identify.fit.minima`), which find a lower one the search
    missed, or rivals the std must cover; :func:`prefer_inside_prior`: a best minimum
@@ -91,6 +93,9 @@ class Options:
     refresh: bool = True
     rng: np.random.Generator | None = None
     progress: Progress | None = None
+    #: values (by name) of the parameters the resonance peaks do not fix, for a search on
+    #: the peaks alone instead of chi2 (:func:`search_peaks_only`); None: chi2's search
+    peaks_only: dict | None = None
 
 
 # -- the steps ------------------------------------------------------------------------------
@@ -184,29 +189,73 @@ def peaks_already_matched(problem: LeastSquaresProblem, theta) -> bool:
 
 def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]:
     """Starts from a global search that matches the measured resonance peaks
-    (:mod:`vibid.identify.fit.peaks`); none when the model cannot give its modes or the AFC
-    shows no peak."""
+    (:mod:`vibid.identify.fit.peaks`), with the AFC's chi2 as a tie-breaker; none when the
+    model cannot give its modes or the AFC shows no peak."""
+    result = peak_search(problem, opts, tie_break=True)
+    return [] if result is None else list(result.u)
+
+
+#: The peaks-only search's population per searched parameter and generations: the peak
+#: score's basins are wide, and the polish and the valley walk finish the job.
+PEAKS_ONLY_POPSIZE = 8
+PEAKS_ONLY_GENERATIONS = 40
+
+
+def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
+                fixed: dict | None = None, popsize: int = 15, max_generations: int = 60):
+    """Differential evolution on the match of the measured resonance peaks (None when the
+    model cannot give its modes or the AFC shows no peak). With ``tie_break``, the AFC's
+    chi2 decides among parameter sets that match the peaks equally well, through a term too
+    small to outweigh a visible mismatch (fewer peaks in the band than stiffness
+    parameters leave a family of them); it costs a second evaluation of the population."""
     model, space = problem.model, problem.space
     if not hasattr(model, "modes_batch") or not model.param.proportional:
-        return []
+        return None
     peaks = _measured_peaks(problem)
     if peaks.count == 0:
-        return []
-
+        return None
     thin = search_problem(problem)
 
     def score(U):
-        # peak matching first; among parameter sets that match the peaks equally well
-        # (fewer peaks in the band than stiffness parameters leave a family of them) the
-        # AFC's chi2 decides, through a term too small to outweigh a visible mismatch
         f_hz, height = model.modes_batch(space.theta(U))
-        chi2 = np.maximum(thin.chi2_batch(U), 1e-300)
-        return np.asarray(peak_score(f_hz, height, peaks)) + PEAK_CHI2_WEIGHT * np.log(chi2)
+        s = np.asarray(peak_score(f_hz, height, peaks))
+        if tie_break:
+            s = s + PEAK_CHI2_WEIGHT * np.log(np.maximum(thin.chi2_batch(U), 1e-300))
+        return s
 
     result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,
-                                    progress=opts.progress, score=score, label="peak matching")
+                                    progress=opts.progress, score=score, fixed=fixed,
+                                    popsize=popsize, max_generations=max_generations,
+                                    label="peak matching")
     log.info("peak matching: %d measured peaks, best score %.3g", peaks.count, result.loss[0])
-    return list(result.u)
+    return result
+
+
+def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
+    """Search the resonance peaks alone: the parameters that move no stiffness or inertia
+    (the loss factor, a delay, a gain: the peak frequencies do not fix them) held at
+    ``opts.peaks_only``, a small population (the peak score's basins are wide), then the
+    polish of every restart's best. Returns (GlobalResult, fits), or (None, []) when the
+    model cannot give its modes or the AFC shows no peak.
+
+    Where a model with several stiffnesses starts far from its basin (an orthotropic plate
+    from an isotropic fit) this finds the basin for a fraction of chi2's search, whose
+    minima are needles when the loss factor is small. On a coarse grid the peaks do not
+    tell neighbouring basins apart (a resonance anywhere between two steps matches): the
+    caller judges the fit, and searches chi2 when it does not fit the data."""
+    from vibid.identify.model.reduced import moving_parameters
+
+    model, space = problem.model, problem.space
+    if not hasattr(model, "param"):
+        return None, []
+    theta = np.array([float(opts.peaks_only[n]) for n in space.names])
+    moving = moving_parameters(model.param, theta)
+    hold = {n: theta[i] for i, n in enumerate(space.names) if i not in moving}
+    result = peak_search(problem, opts, tie_break=False, fixed=hold,
+                         popsize=PEAKS_ONLY_POPSIZE, max_generations=PEAKS_ONLY_GENERATIONS)
+    if result is None:
+        return None, []
+    return result, _by_loss(polish(problem, distinct(list(result.u)), opts))
 
 
 def walk_valley(problem: LeastSquaresProblem, found: list[Fit], opts: Options) -> list[Fit]:
@@ -303,6 +352,7 @@ def identify(
     progress: Progress | None = None,
     refresh: bool = True,
     throw: bool = False,
+    peaks_only: dict | None = None,
 ) -> IdentificationResult:
     """Identify the parameters of a material model from a measured AFC.
 
@@ -334,6 +384,13 @@ def identify(
         polish once more on it; off, the model that searched also polishes.
     throw: raise VibidError if the final local run did not converge (else it is reported
         in ``status``/``message``/``warnings``).
+    peaks_only: with ``method="global"``, search the resonance peaks alone instead of chi2
+        (:func:`search_peaks_only`), with the parameters that move no stiffness or inertia
+        held at these values (by name; every parameter): the closed loop's cheap search of
+        an orthotropic plate from an isotropic fit. The peaks may not tell neighbouring
+        basins apart on a coarse grid: judge the result, and search chi2 (the default)
+        when it does not fit. Falls back on chi2's search when the model gives no modes
+        or the AFC no peak.
     """
     t0 = time.perf_counter()
     model = model or setup.identification.model
@@ -360,10 +417,14 @@ def identify(
     _check_basis_covers(forward_model, box, names)
     space = ParameterSpace.from_bounds(names, box)
     problem = LeastSquaresProblem(forward_model, data, space)
-    opts = Options(local, restarts, refresh, np.random.default_rng(seed), progress)
+    opts = Options(local, restarts, refresh, np.random.default_rng(seed), progress,
+                   None if peaks_only is None else dict(peaks_only))
 
     if method == "global":
-        global_result, found = search(problem, opts)
+        global_result, found = (search_peaks_only(problem, opts) if peaks_only is not None
+                                else (None, []))
+        if not found:
+            global_result, found = search(problem, opts)
         found = prefer_inside_prior(walk_valley(problem, found, opts))
     else:
         global_result = None
