@@ -214,7 +214,7 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
     peaks = _measured_peaks(problem)
     if peaks.count == 0:
         return None
-    thin = search_problem(problem)
+    thin = search_problem(problem) if tie_break else None
 
     def score(U):
         f_hz, height = model.modes_batch(space.theta(U))
