@@ -601,7 +601,13 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
                       model=fm.param.model, forward_model=fm, method="local",
                       start=dict(zip(names, best.theta)), bounds=ext_box, local=local)
     loss = best.loss
-    if search and not fits_noise(result.chi2, result.dof, True):
+
+    def done(r) -> bool:
+        # a refit that did not converge fits nothing, whatever its chi2 (a runaway's model
+        # error can swamp its own weights)
+        return r.converged and bool(fits_noise(r.chi2, r.dof, True))
+
+    if search and not done(result):
         from vibid.identify.model.forward import build_forward_model
 
         wide = build_forward_model(setup, data.frequency_hz[data.used], model=fm.param,
@@ -618,7 +624,7 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
                      " on its peaks" if peaks_only else "", found_loss, loss)
             if found.converged and found_loss < loss:
                 result, loss = found, found_loss
-            if fits_noise(result.chi2, result.dof, True):
+            if done(result):
                 break
     log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
     return _stage(cand.name, result), float(res.chi2 - loss)
