@@ -21,12 +21,13 @@ and after.
    the top candidate's extended model is also searched globally over its box (the
    current estimate may lie in a wrong basin of it: an orthotropic plate fitted as
    isotropic; anisotropy's search matches the resonance peaks first, with the current
-   loss factor, and searches chi2 too only if that fit does not reach the noise). Repeat until the residual fits the noise or nothing helps
-   (``unexplained_residual``). Where the current estimate has left its prior box (the
-   declared model bending a parameter to mimic what it lacks), the refit also starts with
-   those parameters just inside the box, and its minimum inside the box is kept unless
-   one outside fits significantly better (chi2 differences in units of the reduced chi2,
-   as the misfit, not the noise, then sets their scale). While the estimate is outside its
+   loss factor, and searches chi2 too only if that fit does not reach the noise). Repeat
+   until the residual fits the noise or nothing helps (``unexplained_residual``). Where
+   the current estimate has left its prior box (the declared model bending a parameter to
+   mimic what it lacks), the refit also starts with those parameters just inside the box,
+   and its minimum inside the box is kept unless one outside fits significantly better
+   (chi2 differences in units of the reduced chi2, as the misfit, not the noise, then sets
+   their scale). While the estimate is outside its
    box, every candidate that passes the score test is refitted (the effect behind the
    excursion may score low: the bent parameter already mimics it; the top candidate's
    global search then comes first, so that the others are refitted only when it does not
@@ -580,10 +581,12 @@ def _refit_starts(space, u0, new, current_names) -> list[np.ndarray]:
 def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     """Local fits of the extended model from the current estimate (several starts along the
     new parameters), then the full identification from the best; returns (stage, Δχ²).
-    With ``search``, when the local refit does not fit the noise (the current estimate may
-    lie in a wrong basin of the extended model: an orthotropic plate fitted as isotropic),
-    also a global search of the extended model over its prior box, and the better of the
-    two (chi2 under the current weights)."""
+    With ``search``, when the local refit did not converge or does not fit the noise (the
+    current estimate may lie in a wrong basin of the extended model: an orthotropic plate
+    fitted as isotropic), also a global search of the extended model over its prior box
+    (on the resonance peaks first for a :attr:`Candidate.peaks_first` candidate, then on
+    chi2 unless that fits the noise), and the best converged one (chi2 under the current
+    weights)."""
     problem, start, ext_box = _extended_problem(setup, data, res, cand, values, box, res.weights)
     space = problem.space
     names = space.names
