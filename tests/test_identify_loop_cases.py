@@ -183,3 +183,32 @@ def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
     assert "simulated solver failure" in first["channel_delay"].note
     assert not first["channel_delay"].kept and "channel_delay" not in loop.effects
     _no_nan(build_report(loop.final, session_id="failing-refit", loop=loop, setup=_setup()))
+
+
+def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(monkeypatch):
+    """A local refit that ran away without converging can carry a chi2 below the noise (the
+    model error in its own weights grows with the runaway: the titanium strip's anisotropy
+    refit had chi2_red 7e-5). It must not spare the global search, and is never kept."""
+    import dataclasses
+
+    import vibid.identify.loop as loop_module
+    from vibid.identify.fit.result import Status
+
+    H, sd = data({"tau_s": 2e-5}, 7)  # test_identify_loop's undeclared delay
+    real = loop_module.identify
+    searched = []
+
+    def identify(*a, **k):
+        r = real(*a, **k)
+        if k.get("method") == "local":  # the local refit: a runaway with a tiny chi2
+            return dataclasses.replace(r, chi2=1e-3 * r.dof, chi2_reduced=1e-3,
+                                       status=Status.MAX_ITERATIONS)
+        searched.append(k)
+        return r
+
+    monkeypatch.setattr(loop_module, "identify", identify)
+    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
+                      declared=declared_fit({"tau_s": 2e-5}, 7), candidates=["channel_delay"],
+                      max_rounds=1)
+    assert searched, "the non-converged refit spared the global search"
+    assert all(stage.result.converged for stage in loop.stages)  # no runaway is kept
