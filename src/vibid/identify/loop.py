@@ -617,7 +617,8 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
                                    bounds=ext_box)
         # anisotropy: the resonance peaks first (cheap), chi2's search if that fit does
         # not reach the noise (on a coarse grid the peaks leave neighbouring basins open)
-        for peaks_only in ([start] if cand.peaks_first else []) + [None]:
+        peaks = cand.peaks_first and fm.param.proportional  # (else no modes to match)
+        for peaks_only in ([start] if peaks else []) + [None]:
             found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                              model=fm.param.model, forward_model=wide, bounds=ext_box,
                              restarts=3, seed=0, local=local, peaks_only=peaks_only)
