@@ -1,4 +1,5 @@
-"""Resonance peaks of an AFC and the peak-matching score, on an analytic two-mode AFC."""
+"""Resonance peaks of an AFC and the peak-matching score, on an analytic two-mode AFC; and
+identify's search on the peaks alone, on the strip's AFC of the loop tests."""
 
 import numpy as np
 import pytest
