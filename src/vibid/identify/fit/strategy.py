@@ -86,7 +86,8 @@ def _by_loss(fits_: list[Fit]) -> list[Fit]:
 
 @dataclass(frozen=True)
 class Options:
-    """How to identify: the local method, global-search restarts and seed, refreshes."""
+    """How to identify: the local method, global-search restarts and seed, refreshes, and
+    whether the global search is on the resonance peaks alone."""
 
     local: str = "newton"
     restarts: int = 5
