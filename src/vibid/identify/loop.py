@@ -27,16 +27,17 @@ and after.
    mimic what it lacks), the refit also starts with those parameters just inside the box,
    and its minimum inside the box is kept unless one outside fits significantly better
    (chi2 differences in units of the reduced chi2, as the misfit, not the noise, then sets
-   their scale). While the estimate is outside its
-   box, every candidate that passes the score test is refitted (the effect behind the
-   excursion may score low: the bent parameter already mimics it; the top candidate's
-   global search then comes first, so that the others are refitted only when it does not
-   explain the data), and a kept effect that brings the estimate back inside the box goes
-   before one that gains more chi2 but leaves it outside (which stays a candidate for the
-   next round). Such an effect is kept even when it gains nothing, provided its chi2 is one
-   the data cannot tell from the current one (:func:`~vibid.identify.fit.minima.indistinct_chi2` in units of the reduced chi2):
-   the excursion was that effect, and the prior box prefers it. Those refits also start
-   with the bent parameters at their box's centre, a physical value far from the bent one.
+   their scale). While the estimate is outside its box, every candidate that passes the
+   score test is refitted (the effect behind the excursion may score low: the bent
+   parameter already mimics it; the top candidate's global search then comes first, so
+   that the others are refitted only when it does not explain the data), and a kept
+   effect that brings the estimate back inside the box goes before one that gains more
+   chi2 but leaves it outside (which stays a candidate for the next round). Such an effect
+   is kept even when it gains nothing, provided its chi2 is one the data cannot tell from
+   the current one (:func:`~vibid.identify.fit.minima.indistinct_chi2`, in units of the
+   reduced chi2): the excursion was that effect, and the prior box prefers it. Those
+   refits also start with the bent parameters at their box's centre, a physical value far
+   from the bent one.
 
 A candidate without parameters of its own (``transverse_shear`` on an isotropic plate) is
 scored along the secant from the current model to the extended one (one dof) and kept on
@@ -68,7 +69,7 @@ from vibid.identify.fit.noise import QUANTILE, fits_noise, ljung_box_p
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
-from vibid.identify.fit.strategy import identify
+from vibid.identify.fit.strategy import gives_modes, identify
 from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel
 
@@ -617,7 +618,7 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
                                    bounds=ext_box)
         # anisotropy: the resonance peaks first (cheap), chi2's search if that fit does
         # not reach the noise (on a coarse grid the peaks leave neighbouring basins open)
-        peaks = cand.peaks_first and fm.param.proportional  # (else no modes to match)
+        peaks = cand.peaks_first and gives_modes(wide)
         for peaks_only in ([start] if peaks else []) + [None]:
             found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                              model=fm.param.model, forward_model=wide, bounds=ext_box,

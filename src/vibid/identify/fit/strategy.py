@@ -178,11 +178,17 @@ def _measured_peaks(problem: LeastSquaresProblem):
                           None if data.std is None else data.std[u])
 
 
+def gives_modes(model) -> bool:
+    """Whether a forward model has real modes to match with resonance peaks (a reduced
+    plate model with one loss factor for every modulus)."""
+    return hasattr(model, "modes_batch") and model.param.proportional
+
+
 def peaks_already_matched(problem: LeastSquaresProblem, theta) -> bool:
     """Whether the model at ``theta`` has its modes on the measured resonance peaks, to the
     frequency grid's resolution (:func:`vibid.identify.fit.peaks.peaks_matched`)."""
     model = problem.model
-    if not hasattr(model, "modes_batch") or not model.param.proportional:
+    if not gives_modes(model):
         return False
     f_hz, height = model.modes_batch(np.asarray(theta)[None, :])
     return peaks_matched(np.asarray(f_hz)[0], np.asarray(height)[0], _measured_peaks(problem))
@@ -210,7 +216,7 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
     small to outweigh a visible mismatch (fewer peaks in the band than stiffness
     parameters leave a family of them); it costs a second evaluation of the population."""
     model, space = problem.model, problem.space
-    if not hasattr(model, "modes_batch") or not model.param.proportional:
+    if not gives_modes(model):
         return None
     peaks = _measured_peaks(problem)
     if peaks.count == 0:
@@ -247,7 +253,7 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     from vibid.identify.model.reduced import moving_parameters
 
     model, space = problem.model, problem.space
-    if not hasattr(model, "param"):
+    if not gives_modes(model):
         return None, []
     theta = np.array([float(opts.peaks_only[n]) for n in space.names])
     moving = moving_parameters(model.param, theta)
@@ -422,8 +428,9 @@ def identify(
                    None if peaks_only is None else dict(peaks_only))
 
     if method == "global":
-        global_result, found = (search_peaks_only(problem, opts) if peaks_only is not None
-                                else (None, []))
+        global_result, found = None, []
+        if opts.peaks_only is not None:
+            global_result, found = search_peaks_only(problem, opts)
         if not found:
             global_result, found = search(problem, opts)
         found = prefer_inside_prior(walk_valley(problem, found, opts))
