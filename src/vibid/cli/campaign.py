@@ -20,7 +20,7 @@ reason is printed) or the input is bad.
 
 from __future__ import annotations
 
-from vibid.cli.options import add_identification_options
+from vibid.cli.options import add_identification_options, profiled
 
 import math
 import os
@@ -130,12 +130,13 @@ def run_flow(args, report_dir: str, candidates) -> int:
     from vibid.flows import campaign_flow
     from vibid.lab_report import console_summary
 
-    state = campaign_flow(args.setup, stand=args.stand, stand_config=args.stand_config,
-                          out=args.out, report_dir=report_dir, resume=args.resume,
-                          realtime=args.realtime, loop=not args.no_loop, candidates=candidates,
-                          operator=args.operator, notes=args.notes,
-                          temperature_c=args.temperature_c, restarts=args.restarts,
-                          seed=args.seed, return_state=True)
+    with profiled(args.profile):
+        state = campaign_flow(args.setup, stand=args.stand, stand_config=args.stand_config,
+                              out=args.out, report_dir=report_dir, resume=args.resume,
+                              realtime=args.realtime, loop=not args.no_loop, candidates=candidates,
+                              operator=args.operator, notes=args.notes,
+                              temperature_c=args.temperature_c, restarts=args.restarts,
+                              seed=args.seed, return_state=True)
     if not state.is_completed():
         error = state.result(raise_on_failure=False)
         message = str(error) if isinstance(error, BaseException) else (state.message or state.name)

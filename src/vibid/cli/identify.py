@@ -7,7 +7,7 @@ another system (:mod:`vibid.signal.imported`)."""
 
 from __future__ import annotations
 
-from vibid.cli.options import add_identification_options
+from vibid.cli.options import add_identification_options, profiled
 
 
 def add_parser(sub):
@@ -42,12 +42,14 @@ def run(args) -> int:
     if args.json:
         check_output_file(args.json, overwrite=True)  # before the minutes of identification
     candidates = parse_candidates(args.candidates)
-    data = _source(args)
-    with search_progress(not args.no_progress) as progress:
-        identified = identify_afc(data, loop=not args.no_loop, candidates=candidates,
-                                  method=args.method, local=args.local, restarts=args.restarts,
-                                  seed=args.seed, progress=progress)
-    print(identified.summary)
+    with profiled(args.profile):
+        data = _source(args)
+        with search_progress(not args.no_progress) as progress:
+            identified = identify_afc(data, loop=not args.no_loop, candidates=candidates,
+                                      method=args.method, local=args.local,
+                                      restarts=args.restarts, seed=args.seed,
+                                      progress=progress)
+        print(identified.summary)
     if args.json:
         write_report(build_session_report(data, identified), args.json)
         print(f"report written to {args.json}")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 
 def add_identification_options(p, *, methods: bool = True) -> None:
     """The closed loop's switches and the global search's settings; with ``methods`` also
@@ -18,3 +20,20 @@ def add_identification_options(p, *, methods: bool = True) -> None:
                        help="local method (default: trust-region Newton, exact Hessian)")
     p.add_argument("--restarts", type=int, default=5, help="restarts of the global search")
     p.add_argument("--seed", type=int, default=0, help="seed of the global search")
+    p.add_argument("--profile", action="store_true",
+                   help="print where the time went: compiling, reduced bases, searches, "
+                   "refits, the signal stage")
+
+
+@contextlib.contextmanager
+def profiled(on: bool):
+    """With ``on`` (``--profile``), print where the time went when the block ends
+    (:mod:`vibid.identify.profile`)."""
+    if not on:
+        yield
+        return
+    from vibid.identify.profile import recording
+
+    with recording() as prof:
+        yield
+    print(prof.table())

@@ -9,7 +9,7 @@ run); with ``PREFECT_API_URL`` set, on that server, where the run and its artifa
 
 from __future__ import annotations
 
-from vibid.cli.options import add_identification_options
+from vibid.cli.options import add_identification_options, profiled
 
 
 def add_parser(sub):
@@ -43,9 +43,12 @@ def run(args) -> int:
         pass
     from vibid.flows import replay_flow
 
-    replay_flow(args.session, json_path=args.json, report_dir=args.report,
-                loop=not args.no_loop, candidates=None if candidates is None else list(candidates),
-                method=args.method, local=args.local, restarts=args.restarts, seed=args.seed)
+    with profiled(args.profile):
+        replay_flow(args.session, json_path=args.json, report_dir=args.report,
+                    loop=not args.no_loop,
+                    candidates=None if candidates is None else list(candidates),
+                    method=args.method, local=args.local, restarts=args.restarts,
+                    seed=args.seed)
     if args.json:
         print(f"report written to {args.json}")
     if args.report:

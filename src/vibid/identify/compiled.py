@@ -40,9 +40,10 @@ def kernel_functions(kernel) -> KernelFunctions:
 
 
 @functools.lru_cache(maxsize=MAX_PROBLEMS)
-def problem_functions(kernel, model_idx: tuple, space):
-    """The least-squares functions of a kernel on the fitted points ``model_idx`` in the
-    coordinates of ``space`` (:func:`vibid.identify.fit.problem.compile_problem`)."""
+def problem_functions(kernel):
+    """The least-squares functions of a kernel, whatever the points fitted, the data, the
+    weights and the parameter space (arguments of each function:
+    :func:`vibid.identify.fit.problem.compile_problem`)."""
     from vibid.identify.fit.problem import compile_problem
 
-    return compile_problem(kernel, space, model_idx)
+    return compile_problem(kernel)

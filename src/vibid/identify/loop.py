@@ -72,6 +72,7 @@ from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import gives_modes, identify
 from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel
+from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
@@ -497,6 +498,7 @@ def _extended_problem(setup, data, res, cand, values, box, weights):
     return LeastSquaresProblem(fm, data, space, weights), start, ext_box
 
 
+@timed("loop scoring")
 def _score(setup, data, res, cand, values, box) -> Score:
     problem, start, _ = _extended_problem(setup, data, res, cand, values, box, res.weights)
     names = problem.space.names
@@ -579,6 +581,7 @@ def _refit_starts(space, u0, new, current_names) -> list[np.ndarray]:
     return starts
 
 
+@timed("loop refits")
 def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     """Local fits of the extended model from the current estimate (several starts along the
     new parameters), then the full identification from the best; returns (stage, Δχ²).

@@ -25,8 +25,9 @@ import logging
 
 import numpy as np
 
-from vibid.identify.fit.result import GlobalResult
 from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.result import GlobalResult
+from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +55,7 @@ def latin_hypercube_u(space, n: int, rng: np.random.Generator, free: np.ndarray)
     return out
 
 
+@timed("global search")
 def differential_evolution(
     problem: LeastSquaresProblem,
     *,

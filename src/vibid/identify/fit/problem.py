@@ -23,7 +23,8 @@ other data make a new problem (:meth:`~LeastSquaresProblem.with_sigma`,
 from __future__ import annotations
 
 import logging
-from typing import Protocol, runtime_checkable
+from dataclasses import dataclass
+from typing import Callable, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -57,46 +58,65 @@ class ForwardModel(Protocol):
         """The model rebuilt around ``theta`` if it moved far from its expansion point."""
 
 
-def compile_problem(afc, space, model_idx):
-    """jit-compiled residuals, Jacobians, chi2, its value and gradient, its Hessian, batch
-    chi2, each a function of (u or theta, arrays, H, sig) with ``afc(arrays, theta) -> H``."""
+def compile_problem(afc):
+    """The problem's compiled functions, each of ``(u or theta, arrays, H, sig, idx[,
+    space])`` with ``afc(arrays, theta) -> H`` on the model's frequencies, ``idx`` the
+    fitted points among them and ``space`` the :meth:`ParameterSpace.coefficients`:
+    everything a problem holds is an argument, so one compilation serves every problem of
+    the same shapes. Three functions, each compiled once per shape:
+
+    * ``residuals_and_jacobian(theta, ...)``: the weighted residuals and their Jacobian in
+      the physical parameters (forward mode: a few parameters, many residuals), from which
+      chi2, its gradient in ``u`` and the Fisher information follow in numpy;
+    * ``hessian(u, ...)``: the exact Hessian of chi2 in ``u`` (trust-region Newton);
+    * ``chi2_batch(U, ...)``: chi2 of a population (global search).
+    """
     import jax
     import jax.numpy as jnp
 
-    idx = jnp.asarray(np.asarray(model_idx, int))
+    from vibid.identify.fit.space import from_u_coefficients
 
-    def residuals_theta(theta, arrays, H, sig):
+    def residuals_theta(theta, arrays, H, sig, idx):
         r = (afc(arrays, theta)[idx] - H) / sig
         return jnp.concatenate([r.real, r.imag])
 
-    def residuals_u(u, arrays, H, sig):
-        return residuals_theta(space.from_u(u), arrays, H, sig)
+    def with_residuals(theta, arrays, H, sig, idx):
+        r = residuals_theta(theta, arrays, H, sig, idx)
+        return r, r
 
-    def chi2_u(u, arrays, H, sig):
-        r = residuals_u(u, arrays, H, sig)
+    def chi2_u(u, arrays, H, sig, idx, space):
+        r = residuals_theta(from_u_coefficients(space, u), arrays, H, sig, idx)
         return jnp.sum(r * r)
 
-    def chi2_batch(U, arrays, H, sig):
-        A = jax.vmap(afc, in_axes=(None, 0))(arrays, space.from_u(U))[:, idx]
+    def chi2_batch(U, arrays, H, sig, idx, space):
+        thetas = from_u_coefficients(space, U)
+        A = jax.vmap(afc, in_axes=(None, 0))(arrays, thetas)[:, idx]
         r = (A - H[None, :]) / sig[None, :]
         c = jnp.sum(r.real**2 + r.imag**2, axis=1)
         return jnp.where(jnp.isfinite(c), c, jnp.inf)
 
-    return (jax.jit(residuals_u), jax.jit(jax.jacfwd(residuals_u)),
-            jax.jit(jax.jacfwd(residuals_theta)), jax.jit(chi2_u),
-            jax.jit(jax.value_and_grad(chi2_u)), jax.jit(jax.hessian(chi2_u)),
-            jax.jit(chi2_batch))
+    return ProblemFunctions(jax.jit(jax.jacfwd(with_residuals, has_aux=True)),
+                            jax.jit(jax.hessian(chi2_u)), jax.jit(chi2_batch))
 
 
-def _functions(model, space, model_idx):
+@dataclass(frozen=True)
+class ProblemFunctions:
+    """The compiled functions of :func:`compile_problem`."""
+
+    jacobian_and_residuals: Callable
+    hessian: Callable
+    chi2_batch: Callable
+
+
+def _functions(model):
     """``(compiled functions, arrays)`` for any ForwardModel: shared through
     :mod:`vibid.identify.compiled` for models with a kernel, else compiled for this model."""
     from vibid.identify.compiled import problem_functions
 
     kernel = getattr(model, "kernel", None)
     if kernel is not None:
-        return problem_functions(kernel, tuple(int(i) for i in model_idx), space), model.arrays
-    return compile_problem(lambda _arrays, theta: model.afc(theta), space, model_idx), {}
+        return problem_functions(kernel), model.arrays
+    return compile_problem(lambda _arrays, theta: model.afc(theta)), {}
 
 
 def _model_points(model, data: FitData) -> np.ndarray:
@@ -147,9 +167,10 @@ class LeastSquaresProblem:
         self.n_params = space.size
         self.sigma = data_sigma(data) if sigma is None else np.asarray(sigma, float).copy()
         self.sigma.setflags(write=False)
-        (self._res_u, self._jac_u, self._jac_theta, self._chi2, self._vg, self._hess,
-         self._batch), self._arrays = _functions(model, space, self._model_idx)
+        self._fn, self._arrays = _functions(model)
         self._H = np.asarray(data.H[data.used], complex)
+        self._idx = np.asarray(self._model_idx, np.int64)
+        self._space = space.coefficients()
 
     # -- other weights, data or model: new problems ---------------------------------------
     def with_sigma(self, sigma) -> "LeastSquaresProblem":
@@ -181,10 +202,15 @@ class LeastSquaresProblem:
 
     # -- public evaluations (numpy in, numpy out) ---------------------------------------
     def _args(self):
-        return self._arrays, self._H, self.sigma
+        return self._arrays, self._H, self.sigma, self._idx
+
+    def _residuals_and_jacobian_u(self, u) -> tuple[np.ndarray, np.ndarray]:
+        u = np.asarray(u, float)
+        J, r = self._fn.jacobian_and_residuals(self.space.theta(u), *self._args())
+        return np.asarray(r), np.asarray(J) * self.space.dtheta_du(u)[None, :]
 
     def residuals(self, u) -> np.ndarray:
-        return np.asarray(self._res_u(np.asarray(u, float), *self._args()))
+        return self.residuals_theta(self.space.theta(np.asarray(u, float)))
 
     def residuals_theta(self, theta) -> np.ndarray:
         """The weighted residuals (real parts, then imaginary) at physical ``theta`` (also
@@ -193,26 +219,30 @@ class LeastSquaresProblem:
         return np.concatenate([r.real, r.imag])
 
     def jacobian(self, u) -> np.ndarray:
-        return np.asarray(self._jac_u(np.asarray(u, float), *self._args()))
+        """d residuals / d u."""
+        return self._residuals_and_jacobian_u(u)[1]
 
     def jacobian_theta(self, theta) -> np.ndarray:
         """d residuals / d theta (physical units), for the Fisher information."""
-        return np.asarray(self._jac_theta(np.asarray(theta, float), *self._args()))
+        J, _ = self._fn.jacobian_and_residuals(np.asarray(theta, float), *self._args())
+        return np.asarray(J)
 
     def chi2(self, u) -> float:
-        v = float(self._chi2(np.asarray(u, float), *self._args()))
+        r = self.residuals(u)
+        v = float(r @ r)
         return v if np.isfinite(v) else np.inf
 
     def value_and_grad(self, u) -> tuple[float, np.ndarray]:
-        v, g = self._vg(np.asarray(u, float), *self._args())
-        return float(v), np.asarray(g)
+        """chi2 and its gradient in ``u`` (``2 Jᵀ r``: exact, from the forward Jacobian)."""
+        r, J = self._residuals_and_jacobian_u(u)
+        return float(r @ r), 2.0 * (J.T @ r)
 
     def hessian(self, u) -> np.ndarray:
-        return np.asarray(self._hess(np.asarray(u, float), *self._args()))
+        return np.asarray(self._fn.hessian(np.asarray(u, float), *self._args(), self._space))
 
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
-        return np.asarray(self._batch(np.asarray(U, float), *self._args()))
+        return np.asarray(self._fn.chi2_batch(np.asarray(U, float), *self._args(), self._space))
 
     def on_points(self, model_values) -> np.ndarray:
         """The fitted points' entries of an array over the model's frequencies."""

@@ -191,6 +191,18 @@ class ParameterSpace:
         u = xp.asarray(u)
         return xp.stack([t.from_u(u[..., i]) for i, t in enumerate(self.transforms)], axis=-1)
 
+    def coefficients(self) -> dict:
+        """The transforms as arrays (kind flags, normalisation, logit interval), for
+        :func:`from_u_coefficients`: compiled code that takes them as arguments serves every
+        space of the same size, whatever its names and boxes."""
+        kinds = np.array([t.kind for t in self.transforms])
+        return jax.device_put({
+            "log": kinds == "log", "logit": kinds == "logit",
+            "centre": np.array([t.centre for t in self.transforms], float),
+            "half_width": np.array([t.half_width for t in self.transforms], float),
+            "a": np.array([0.0 if t.kind != "logit" else t.a for t in self.transforms], float),
+            "b": np.array([1.0 if t.kind != "logit" else t.b for t in self.transforms], float)})
+
     def theta(self, u) -> np.ndarray:
         """``from_u`` as a numpy float array."""
         return np.asarray(self.from_u(u), dtype=float)
@@ -213,3 +225,13 @@ class ParameterSpace:
 
     def as_dict(self, theta) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, np.asarray(theta, dtype=float))}
+
+
+def from_u_coefficients(c: dict, u):
+    """``ParameterSpace.from_u`` in JAX from the space's :meth:`~ParameterSpace.coefficients`
+    (last axis of ``u`` = parameters; differentiable). Each branch's input is kept finite
+    where another branch is taken, so that no derivative is a NaN."""
+    z = c["centre"] + c["half_width"] * jnp.asarray(u)
+    log_value = jnp.exp(jnp.where(c["log"], z, 0.0))
+    logit_value = c["a"] + (c["b"] - c["a"]) * jax.nn.sigmoid(z)
+    return jnp.where(c["log"], log_value, jnp.where(c["logit"], logit_value, z))

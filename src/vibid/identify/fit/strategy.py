@@ -55,6 +55,7 @@ from vibid.identify.fit.result import IdentificationResult, LocalResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
+from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
@@ -238,6 +239,7 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
     return result
 
 
+@timed("global search")
 def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     """Search the resonance peaks alone: the parameters that move no stiffness or inertia
     (the loss factor, a delay, a gain: the peak frequencies do not fix them) held at

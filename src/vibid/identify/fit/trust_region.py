@@ -53,8 +53,9 @@ import math
 
 import numpy as np
 
-from vibid.identify.fit.result import HistoryEntry, LocalResult, Status
 from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.result import HistoryEntry, LocalResult, Status
+from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
@@ -155,6 +156,7 @@ def _newton_decrease(g: np.ndarray, B: np.ndarray) -> float:
         return np.inf
 
 
+@timed("local fits")
 def trust_region(
     problem: LeastSquaresProblem,
     u0,
@@ -286,6 +288,7 @@ def trust_region(
     return result(Status.MAX_ITERATIONS, f"{max_iter} iterations", max_iter)
 
 
+@timed("local fits")
 def gauss_newton(
     problem: LeastSquaresProblem,
     u0,

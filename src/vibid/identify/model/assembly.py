@@ -35,6 +35,7 @@ from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, rotary_inertia,
                                         translational_inertia)
 from vibid.identify.model.mesh import Discretisation, plate_mesh
+from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
@@ -194,6 +195,7 @@ class _AllDofs:
 
 
 @functools.lru_cache(maxsize=4)
+@timed("matrices")
 def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs:
     """Assemble the plate's bending and inertia matrices on all degrees of freedom."""
     from skfem import Basis
@@ -241,11 +243,21 @@ def _clamped_dofs(basis, names) -> np.ndarray:
     return np.unique(dofs.all(present)) if present else np.zeros(0, int)
 
 
-@functools.lru_cache(maxsize=8)
 def model_matrices(geometry: Geometry, discretisation: Discretisation,
                    effects: tuple = ()) -> PlateMatrices:
     """The matrices of a plate with the given effect terms, on its free degrees of freedom
-    (see the module docstring); ``effects`` is ``PlateModel.effects``."""
+    (see the module docstring); ``effects`` is ``PlateModel.effects``. Terms that bring no
+    matrix, probe or released degree of freedom (a delay, a gain, a loss law) share the
+    matrices of the model without them."""
+    own = tuple(t for t in effects if t.stiffness_matrices or t.inertia_matrices
+                or t.probe_vectors or t.released)
+    return _model_matrices(geometry, discretisation, own)
+
+
+@functools.lru_cache(maxsize=8)
+@timed("matrices")
+def _model_matrices(geometry: Geometry, discretisation: Discretisation,
+                    effects: tuple) -> PlateMatrices:
     full = assemble_all(geometry, discretisation)
     basis = full.context.basis
     released = {dof for t in effects for dof in t.released}

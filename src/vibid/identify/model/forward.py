@@ -78,8 +78,9 @@ from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
-from vibid.identify.model.reduced import ReducedAFC, build_basis, moving_parameters
+from vibid.identify.model.reduced import ReducedAFC, cached_basis, moving_parameters
 from vibid.identify.model.terms import PlateModel, theta_from_dict
+from vibid.identify.profile import timed
 from vibid.identify.runtime import require_x64
 
 log = logging.getLogger(__name__)
@@ -152,10 +153,12 @@ def _box_centre(bounds: dict, names) -> np.ndarray:
 
 
 def _f64(x):
-    """``x`` as a float64 JAX array (JAX tracers pass through: the model is differentiable)."""
+    """``x`` as float64 (numpy input stays numpy, so that no conversion is compiled per
+    shape; JAX arrays and tracers are cast: the model is differentiable)."""
+    import jax
     import jax.numpy as jnp
 
-    return jnp.asarray(x, jnp.float64)
+    return jnp.asarray(x, jnp.float64) if isinstance(x, jax.Array) else np.asarray(x, float)
 
 
 def covers(outer: dict, inner: dict, names) -> bool:
@@ -189,11 +192,11 @@ class ForwardModel:
         f_max = float(self.frequencies_hz.max())
         if self.kind == "wide":
             many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
-            basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13)
+            basis = cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
+                                 snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13)
         elif self.kind == "local":
-            basis = build_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                snapshots=False, scale_ratio=LOCAL_SCALE_RATIO)
+            basis = cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
+                                 snapshots=False, scale_ratio=LOCAL_SCALE_RATIO)
         else:
             raise ValueError(f"unknown basis kind {self.kind!r}")
         self.basis = basis
@@ -301,6 +304,7 @@ class ForwardModel:
         new._full_jax = new._finer = new._last_check = None
         return new
 
+    @timed("model error")
     def model_error_parts(self, theta) -> tuple[np.ndarray, np.ndarray]:
         """``(d, reduction)``: the signed discretisation error ``H_finer − H`` (nf,)
         complex, with ``H_finer`` from the next finer mesh (built once, lazily), and the

@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse.linalg as spla
 
+from vibid.identify.profile import timed
+
 
 def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=False,
                probe=None):
@@ -86,6 +88,7 @@ def stiffness_coefficients(model, theta, omega, xp=np):
     return s[None, :] * (1.0 + 1j * b[None, :] * law[:, None])
 
 
+@timed("full-model checks")
 def model_afc_full(mats, model, theta, frequencies_hz) -> np.ndarray:
     """(nf,) the observed AFC of ``model`` (a PlateModel) at ``theta``, full FE model."""
     theta = np.asarray(theta, float)

@@ -33,13 +33,15 @@ then the terms' maps on H (delay, gain).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from collections import OrderedDict
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from vibid.identify.model.modal import arpack_start
+from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
@@ -189,6 +191,7 @@ def _orthonormal(V, E, tol):
     return V
 
 
+@timed("reduced bases")
 def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
                 max_modes: int = 40, min_modes: int = 6, krylov: int = 2,
                 snapshots: bool = True, tol: float = 1e-13,
@@ -276,6 +279,50 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
     return basis
 
 
+#: How many reduced bases are kept (each a few MB on the paper's strip).
+MAX_BASES = 12
+_BASES: "OrderedDict[tuple, ReducedBasis]" = OrderedDict()
+
+
+def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tuple:
+    """What a basis built by :func:`build_basis` depends on: the matrices, the model's
+    matrix and probe names, the stiffness and inertia coefficients and their nonzero
+    parameter derivatives at every snapshot point, the modes' cut-off and the options.
+    Parameters that move no matrix (a delay, a gain, a loss law) do not appear: a candidate
+    that only changes H reuses the basis of the model it extends."""
+    theta0 = np.asarray(theta0, float)
+    ratio = options.get("scale_ratio")
+    ratio = stiffness_scale_ratio(model, theta0, bounds) if ratio is None else ratio
+    points = snapshot_points(model, theta0, bounds) if options.get("snapshots", True) else [theta0]
+    moving = moving_parameters(model, theta0)
+    at = []
+    for th in points:
+        s, m = _coefficients(model, th)
+        Js, Jm = _coefficient_jacobians(model, th)
+        directions = sorted(Js[:, i].tobytes() + Jm[:, i].tobytes() for i in moving)
+        at.append((s.tobytes(), m.tobytes(), tuple(directions)))
+    return ((mats.geometry, mats.discretisation, tuple(mats.stiffness), tuple(mats.inertia),
+             tuple(mats.probes), mats.n_dof), model.stiffness_names, model.inertia_names,
+            model.probe_names, float(ratio), float(f_max_hz), tuple(at),
+            tuple(sorted((k, v) for k, v in options.items() if k != "scale_ratio")))
+
+
+def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> ReducedBasis:
+    """:func:`build_basis`, or the basis already built for the same key
+    (:func:`basis_key`), with ``theta0`` this model's."""
+    key = basis_key(mats, model, theta0, bounds, f_max_hz, options)
+    basis = _BASES.get(key)
+    if basis is None:
+        basis = build_basis(mats, model, theta0, bounds, f_max_hz, **options)
+        _BASES[key] = basis
+        while len(_BASES) > MAX_BASES:
+            _BASES.popitem(last=False)
+    else:
+        _BASES.move_to_end(key)
+        log.info("reduced basis: reused (size %d)", basis.size)
+    return replace(basis, theta0=np.asarray(theta0, float))
+
+
 #: Reduced bases are padded to a multiple of this size, so that models rebuilt around new
 #: estimates (``ForwardModel.refresh``) mostly share one shape and one compilation.
 PAD_MULTIPLE = 16
@@ -291,13 +338,21 @@ class ReducedKernel:
     array leaves).
     """
 
-    model: object  # PlateModel
+    model: object  # PlateModel: the structure (:mod:`vibid.identify.model.structure`)
+
+    @staticmethod
+    def _embed(a: dict, theta):
+        """The structure's parameter vector of a model's ``theta`` (its embedding arrays)."""
+        import jax.numpy as jnp
+
+        theta = jnp.asarray(theta, jnp.float64)
+        return a["theta_base"].at[a["theta_index"]].set(theta)
 
     def __call__(self, arrays: dict, theta):
         import jax.numpy as jnp
 
         a, model = arrays, self.model
-        theta = jnp.asarray(theta, jnp.float64)
+        theta = self._embed(a, theta)
         s = model.moduli(theta, jnp)
         Mr, load = self._inertia(a, theta)
         probe, rigid = self._probe(a, theta)
@@ -356,7 +411,7 @@ class ReducedKernel:
         resonance); padding modes have zero height. Proportional loss only."""
         import jax.numpy as jnp
 
-        theta = jnp.asarray(theta, jnp.float64)
+        theta = self._embed(arrays, theta)
         beta = self.model.common_loss(theta, jnp)
         Mr, load = self._inertia(arrays, theta)
         probe, _ = self._probe(arrays, theta)
@@ -379,22 +434,40 @@ def largest_eigenvalue(K, M) -> float:
     return float(lam.max()) if lam.size else 1.0
 
 
-def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> dict:
-    """The kernel's arrays for ``basis`` on angular frequencies ``omega`` (rad/s), the basis
-    padded with decoupled dummy unknowns up to a multiple of ``multiple``.
+def padded_arrays(basis: ReducedBasis, omega, model, structure,
+                  multiple: int = PAD_MULTIPLE) -> dict:
+    """The kernel's arrays for ``basis`` (of PlateModel ``model``) on angular frequencies
+    ``omega`` (rad/s), laid out for ``structure``'s code
+    (:mod:`vibid.identify.model.structure`): the terms ``model`` lacks get zero matrices,
+    loads and probes, and the embedding arrays map its parameters into the structure's.
+    The basis is padded with decoupled dummy unknowns up to a multiple of ``multiple``.
 
     A dummy unknown has no load and no probe (it adds exactly nothing to H), unit inertia
     and a constant stiffness far above the basis's highest eigenvalue, each a different one
     so that the eigenvalue derivatives stay finite."""
-    import jax.numpy as jnp
+    import jax
+
+    from vibid.identify.model.structure import embedding, slots
 
     n = basis.size
     n_pad = (-n) % multiple
     m = n + n_pad
-    K = np.zeros((basis.K.shape[0], m, m))
-    K[:, :n, :n] = basis.K
-    M = np.zeros((basis.M.shape[0], m, m))
-    M[:, :n, :n] = basis.M
+
+    def laid_out(own, names_of_model, names_of_structure, shape):
+        out = np.zeros((len(names_of_structure),) + shape)
+        for k, i in enumerate(slots(names_of_model, names_of_structure)):
+            if i is not None:
+                out[(k,) + tuple(slice(0, n) for _ in shape)] = own[i]
+        return out
+
+    K = laid_out(basis.K, model.stiffness_names, structure.stiffness_names, (m, m))
+    M = laid_out(basis.M, model.inertia_names, structure.inertia_names, (m, m))
+    load = laid_out(basis.load, model.inertia_names, structure.inertia_names, (m,))
+    probe = laid_out(basis.probe, model.probe_names, structure.probe_names, (m,))
+    rigid = np.zeros(len(structure.probe_names))
+    for k, i in enumerate(slots(model.probe_names, structure.probe_names)):
+        if i is not None:
+            rigid[k] = basis.probe_rigid[i]
     M_pad = np.zeros((m, m))
     M_pad[n:, n:] = np.eye(n_pad)
     pad = np.zeros((m, m))
@@ -402,14 +475,12 @@ def padded_arrays(basis: ReducedBasis, omega, multiple: int = PAD_MULTIPLE) -> d
         lam_max = largest_eigenvalue(np.tensordot(basis.moduli0, basis.K, axes=1),
                                      np.tensordot(basis.inertia0, basis.M, axes=1))
         pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
-    load = np.zeros((basis.load.shape[0], m))
-    load[:, :n] = basis.load
-    probe = np.zeros((basis.probe.shape[0], m))
-    probe[:, :n] = basis.probe
-    return {"K": jnp.asarray(K), "M": jnp.asarray(M), "M_pad": jnp.asarray(M_pad),
-            "pad": jnp.asarray(pad), "load": jnp.asarray(load), "probe": jnp.asarray(probe),
-            "probe_rigid": jnp.asarray(np.asarray(basis.probe_rigid, float)),
-            "w2": jnp.asarray(np.asarray(omega, float) ** 2)}
+    base, index = embedding(model, structure)
+    # device_put, not jnp.asarray: no compiled conversion per array shape
+    return jax.device_put({"K": K, "M": M, "M_pad": M_pad, "pad": pad, "load": load,
+                           "probe": probe, "probe_rigid": rigid,
+                           "w2": np.asarray(omega, float) ** 2, "theta_base": base,
+                           "theta_index": index})
 
 
 @dataclass(frozen=True, eq=False)
@@ -432,8 +503,12 @@ class ReducedAFC:
     arrays: dict = field(init=False, repr=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "kernel", ReducedKernel(self.model))
-        object.__setattr__(self, "arrays", padded_arrays(self.basis, self.omega))
+        from vibid.identify.model.structure import structure_of
+
+        structure = structure_of(self.model)
+        object.__setattr__(self, "kernel", ReducedKernel(structure))
+        object.__setattr__(self, "arrays", padded_arrays(self.basis, self.omega, self.model,
+                                                         structure))
 
     def __call__(self, theta):
         return self.kernel(self.arrays, theta)
