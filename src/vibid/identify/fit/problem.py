@@ -51,8 +51,8 @@ class ForwardModel(Protocol):
 
     def model_error(self, theta) -> np.ndarray:
         """(nf,) standard deviation of the model's own error, per Re/Im part. A model may
-        also offer ``model_error_parts(theta) -> (signed complex error (nf,), reduction
-        std)``, which the identification then splits (:mod:`vibid.identify.model.model_error`)."""
+        also split it (:class:`SplitsModelError`); its other optional abilities are
+        :class:`PlateForwardModel`, :class:`GivesModes` and :class:`SharedStructure`."""
 
     def refresh(self, theta) -> "ForwardModel":
         """The model rebuilt around ``theta`` if it moved far from its expansion point."""
@@ -108,15 +108,61 @@ class ProblemFunctions:
     chi2_batch: Callable
 
 
+@runtime_checkable
+class PlateForwardModel(Protocol):
+    """A forward model of a plate: its :class:`~vibid.identify.model.terms.PlateModel`
+    (``param``), the prior box its reduced basis was built for and the basis's kind
+    (``"wide"`` or ``"local"``)."""
+
+    param: object
+    bounds: dict
+    kind: str
+
+
+@runtime_checkable
+class SplitsModelError(Protocol):
+    """A forward model that estimates its own error as a signed part and a reduction
+    part (:mod:`vibid.identify.model.model_error`)."""
+
+    def model_error_parts(self, theta) -> tuple[np.ndarray, np.ndarray]:
+        """(signed complex error (nf,), reduction std (nf,))."""
+
+
+@runtime_checkable
+class GivesModes(Protocol):
+    """A forward model that gives the natural frequencies and peak heights of a
+    population (the peak search)."""
+
+    param: object
+
+    def modes_batch(self, thetas):
+        """((npop, n) frequencies in Hz, (npop, n) peak heights in |H|)."""
+
+
+@runtime_checkable
+class SharedStructure(Protocol):
+    """A forward model whose compiled code is shared with others: a hashable ``kernel``
+    ``kernel(arrays, theta_s) -> H`` over its structure's parameter vector ``theta_s``
+    (:mod:`vibid.identify.model.structure`), its own ``arrays`` and the ``embedding``
+    ``(base (p_s,), index (p,))`` of its parameters in ``theta_s``."""
+
+    kernel: Callable
+    arrays: dict
+    embedding: tuple
+
+
 def _functions(model):
-    """``(compiled functions, arrays)`` for any ForwardModel: shared through
-    :mod:`vibid.identify.compiled` for models with a kernel, else compiled for this model."""
+    """``(compiled functions, arrays, (base, index))`` for any ForwardModel: shared through
+    :mod:`vibid.identify.compiled` by every model of one structure (the functions then take
+    the structure's whole parameter vector: one compilation serves every model of the
+    structure, whatever parameters it fits), else compiled for this model."""
     from vibid.identify.compiled import problem_functions
 
-    kernel = getattr(model, "kernel", None)
-    if kernel is not None:
-        return problem_functions(kernel), model.arrays
-    return compile_problem(lambda _arrays, theta: model.afc(theta)), {}
+    if isinstance(model, SharedStructure):
+        return problem_functions(model.kernel), model.arrays, model.embedding
+    p = len(model.parameter_names)
+    return (compile_problem(lambda _arrays, theta: model.afc(theta)), {},
+            (np.zeros(p), np.arange(p)))
 
 
 def _model_points(model, data: FitData) -> np.ndarray:
@@ -167,10 +213,10 @@ class LeastSquaresProblem:
         self.n_params = space.size
         self.sigma = data_sigma(data) if sigma is None else np.asarray(sigma, float).copy()
         self.sigma.setflags(write=False)
-        self._fn, self._arrays = _functions(model)
+        self._fn, self._arrays, (self._base, self._index) = _functions(model)
         self._H = np.asarray(data.H[data.used], complex)
         self._idx = np.asarray(self._model_idx, np.int64)
-        self._space = space.coefficients()
+        self._space = space.coefficients(self._base, self._index)
 
     # -- other weights, data or model: new problems ---------------------------------------
     def with_sigma(self, sigma) -> "LeastSquaresProblem":
@@ -204,10 +250,22 @@ class LeastSquaresProblem:
     def _args(self):
         return self._arrays, self._H, self.sigma, self._idx
 
+    def _whole(self, x, base):
+        """The structure's vector(s) of this problem's ``x`` (last axis: its parameters),
+        the others at ``base``."""
+        x = np.asarray(x, float)
+        out = np.broadcast_to(base, x.shape[:-1] + base.shape).copy()
+        out[..., self._index] = x
+        return out
+
+    def _jacobian_and_residuals(self, theta) -> tuple[np.ndarray, np.ndarray]:
+        J, r = self._fn.jacobian_and_residuals(self._whole(theta, self._base), *self._args())
+        return np.asarray(J)[:, self._index], np.asarray(r)
+
     def _residuals_and_jacobian_u(self, u) -> tuple[np.ndarray, np.ndarray]:
         u = np.asarray(u, float)
-        J, r = self._fn.jacobian_and_residuals(self.space.theta(u), *self._args())
-        return np.asarray(r), np.asarray(J) * self.space.dtheta_du(u)[None, :]
+        J, r = self._jacobian_and_residuals(self.space.theta(u))
+        return r, J * self.space.dtheta_du(u)[None, :]
 
     def residuals(self, u) -> np.ndarray:
         return self.residuals_theta(self.space.theta(np.asarray(u, float)))
@@ -224,8 +282,7 @@ class LeastSquaresProblem:
 
     def jacobian_theta(self, theta) -> np.ndarray:
         """d residuals / d theta (physical units), for the Fisher information."""
-        J, _ = self._fn.jacobian_and_residuals(np.asarray(theta, float), *self._args())
-        return np.asarray(J)
+        return self._jacobian_and_residuals(theta)[0]
 
     def chi2(self, u) -> float:
         r = self.residuals(u)
@@ -238,11 +295,14 @@ class LeastSquaresProblem:
         return float(r @ r), 2.0 * (J.T @ r)
 
     def hessian(self, u) -> np.ndarray:
-        return np.asarray(self._fn.hessian(np.asarray(u, float), *self._args(), self._space))
+        zero = np.zeros_like(self._base)  # the other parameters sit at u = 0 (their base)
+        B = self._fn.hessian(self._whole(u, zero), *self._args(), self._space)
+        return np.asarray(B)[np.ix_(self._index, self._index)]
 
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
-        return np.asarray(self._fn.chi2_batch(np.asarray(U, float), *self._args(), self._space))
+        U = self._whole(U, np.zeros_like(self._base))
+        return np.asarray(self._fn.chi2_batch(U, *self._args(), self._space))
 
     def on_points(self, model_values) -> np.ndarray:
         """The fitted points' entries of an array over the model's frequencies."""

@@ -191,17 +191,24 @@ class ParameterSpace:
         u = xp.asarray(u)
         return xp.stack([t.from_u(u[..., i]) for i, t in enumerate(self.transforms)], axis=-1)
 
-    def coefficients(self) -> dict:
+    def coefficients(self, base=None, index=None) -> dict:
         """The transforms as arrays (kind flags, normalisation, logit interval), for
         :func:`from_u_coefficients`: compiled code that takes them as arguments serves every
-        space of the same size, whatever its names and boxes."""
-        kinds = np.array([t.kind for t in self.transforms])
-        return jax.device_put({
-            "log": kinds == "log", "logit": kinds == "logit",
-            "centre": np.array([t.centre for t in self.transforms], float),
-            "half_width": np.array([t.half_width for t in self.transforms], float),
-            "a": np.array([0.0 if t.kind != "logit" else t.a for t in self.transforms], float),
-            "b": np.array([1.0 if t.kind != "logit" else t.b for t in self.transforms], float)})
+        space of the same size, whatever its names and boxes. With ``base`` (p_s,) and
+        ``index`` (p,), laid out over a longer vector whose other entries are fixed: each a
+        linear coordinate whose ``u = 0`` is its ``base`` value."""
+        p = self.size
+        base = np.zeros(p) if base is None else np.asarray(base, float)
+        index = np.arange(p) if index is None else np.asarray(index, int)
+        out = {"log": np.zeros(base.size, bool), "logit": np.zeros(base.size, bool),
+               "centre": base.copy(), "half_width": np.ones(base.size),
+               "a": np.zeros(base.size), "b": np.ones(base.size)}
+        for i, t in zip(index, self.transforms):
+            out["log"][i], out["logit"][i] = t.kind == "log", t.kind == "logit"
+            out["centre"][i], out["half_width"][i] = t.centre, t.half_width
+            if t.kind == "logit":
+                out["a"][i], out["b"][i] = t.a, t.b
+        return jax.device_put(out)
 
     def theta(self, u) -> np.ndarray:
         """``from_u`` as a numpy float array."""

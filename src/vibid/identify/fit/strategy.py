@@ -50,7 +50,8 @@ from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_
 from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
 from vibid.identify.fit.noise import fits
 from vibid.identify.fit.peaks import measured_peaks, peak_score, peaks_matched
-from vibid.identify.fit.problem import ForwardModel, LeastSquaresProblem
+from vibid.identify.fit.problem import (ForwardModel, GivesModes, LeastSquaresProblem,
+                                       PlateForwardModel, SplitsModelError)
 from vibid.identify.fit.result import IdentificationResult, LocalResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
@@ -182,7 +183,7 @@ def _measured_peaks(problem: LeastSquaresProblem):
 def gives_modes(model) -> bool:
     """Whether a forward model has real modes to match with resonance peaks (a reduced
     plate model with one loss factor for every modulus)."""
-    return hasattr(model, "modes_batch") and model.param.proportional
+    return isinstance(model, GivesModes) and model.param.proportional
 
 
 def peaks_already_matched(problem: LeastSquaresProblem, theta) -> bool:
@@ -313,7 +314,7 @@ def weigh_model_error(found: list[Fit], opts: Options) -> tuple[list[Fit], Model
     def again(p: LeastSquaresProblem) -> list[Fit]:
         return [Fit(LOCAL_METHODS[opts.local](p, best.run.u), p)] + found
 
-    if not hasattr(model, "model_error_parts"):
+    if not isinstance(model, SplitsModelError):
         me = problem.on_points(np.asarray(model.model_error(best.run.theta), dtype=float))
         return (again(problem.with_weights(me)) if np.any(me > 0) else found), None
     d, red = model.model_error_parts(best.run.theta)
@@ -420,9 +421,8 @@ def identify(
     if data.n_used < 3 * len(names):
         warnings.append(f"only {data.n_used} usable AFC points for {len(names)} parameters: "
                         "the estimate and its uncertainty are fragile")
-    param = getattr(forward_model, "param", None)  # a PlateModel fills derived boxes
-    if param is not None:
-        box = param.default_bounds(box)
+    if isinstance(forward_model, PlateForwardModel):  # a PlateModel fills derived boxes
+        box = forward_model.param.default_bounds(box)
     _check_basis_covers(forward_model, box, names)
     space = ParameterSpace.from_bounds(names, box)
     problem = LeastSquaresProblem(forward_model, data, space)
@@ -459,9 +459,9 @@ def _check_point_count(data: FitData, p: int, model: str) -> None:
 
 def _check_basis_covers(forward_model, box: dict, names) -> None:
     """A wide reduced basis is accurate only over the box it was built for."""
-    built = getattr(forward_model, "bounds", None)
-    if getattr(forward_model, "kind", None) != "wide" or built is None:
+    if not isinstance(forward_model, PlateForwardModel) or forward_model.kind != "wide":
         return
+    built = forward_model.bounds
     from vibid.identify.model.forward import covers
 
     if not covers(built, box, names):

@@ -11,6 +11,7 @@ from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData
 from vibid.identify.fit.minima import rival_minima
 from vibid.identify.fit.noise import fits_noise
+from vibid.identify.fit.problem import PlateForwardModel
 from vibid.identify.fit.result import IdentificationResult, LocalResult
 from vibid.identify.fit.uncertainty import fisher_uncertainty
 from vibid.identify.model.model_error import ModelErrorSplit
@@ -89,5 +90,6 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
         model_error_bias=None if systematic is None else systematic.bias,
         chi2_reduced_data_weights=chi2_red_data,
         seconds=time.perf_counter() - t0, weights=np.asarray(problem.sigma, float).copy(),
-        plate_model=getattr(problem.model, "param", None),
+        plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel)
+                     else None),
     )

@@ -64,21 +64,23 @@ part).
 
 from __future__ import annotations
 
-import copy
+import functools
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from vibid.errors import VibidError
 from vibid.identify.compiled import kernel_functions
-from vibid.identify.model.assembly import Geometry, model_matrices
+from vibid.identify.model.assembly import Geometry, PlateMatrices, model_matrices
 from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
-from vibid.identify.model.reduced import ReducedAFC, cached_basis, moving_parameters
+from vibid.identify.model.reduced import (ReducedAFC, ReducedBasis, cached_basis,
+                                          moving_parameters)
+from vibid.identify.model.structure import embed, embedding
 from vibid.identify.model.terms import PlateModel, theta_from_dict
 from vibid.identify.profile import timed
 from vibid.identify.runtime import require_x64
@@ -171,9 +173,18 @@ def covers(outer: dict, inner: dict, names) -> bool:
     return all(n in outer and n in inner and inside(n) for n in names)
 
 
-@dataclass(eq=False)
+@dataclass(frozen=True, eq=False)
 class ForwardModel:
-    """Forward model of one setup on one frequency grid; see the module docstring."""
+    """Forward model of one setup on one frequency grid; see the module docstring.
+
+    An immutable value: its matrices and reduced basis are built (or found in their caches,
+    keyed by what they depend on: :func:`~vibid.identify.model.assembly.model_matrices`,
+    :func:`~vibid.identify.model.reduced.cached_basis`) when it is made, and what it
+    computes later on demand (the a-posteriori check, the finer model of the error
+    estimate, the full model's JAX function) is kept in small caches outside it, keyed by
+    the model and the point. ``basis`` may be given (a model of the same basis on other
+    frequencies, :meth:`on_frequencies`).
+    """
 
     geometry: Geometry
     frequencies_hz: np.ndarray
@@ -182,28 +193,27 @@ class ForwardModel:
     discretisation: Discretisation
     theta0: np.ndarray
     kind: str
+    basis: ReducedBasis | None = None
+    mats: PlateMatrices = field(init=False, repr=False)
     _reduced: ReducedAFC = field(init=False, repr=False)
 
     def __post_init__(self):
         require_x64()
-        self.frequencies_hz = np.asarray(self.frequencies_hz, float)
-        self.theta0 = np.asarray(self.theta0, float)
-        self.mats = model_matrices(self.geometry, self.discretisation, tuple(self.param.effects))
+        set_ = functools.partial(object.__setattr__, self)
+        set_("frequencies_hz", np.asarray(self.frequencies_hz, float))
+        set_("theta0", np.asarray(self.theta0, float))
+        set_("mats", model_matrices(self.geometry, self.discretisation, tuple(self.param.effects)))
         f_max = float(self.frequencies_hz.max())
-        if self.kind == "wide":
-            many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
-            basis = cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                 snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13)
-        elif self.kind == "local":
-            basis = cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                 snapshots=False, scale_ratio=LOCAL_SCALE_RATIO)
-        else:
+        if self.kind not in ("wide", "local"):
             raise ValueError(f"unknown basis kind {self.kind!r}")
-        self.basis = basis
-        self._reduced = ReducedAFC(basis, self.param, 2 * np.pi * self.frequencies_hz)
-        self._full_jax = None
-        self._finer = None
-        self._last_check = None  # (theta, _check_points(theta))
+        if self.basis is None and self.kind == "wide":
+            many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
+            set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
+                                       snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13))
+        elif self.basis is None:
+            set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
+                                       snapshots=False, scale_ratio=LOCAL_SCALE_RATIO))
+        set_("_reduced", ReducedAFC(self.basis, self.param, 2 * np.pi * self.frequencies_hz))
 
     # -- the interface ----------------------------------------------------------------
     @property
@@ -220,18 +230,26 @@ class ForwardModel:
         """The reduced map's arrays (a pytree): models of one kernel and shape share code."""
         return self._reduced.arrays
 
+    @property
+    def embedding(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(base, index)``: this model's parameters in its kernel's structure
+        (:func:`vibid.identify.model.structure.embedding`)."""
+        return embedding(self.param, self.kernel.model)
+
     def afc(self, theta):
         """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
-        return kernel_functions(self.kernel).afc(self.arrays, _f64(theta))
+        return kernel_functions(self.kernel).afc(self.arrays, embed(self.embedding, _f64(theta)))
 
     def afc_batch(self, thetas):
         """(npop, nf) AFCs of a population of parameter vectors."""
-        return kernel_functions(self.kernel).afc_batch(self.arrays, _f64(thetas))
+        return kernel_functions(self.kernel).afc_batch(self.arrays,
+                                                       embed(self.embedding, _f64(thetas)))
 
     def modes_batch(self, thetas):
         """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
         the reduced model for a population of parameter vectors (proportional loss)."""
-        return kernel_functions(self.kernel).modes_batch(self.arrays, _f64(thetas))
+        return kernel_functions(self.kernel).modes_batch(self.arrays,
+                                                         embed(self.embedding, _f64(thetas)))
 
     def afc_full(self, theta) -> np.ndarray:
         """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""
@@ -240,9 +258,7 @@ class ForwardModel:
     @property
     def afc_full_jax(self):
         """JAX ``theta -> H`` of the full model (first derivatives exact)."""
-        if self._full_jax is None:
-            self._full_jax = make_full_afc_jax(self.mats, self.param, self.frequencies_hz)
-        return self._full_jax
+        return _full_afc_jax(self.mats, self.param, self.frequencies_hz.tobytes())
 
     def check_frequencies(self, theta) -> np.ndarray:
         """Indices of the grid frequencies used by the a-posteriori check."""
@@ -253,17 +269,10 @@ class ForwardModel:
         return np.array(sorted(idx))
 
     def _check_points(self, theta):
-        """(reduced AFC on the grid, check indices, full AFC at them). The last result is
-        kept: ``refresh`` checks at the estimate and ``reduction_error`` then asks again
-        at the same point, and each asks four sparse solves of the full model."""
-        theta = np.asarray(theta, float)
-        if self._last_check is not None and np.array_equal(self._last_check[0], theta):
-            return self._last_check[1]
-        idx = self.check_frequencies(theta)
-        Hr = np.asarray(self.afc(theta))
-        Hf = model_afc_full(self.mats, self.param, theta, self.frequencies_hz[idx])
-        self._last_check = (theta.copy(), (Hr, idx, Hf))
-        return Hr, idx, Hf
+        """(reduced AFC on the grid, check indices, full AFC at them), kept for the last
+        few (model, theta): ``refresh`` checks at the estimate and ``reduction_error`` then
+        asks again at the same point, and each asks four sparse solves of the full model."""
+        return _check_points(self, np.asarray(theta, float).tobytes())
 
     def check(self, theta) -> float:
         """Reduced-vs-full error at the check frequencies, as a fraction of max |H|."""
@@ -298,25 +307,17 @@ class ForwardModel:
         f = np.asarray(frequencies_hz, float)
         if f.size == 0 or f.max() > self.frequencies_hz.max() * (1 + 1e-12):
             raise VibidError("on_frequencies: the new frequencies must lie in the model's band")
-        new = copy.copy(self)
-        new.frequencies_hz = f
-        new._reduced = ReducedAFC(self.basis, self.param, 2 * np.pi * f)
-        new._full_jax = new._finer = new._last_check = None
-        return new
+        return replace(self, frequencies_hz=f, basis=self.basis)
 
     @timed("model error")
     def model_error_parts(self, theta) -> tuple[np.ndarray, np.ndarray]:
         """``(d, reduction)``: the signed discretisation error ``H_finer − H`` (nf,)
-        complex, with ``H_finer`` from the next finer mesh (built once, lazily), and the
-        reduction error's standard uncertainty per real and imaginary part (nf,)
+        complex, with ``H_finer`` from the next finer mesh (a local basis at ``theta``),
+        and the reduction error's standard uncertainty per real and imaginary part (nf,)
         (:meth:`reduction_error`; its sign is unknown)."""
         theta = np.asarray(theta, float)
-        if self._finer is None:
-            self._finer = ForwardModel(self.geometry, self.frequencies_hz, self.param,
-                                       self.bounds, finer_discretisation(self.discretisation),
-                                       theta, "local")
-        fine = self._finer.refresh(theta)
-        self._finer = fine
+        fine = ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds,
+                            finer_discretisation(self.discretisation), theta, "local")
         d = np.asarray(fine.afc(theta)) - np.asarray(self.afc(theta))
         return d, self.reduction_error(theta)
 
@@ -331,6 +332,24 @@ class ForwardModel:
     def natural_frequencies(self, theta, n: int = 6):
         """``(frequency_hz, decay_1_per_s)`` of the first ``n`` modes (full model)."""
         return frequencies_and_decays(model_eigenvalues(self.mats, self.param, theta, n))
+
+
+#: How many (model, theta) a-posteriori checks are kept.
+MAX_CHECKS = 8
+
+
+@functools.lru_cache(maxsize=MAX_CHECKS)
+def _check_points(model: ForwardModel, theta_bytes: bytes):
+    theta = np.frombuffer(theta_bytes, float)
+    idx = model.check_frequencies(theta)
+    Hr = np.asarray(model.afc(theta))
+    Hf = model_afc_full(model.mats, model.param, theta, model.frequencies_hz[idx])
+    return Hr, idx, Hf
+
+
+@functools.lru_cache(maxsize=4)
+def _full_afc_jax(mats, param: PlateModel, frequencies_bytes: bytes):
+    return make_full_afc_jax(mats, param, np.frombuffer(frequencies_bytes, float))
 
 
 def plate_model(model: str, per_modulus_loss: bool = False, effects=()) -> PlateModel:

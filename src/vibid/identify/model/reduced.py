@@ -323,9 +323,18 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
     return replace(basis, theta0=np.asarray(theta0, float))
 
 
-#: Reduced bases are padded to a multiple of this size, so that models rebuilt around new
-#: estimates (``ForwardModel.refresh``) mostly share one shape and one compilation.
-PAD_MULTIPLE = 16
+#: Reduced bases are padded to one of these sizes (then to multiples of the last), so that
+#: the models of a loop (rebuilt around new estimates, extended by candidates) share a few
+#: shapes and so a few compilations: 32, 64, 96, 128, then steps of 1.5.
+PAD_SIZES = (32, 64, 96, 128, 192, 256, 384, 512)
+
+
+def padded_size(n: int) -> int:
+    """The size a basis of ``n`` unknowns is padded to (:data:`PAD_SIZES`)."""
+    for m in PAD_SIZES:
+        if n <= m:
+            return m
+    return -(-n // PAD_SIZES[-1]) * PAD_SIZES[-1]
 
 
 @dataclass(frozen=True)
@@ -340,19 +349,12 @@ class ReducedKernel:
 
     model: object  # PlateModel: the structure (:mod:`vibid.identify.model.structure`)
 
-    @staticmethod
-    def _embed(a: dict, theta):
-        """The structure's parameter vector of a model's ``theta`` (its embedding arrays)."""
-        import jax.numpy as jnp
-
-        theta = jnp.asarray(theta, jnp.float64)
-        return a["theta_base"].at[a["theta_index"]].set(theta)
-
     def __call__(self, arrays: dict, theta):
+        """H (nf,) at the structure's parameter vector ``theta`` (:func:`embed`)."""
         import jax.numpy as jnp
 
         a, model = arrays, self.model
-        theta = self._embed(a, theta)
+        theta = jnp.asarray(theta, jnp.float64)
         s = model.moduli(theta, jnp)
         Mr, load = self._inertia(a, theta)
         probe, rigid = self._probe(a, theta)
@@ -411,7 +413,7 @@ class ReducedKernel:
         resonance); padding modes have zero height. Proportional loss only."""
         import jax.numpy as jnp
 
-        theta = self._embed(arrays, theta)
+        theta = jnp.asarray(theta, jnp.float64)
         beta = self.model.common_loss(theta, jnp)
         Mr, load = self._inertia(arrays, theta)
         probe, _ = self._probe(arrays, theta)
@@ -434,24 +436,23 @@ def largest_eigenvalue(K, M) -> float:
     return float(lam.max()) if lam.size else 1.0
 
 
-def padded_arrays(basis: ReducedBasis, omega, model, structure,
-                  multiple: int = PAD_MULTIPLE) -> dict:
+def padded_arrays(basis: ReducedBasis, omega, model, structure) -> dict:
     """The kernel's arrays for ``basis`` (of PlateModel ``model``) on angular frequencies
     ``omega`` (rad/s), laid out for ``structure``'s code
     (:mod:`vibid.identify.model.structure`): the terms ``model`` lacks get zero matrices,
-    loads and probes, and the embedding arrays map its parameters into the structure's.
-    The basis is padded with decoupled dummy unknowns up to a multiple of ``multiple``.
+    loads and probes. The basis is padded with decoupled dummy unknowns up to
+    :func:`padded_size`.
 
     A dummy unknown has no load and no probe (it adds exactly nothing to H), unit inertia
     and a constant stiffness far above the basis's highest eigenvalue, each a different one
     so that the eigenvalue derivatives stay finite."""
     import jax
 
-    from vibid.identify.model.structure import embedding, slots
+    from vibid.identify.model.structure import slots
 
     n = basis.size
-    n_pad = (-n) % multiple
-    m = n + n_pad
+    m = padded_size(n)
+    n_pad = m - n
 
     def laid_out(own, names_of_model, names_of_structure, shape):
         out = np.zeros((len(names_of_structure),) + shape)
@@ -475,12 +476,10 @@ def padded_arrays(basis: ReducedBasis, omega, model, structure,
         lam_max = largest_eigenvalue(np.tensordot(basis.moduli0, basis.K, axes=1),
                                      np.tensordot(basis.inertia0, basis.M, axes=1))
         pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
-    base, index = embedding(model, structure)
     # device_put, not jnp.asarray: no compiled conversion per array shape
     return jax.device_put({"K": K, "M": M, "M_pad": M_pad, "pad": pad, "load": load,
                            "probe": probe, "probe_rigid": rigid,
-                           "w2": np.asarray(omega, float) ** 2, "theta_base": base,
-                           "theta_index": index})
+                           "w2": np.asarray(omega, float) ** 2})
 
 
 @dataclass(frozen=True, eq=False)
@@ -511,7 +510,9 @@ class ReducedAFC:
                                                          structure))
 
     def __call__(self, theta):
-        return self.kernel(self.arrays, theta)
+        from vibid.identify.model.structure import embed, embedding
+
+        return self.kernel(self.arrays, embed(embedding(self.model, self.kernel.model), theta))
 
     def eigenvalues(self, theta):
         """Reduced eigenvalues ``Λ`` (rad²/s², complex), smallest first (numpy)."""

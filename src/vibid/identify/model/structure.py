@@ -77,3 +77,18 @@ def slots(names_of_model, names_of_structure) -> list[int | None]:
     model's, or None where the model lacks it."""
     where = {n: i for i, n in enumerate(names_of_model)}
     return [where.get(n) for n in names_of_structure]
+
+
+def embed(embedding_: tuple[np.ndarray, np.ndarray], theta):
+    """The structure's parameter vector(s) of a model's ``theta`` (last axis: the model's
+    parameters; numpy stays numpy, JAX arrays and tracers stay JAX)."""
+    base, index = embedding_
+    if isinstance(theta, np.ndarray) or not hasattr(theta, "at"):
+        theta = np.asarray(theta, float)
+        out = np.broadcast_to(base, theta.shape[:-1] + base.shape).copy()
+        out[..., index] = theta
+        return out
+    import jax.numpy as jnp
+
+    out = jnp.broadcast_to(jnp.asarray(base), theta.shape[:-1] + base.shape)
+    return out.at[..., index].set(theta)
