@@ -26,6 +26,7 @@ import logging
 from dataclasses import dataclass
 from typing import Callable, Protocol, runtime_checkable
 
+import jax
 import numpy as np
 
 from vibid.errors import VibidError
@@ -58,16 +59,36 @@ class ForwardModel(Protocol):
         """The model rebuilt around ``theta`` if it moved far from its expansion point."""
 
 
-def compile_problem(afc):
-    """The problem's compiled functions, each of ``(u or theta, arrays, H, sig, idx[,
-    space])`` with ``afc(arrays, theta) -> H`` on the model's frequencies, ``idx`` the
-    fitted points among them and ``space`` the :meth:`ParameterSpace.coefficients`:
-    everything a problem holds is an argument, so one compilation serves every problem of
-    the same shapes. Three functions, each compiled once per shape:
+#: A problem's parameter vector is padded to one of these lengths (then to multiples of the
+#: last) inside the compiled functions: problems of 1-4 parameters share one compilation,
+#: 5-8 another, and a Hessian costs what the padded length costs, not the structure's.
+PARAMETER_SIZES = (4, 8)
 
-    * ``residuals_and_jacobian(theta, ...)``: the weighted residuals and their Jacobian in
-      the physical parameters (forward mode: a few parameters, many residuals), from which
-      chi2, its gradient in ``u`` and the Fisher information follow in numpy;
+
+def padded_count(p: int) -> int:
+    """The length a problem's ``p`` parameters are padded to (:data:`PARAMETER_SIZES`)."""
+    for n in PARAMETER_SIZES:
+        if p <= n:
+            return n
+    return -(-p // PARAMETER_SIZES[-1]) * PARAMETER_SIZES[-1]
+
+
+def compile_problem(afc):
+    """The problem's compiled functions, each of ``(u or theta, arrays, H, sig, idx, place[,
+    space])`` with ``afc(arrays, theta_s) -> H`` on the model's frequencies at its
+    structure's parameter vector ``theta_s``, ``idx`` the fitted points among the
+    frequencies, ``place`` where the problem's (padded) parameters go in ``theta_s``
+    (``base`` (p_s + 1,): ``theta_s`` with a spare last slot, ``index`` (p_pad,): each
+    parameter's slot, the padding's the spare one) and ``space`` the
+    :meth:`ParameterSpace.coefficients` of the padded vector. Everything a problem holds is
+    an argument, so one compilation serves every problem of the same shapes: the declared
+    fit and every candidate of the loop with as many parameters after padding
+    (:func:`padded_count`), on a basis of the same size. Three functions:
+
+    * ``jacobian_and_residuals(theta, ...)``: the weighted residuals' Jacobian in the
+      physical parameters (forward mode: a few parameters, many residuals) and the
+      residuals, from which chi2, its gradient in ``u`` and the Fisher information follow in
+      numpy;
     * ``hessian(u, ...)``: the exact Hessian of chi2 in ``u`` (trust-region Newton);
     * ``chi2_batch(U, ...)``: chi2 of a population (global search).
     """
@@ -76,20 +97,23 @@ def compile_problem(afc):
 
     from vibid.identify.fit.space import from_u_coefficients
 
-    def residuals_theta(theta, arrays, H, sig, idx):
-        r = (afc(arrays, theta)[idx] - H) / sig
+    def placed(place, theta):
+        return place["base"].at[place["index"]].set(theta)[:-1]
+
+    def residuals_theta(theta, arrays, H, sig, idx, place):
+        r = (afc(arrays, placed(place, theta))[idx] - H) / sig
         return jnp.concatenate([r.real, r.imag])
 
-    def with_residuals(theta, arrays, H, sig, idx):
-        r = residuals_theta(theta, arrays, H, sig, idx)
+    def with_residuals(theta, arrays, H, sig, idx, place):
+        r = residuals_theta(theta, arrays, H, sig, idx, place)
         return r, r
 
-    def chi2_u(u, arrays, H, sig, idx, space):
-        r = residuals_theta(from_u_coefficients(space, u), arrays, H, sig, idx)
+    def chi2_u(u, arrays, H, sig, idx, place, space):
+        r = residuals_theta(from_u_coefficients(space, u), arrays, H, sig, idx, place)
         return jnp.sum(r * r)
 
-    def chi2_batch(U, arrays, H, sig, idx, space):
-        thetas = from_u_coefficients(space, U)
+    def chi2_batch(U, arrays, H, sig, idx, place, space):
+        thetas = jax.vmap(placed, in_axes=(None, 0))(place, from_u_coefficients(space, U))
         A = jax.vmap(afc, in_axes=(None, 0))(arrays, thetas)[:, idx]
         r = (A - H[None, :]) / sig[None, :]
         c = jnp.sum(r.real**2 + r.imag**2, axis=1)
@@ -213,10 +237,14 @@ class LeastSquaresProblem:
         self.n_params = space.size
         self.sigma = data_sigma(data) if sigma is None else np.asarray(sigma, float).copy()
         self.sigma.setflags(write=False)
-        self._fn, self._arrays, (self._base, self._index) = _functions(model)
+        self._fn, self._arrays, (base, index) = _functions(model)
         self._H = np.asarray(data.H[data.used], complex)
         self._idx = np.asarray(self._model_idx, np.int64)
-        self._space = space.coefficients(self._base, self._index)
+        self._p_pad = padded_count(self.n_params)
+        spare = np.full(self._p_pad - self.n_params, base.size)  # the padding's slot
+        self._place = jax.device_put({"base": np.append(np.asarray(base, float), 0.0),
+                                      "index": np.concatenate([index, spare]).astype(np.int64)})
+        self._space = space.coefficients(self._p_pad)
 
     # -- other weights, data or model: new problems ---------------------------------------
     def with_sigma(self, sigma) -> "LeastSquaresProblem":
@@ -248,19 +276,17 @@ class LeastSquaresProblem:
 
     # -- public evaluations (numpy in, numpy out) ---------------------------------------
     def _args(self):
-        return self._arrays, self._H, self.sigma, self._idx
+        return self._arrays, self._H, self.sigma, self._idx, self._place
 
-    def _whole(self, x, base):
-        """The structure's vector(s) of this problem's ``x`` (last axis: its parameters),
-        the others at ``base``."""
+    def _padded(self, x):
+        """``x`` (last axis: the parameters) padded with zeros to the compiled length."""
         x = np.asarray(x, float)
-        out = np.broadcast_to(base, x.shape[:-1] + base.shape).copy()
-        out[..., self._index] = x
-        return out
+        pad = [(0, 0)] * (x.ndim - 1) + [(0, self._p_pad - self.n_params)]
+        return np.pad(x, pad)
 
     def _jacobian_and_residuals(self, theta) -> tuple[np.ndarray, np.ndarray]:
-        J, r = self._fn.jacobian_and_residuals(self._whole(theta, self._base), *self._args())
-        return np.asarray(J)[:, self._index], np.asarray(r)
+        J, r = self._fn.jacobian_and_residuals(self._padded(theta), *self._args())
+        return np.asarray(J)[:, :self.n_params], np.asarray(r)
 
     def _residuals_and_jacobian_u(self, u) -> tuple[np.ndarray, np.ndarray]:
         u = np.asarray(u, float)
@@ -295,14 +321,12 @@ class LeastSquaresProblem:
         return float(r @ r), 2.0 * (J.T @ r)
 
     def hessian(self, u) -> np.ndarray:
-        zero = np.zeros_like(self._base)  # the other parameters sit at u = 0 (their base)
-        B = self._fn.hessian(self._whole(u, zero), *self._args(), self._space)
-        return np.asarray(B)[np.ix_(self._index, self._index)]
+        B = self._fn.hessian(self._padded(u), *self._args(), self._space)
+        return np.asarray(B)[:self.n_params, :self.n_params]
 
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
-        U = self._whole(U, np.zeros_like(self._base))
-        return np.asarray(self._fn.chi2_batch(U, *self._args(), self._space))
+        return np.asarray(self._fn.chi2_batch(self._padded(U), *self._args(), self._space))
 
     def on_points(self, model_values) -> np.ndarray:
         """The fitted points' entries of an array over the model's frequencies."""

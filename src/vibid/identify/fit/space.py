@@ -191,19 +191,15 @@ class ParameterSpace:
         u = xp.asarray(u)
         return xp.stack([t.from_u(u[..., i]) for i, t in enumerate(self.transforms)], axis=-1)
 
-    def coefficients(self, base=None, index=None) -> dict:
+    def coefficients(self, length: int | None = None) -> dict:
         """The transforms as arrays (kind flags, normalisation, logit interval), for
         :func:`from_u_coefficients`: compiled code that takes them as arguments serves every
-        space of the same size, whatever its names and boxes. With ``base`` (p_s,) and
-        ``index`` (p,), laid out over a longer vector whose other entries are fixed: each a
-        linear coordinate whose ``u = 0`` is its ``base`` value."""
-        p = self.size
-        base = np.zeros(p) if base is None else np.asarray(base, float)
-        index = np.arange(p) if index is None else np.asarray(index, int)
-        out = {"log": np.zeros(base.size, bool), "logit": np.zeros(base.size, bool),
-               "centre": base.copy(), "half_width": np.ones(base.size),
-               "a": np.zeros(base.size), "b": np.ones(base.size)}
-        for i, t in zip(index, self.transforms):
+        space of the same size, whatever its names and boxes. With ``length``, padded to
+        that many entries (identity maps: ``u = 0`` is 0)."""
+        n = self.size if length is None else int(length)
+        out = {"log": np.zeros(n, bool), "logit": np.zeros(n, bool), "centre": np.zeros(n),
+               "half_width": np.ones(n), "a": np.zeros(n), "b": np.ones(n)}
+        for i, t in enumerate(self.transforms):
             out["log"][i], out["logit"][i] = t.kind == "log", t.kind == "logit"
             out["centre"][i], out["half_width"][i] = t.centre, t.half_width
             if t.kind == "logit":
