@@ -1,11 +1,13 @@
 """The one cache of compiled functions: bounded, keyed by what the code depends on.
 
-A reduced model splits into a hashable kernel (its terms: the code) and arrays (its
-matrices), :class:`~vibid.identify.model.reduced.ReducedKernel`. Every model of one
-kernel (a model rebuilt around a new estimate, another restart's local model) shares the
-compiled functions built here, passing its own arrays. The caches are LRUs of a few
-entries: a long-running worker that replays hundreds of sessions keeps only the code of
-the last few model structures, and an evicted entry frees its compiled code.
+A reduced model splits into a hashable kernel (the code of its structure: its material with
+every effect of the library, :mod:`vibid.identify.model.structure`) and arrays (its
+projected matrices), :class:`~vibid.identify.model.reduced.ReducedKernel`. Every model of
+one structure (the declared model, each candidate of the loop, a model rebuilt around a new
+estimate, another restart's, another session's) shares the compiled functions built here,
+passing its own arrays; JAX compiles each once per array shape. The caches are LRUs of a
+few entries: a long-running worker that replays hundreds of sessions keeps only the code of
+the last few structures, and an evicted entry frees its compiled code.
 """
 
 from __future__ import annotations

@@ -1,0 +1,100 @@
+"""Compiled code shared across models: one structure per material, one compilation per shape.
+
+The closed loop tries one extended model per candidate; compiled per model, most of its
+minutes were compilation. These tests pin the sharing itself (counted with JAX's own
+compilation events, not timed) and the pieces that make it exact.
+"""
+
+import numpy as np
+import pytest
+
+from vibid.identify.fit.data import fit_data
+from vibid.identify.fit.problem import LeastSquaresProblem, padded_count
+from vibid.identify.fit.space import ParameterSpace, from_u_coefficients
+from vibid.identify.model.forward import build_forward_model
+from vibid.identify.model.structure import embed, embedding, structure_of
+from vibid.identify.profile import recording
+from vibid.setup_model import example_setup
+
+TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
+FREQS = np.linspace(7.5, 1500.0, 120)
+
+
+def _problem(effects=(), extra=None):
+    setup = example_setup()
+    values = TRUTH | (extra or {})
+    fm = build_forward_model(setup, FREQS, effects=effects, theta0=values)
+    box = fm.param.default_bounds(dict(setup.identification.bounds))
+    space = ParameterSpace.from_bounds(fm.parameter_names, box,
+                                       {q.name: q.kind for q in fm.param.parameters})
+    theta = np.array([values[n] for n in fm.parameter_names])
+    H = np.asarray(fm.afc(theta))
+    rng = np.random.default_rng(0)
+    noisy = H + 1e-3 * (rng.standard_normal(H.size) + 1j * rng.standard_normal(H.size))
+    problem = LeastSquaresProblem(fm, fit_data(FREQS, noisy, np.full(FREQS.size, 1e-3)), space)
+    return problem, theta
+
+
+def _exercise(problem, theta):
+    u = problem.space.to_u(theta)
+    problem.jacobian_theta(theta)
+    problem.value_and_grad(u)
+    problem.hessian(u)
+    problem.chi2_batch(np.stack([u, u]))
+
+
+def test_candidates_of_one_size_compile_nothing_new():
+    declared, theta = _problem()
+    _exercise(declared, theta)  # compiles (or loads) the structure's functions
+    for effects, extra in ((("channel_delay",), {"tau_s": 0.0}),
+                           (("added_mass",), {"mass_kg": 1e-4}),
+                           (("frequency_dependent_loss",), {"alpha": 0.0})):
+        candidate, th = _problem(effects, extra)
+        assert candidate.model.kernel == declared.model.kernel  # one structure
+        assert candidate.model.arrays["K"].shape == declared.model.arrays["K"].shape
+        with recording() as prof:
+            _exercise(candidate, th)
+        assert prof.compilations == 0, effects
+
+
+@pytest.mark.parametrize("effects, extra", [((), {}),
+                                            (("clamp_compliance",), {"k_theta_N_per_rad": 2e4}),
+                                            (("sensor_position",), {"sensor_dy_m": 2e-3})])
+def test_structure_code_equals_the_models_own(effects, extra):
+    """A model run through its structure's code (every other effect of the library present,
+    zeroed) gives the AFC of the model's own code, to rounding."""
+    import jax
+
+    from vibid.identify.model.reduced import ReducedKernel, padded_arrays
+
+    problem, theta = _problem(effects, extra)
+    fm = problem.model
+    assert fm.kernel.model != fm.param  # the structure has more terms
+    own = ReducedKernel(fm.param)(padded_arrays(fm.basis, 2 * np.pi * FREQS, fm.param, fm.param),
+                                  jax.numpy.asarray(theta))
+    np.testing.assert_allclose(np.asarray(fm.afc(theta)), np.asarray(own), rtol=1e-12, atol=0)
+
+
+def test_embedding_places_parameters_and_nulls():
+    declared, _ = _problem(("clamp_compliance",), {"k_theta_N_per_rad": 2e4})
+    model = declared.model.param
+    structure = structure_of(model)
+    base, index = embedding(model, structure)
+    full = embed((base, index), np.array([1.0, 0.2, 0.01, 2e4]))
+    values = dict(zip(structure.names, full))
+    assert values["D"] == 1.0 and values["k_theta_N_per_rad"] == 2e4
+    assert values["tau_s"] == 0.0 and values["gain"] == 1.0 and values["mass_kg"] == 0.0
+
+
+@pytest.mark.parametrize("p, padded", [(1, 4), (3, 4), (4, 4), (5, 8), (8, 8), (9, 16)])
+def test_parameter_padding(p, padded):
+    assert padded_count(p) == padded
+
+
+def test_space_coefficients_map_like_the_space():
+    space = ParameterSpace.from_bounds(("D", "nu", "tau_s"), {
+        "D": (1.0, 100.0), "nu": (0.0, 0.5), "tau_s": (-1e-4, 1e-4)})
+    u = np.array([[0.3, -0.7, 0.5], [-2.0, 3.0, -1.0]])
+    got = np.asarray(from_u_coefficients(space.coefficients(5), np.pad(u, [(0, 0), (0, 2)])))
+    np.testing.assert_allclose(got[:, :3], space.from_u(u), rtol=1e-14)
+    np.testing.assert_array_equal(got[:, 3:], 0.0)  # the padding's identity maps at u = 0
