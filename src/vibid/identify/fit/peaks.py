@@ -20,7 +20,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import jax.numpy as jnp
 import numpy as np
 
 #: A peak must rise this many times above the AFC's median magnitude (and, with a known
@@ -81,15 +80,19 @@ def _visible(f_model_hz, height_model, peaks: Peaks):
 
 def peak_score(f_model_hz, height_model, peaks: Peaks):
     """The score of the module docstring for a population: (S, n) model frequencies and
-    peak heights -> (S,) scores (JAX or numpy arrays)."""
-    F = jnp.asarray(peaks.frequency_hz)
-    fm = jnp.maximum(jnp.asarray(f_model_hz), 1e-12)
-    d2 = (jnp.log(fm)[:, :, None] - jnp.log(F)[None, None, :]) ** 2  # (S, n, m)
-    explained = jnp.min(d2, axis=1).sum(axis=1)
-    visible = _visible(fm, jnp.asarray(height_model), peaks)
-    spurious = jnp.where(visible, jnp.min(d2, axis=2), 0.0).sum(axis=1)
-    score = explained + spurious
-    return jnp.where(jnp.isfinite(score), score, jnp.inf)
+    peak heights -> (S,) scores, in numpy. (Not in JAX: a population's modes come from one
+    large batched eigendecomposition, and twice on two cores, with this score's small JAX
+    operations dispatched behind it, every thread of the process was found waiting for
+    good inside XLA's CPU runtime: the orthotropic plate's declared fit and a test's.)"""
+    F = np.asarray(peaks.frequency_hz, float)
+    fm = np.maximum(np.asarray(f_model_hz, float), 1e-12)
+    with np.errstate(invalid="ignore"):
+        d2 = (np.log(fm)[:, :, None] - np.log(F)[None, None, :]) ** 2  # (S, n, m)
+        explained = np.min(d2, axis=1).sum(axis=1)
+        visible = _visible(fm, np.asarray(height_model, float), peaks)
+        spurious = np.where(visible, np.min(d2, axis=2), 0.0).sum(axis=1)
+        score = explained + spurious
+    return np.where(np.isfinite(score), score, np.inf)
 
 
 def peaks_matched(f_model_hz, height_model, peaks: Peaks) -> bool:

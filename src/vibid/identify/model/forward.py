@@ -247,9 +247,12 @@ class ForwardModel:
 
     def modes_batch(self, thetas):
         """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
-        the reduced model for a population of parameter vectors (proportional loss)."""
-        return kernel_functions(self.kernel).modes_batch(self.arrays,
-                                                         embed(self.embedding, _f64(thetas)))
+        the reduced model for a population of parameter vectors (proportional loss), as
+        numpy arrays: the batched eigendecomposition has finished when this returns (see
+        :func:`vibid.identify.fit.peaks.peak_score`)."""
+        f_hz, height = kernel_functions(self.kernel).modes_batch(
+            self.arrays, embed(self.embedding, _f64(thetas)))
+        return np.asarray(f_hz), np.asarray(height)
 
     def afc_full(self, theta) -> np.ndarray:
         """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""
