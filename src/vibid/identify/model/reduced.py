@@ -10,7 +10,7 @@ model's terms, :class:`~vibid.identify.model.terms.PlateModel`):
   carries the truncated modes' share) and its Krylov successors, and the same for each probe;
 * parameter-sensitivity vectors ``K0⁻¹ (∂K/∂θ_j) φ`` (and ``K0⁻¹ (∂M/∂θ_j) φ``) for every
   parameter that moves a stiffness or inertia coefficient, which span the first-order
-  changes of the mode shapes (of the lowest :data:`SENSITIVITY_MODES`);
+  changes of the mode shapes;
 * with ``snapshots``, the same at the faces of the prior box for every parameter that
   changes the mode shapes (not a pure scale of the stiffness).
 
@@ -191,15 +191,9 @@ def _orthonormal(V, E, tol):
     return V
 
 
-#: Parameter sensitivities are taken of at most this many of the lowest modes: all of a
-#: strip's (the paper's has 9 to 15 in its bases), the lowest of a plate's (which has some 40
-#: below the cut-off: sensitivities of every one made its bases of several hundred unknowns).
-SENSITIVITY_MODES = 24
-
-
 @timed("reduced bases")
 def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
-                max_modes: int = 160, min_modes: int = 6, krylov: int = 2,
+                max_modes: int = 40, min_modes: int = 6, krylov: int = 2,
                 snapshots: bool = True, tol: float = 1e-13,
                 scale_ratio: float | None = None) -> ReducedBasis:
     """Build the reduced basis around ``theta0`` (see the module docstring).
@@ -212,8 +206,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
     bounds : dict name -> (lo, hi), the prior box the basis must cover.
     f_max_hz : highest frequency of the AFC.
     margin : modes are kept up to ``margin * f_max * sqrt(stiffness ratio)``.
-    max_modes, min_modes : limits on the number of modes per snapshot (a plate of
-        150 x 100 mm has some 40 modes below four times a band of 800 Hz).
+    max_modes, min_modes : limits on the number of modes per snapshot.
     krylov : number of static-correction vectors ``(K⁻¹M)^k K⁻¹ M 1`` (and the same for
         the probe, the adjoint load), k = 0 .. krylov - 1.
     snapshots : also take modes at :func:`snapshot_points` (the box's faces).
@@ -255,16 +248,13 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         S = np.column_stack(statics)
         cols += [Phi, S]
         Js, Jm = _coefficient_jacobians(model, th)
-        # the first-order change of the lowest modes' shapes (those of the band and some
-        # above: a plate's many higher modes contribute through the statics)
-        Phi_s = Phi[:, :SENSITIVITY_MODES]
         for i in moving:
             if np.any(Js[:, i] != 0):
                 Kd = mats.stiffness_matrix(dict(zip(names, Js[:, i])))
-                cols.append(lu.solve(np.column_stack([Kd @ Phi_s, Kd @ S[:, :1]])))
+                cols.append(lu.solve(np.column_stack([Kd @ Phi, Kd @ S[:, :1]])))
             if np.any(Jm[:, i] != 0):
                 Md = mats.inertia_matrix(dict(zip(inertia_names, Jm[:, i])))
-                cols.append(lu.solve(np.column_stack([Md @ Phi_s, Md @ S[:, :1]])))
+                cols.append(lu.solve(np.column_stack([Md @ Phi, Md @ S[:, :1]])))
     V = np.column_stack(cols)
     n_candidates = V.shape[1]
     s0, m0 = _coefficients(model, theta0)
@@ -335,9 +325,8 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
 
 #: Reduced bases are padded to one of these sizes (then to multiples of the last), so that
 #: the models of a loop (rebuilt around new estimates, extended by candidates) share a few
-#: shapes and so a few compilations; above 128 the steps are finer, as an evaluation's
-#: eigendecomposition (cubic in the size) then costs more than a compilation saves.
-PAD_SIZES = (32, 64, 96, 128, 160, 192, 256, 320, 384, 512)
+#: shapes and so a few compilations: 32, 64, 96, 128, then steps of 1.5.
+PAD_SIZES = (32, 64, 96, 128, 192, 256, 384, 512)
 
 
 def padded_size(n: int) -> int:
