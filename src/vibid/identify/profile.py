@@ -33,17 +33,9 @@ _LOWER_EVENT = "/jax/core/compile/jaxpr_to_mlir_module_duration"
 _COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 _CACHE_HIT_EVENT = "/jax/compilation_cache/cache_hits"
 
-class _Active:
-    """The recording in progress (one per process: a Prefect task's worker thread and JAX's
-    compilation callbacks must reach it too)."""
-
-    profile: "Profile | None" = None
-
-    def get(self):
-        return self.profile
-
-
-_active = _Active()
+#: The recording in progress: one per process, not per thread or context (a Prefect task's
+#: worker thread and JAX's compilation callbacks must reach it too).
+_active: "Profile | None" = None
 _listening = False
 
 
@@ -89,7 +81,7 @@ class Profile:
 
 
 def _on_duration(event: str, duration: float, **_) -> None:
-    prof = _active.get()
+    prof = _active
     if prof is None:
         return
     if event == _COMPILE_EVENT:
@@ -99,7 +91,7 @@ def _on_duration(event: str, duration: float, **_) -> None:
 
 
 def _on_event(event: str, **_) -> None:
-    prof = _active.get()
+    prof = _active
     if prof is not None and event == _CACHE_HIT_EVENT:
         prof.cache_hits += 1
 
@@ -118,19 +110,20 @@ def _listen() -> None:
 def recording():
     """Record a :class:`Profile` of everything this process runs inside (any thread)."""
     _listen()
-    prof, outer = Profile(), _active.profile
-    _active.profile = prof
+    global _active
+    prof, outer = Profile(), _active
+    _active = prof
     try:
         yield prof
     finally:
         prof.wall_seconds = time.perf_counter() - prof.started
-        _active.profile = outer
+        _active = outer
 
 
 @contextlib.contextmanager
 def section(name: str):
     """Count the time inside as ``name`` in the active recording (if any)."""
-    prof = _active.get()
+    prof = _active
     if prof is None or name in prof.open:  # a section inside itself counts once
         yield
         return

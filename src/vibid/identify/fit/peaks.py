@@ -80,10 +80,7 @@ def _visible(f_model_hz, height_model, peaks: Peaks):
 
 def peak_score(f_model_hz, height_model, peaks: Peaks):
     """The score of the module docstring for a population: (S, n) model frequencies and
-    peak heights -> (S,) scores, in numpy. (Not in JAX: a population's modes come from one
-    large batched eigendecomposition, and twice on two cores, with this score's small JAX
-    operations dispatched behind it, every thread of the process was found waiting for
-    good inside XLA's CPU runtime: the orthotropic plate's declared fit and a test's.)"""
+    peak heights -> (S,) scores, in numpy (the modes arrive as numpy arrays)."""
     F = np.asarray(peaks.frequency_hz, float)
     fm = np.maximum(np.asarray(f_model_hz, float), 1e-12)
     with np.errstate(invalid="ignore"):

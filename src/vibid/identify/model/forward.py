@@ -196,6 +196,9 @@ class ForwardModel:
     basis: ReducedBasis | None = None
     mats: PlateMatrices = field(init=False, repr=False)
     _reduced: ReducedAFC = field(init=False, repr=False)
+    #: ``(base, index)``: this model's parameters in its kernel's structure
+    #: (:func:`vibid.identify.model.structure.embedding`), made once: every evaluation uses it
+    embedding: tuple = field(init=False, repr=False)
 
     def __post_init__(self):
         require_x64()
@@ -214,6 +217,7 @@ class ForwardModel:
             set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
                                        snapshots=False, scale_ratio=LOCAL_SCALE_RATIO))
         set_("_reduced", ReducedAFC(self.basis, self.param, 2 * np.pi * self.frequencies_hz))
+        set_("embedding", embedding(self.param, self._reduced.kernel.model))
 
     # -- the interface ----------------------------------------------------------------
     @property
@@ -230,11 +234,6 @@ class ForwardModel:
         """The reduced map's arrays (a pytree): models of one kernel and shape share code."""
         return self._reduced.arrays
 
-    @property
-    def embedding(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(base, index)``: this model's parameters in its kernel's structure
-        (:func:`vibid.identify.model.structure.embedding`)."""
-        return embedding(self.param, self.kernel.model)
 
     def afc(self, theta):
         """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
@@ -248,8 +247,7 @@ class ForwardModel:
     def modes_batch(self, thetas):
         """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
         the reduced model for a population of parameter vectors (proportional loss), as
-        numpy arrays: the batched eigendecomposition has finished when this returns (see
-        :func:`vibid.identify.fit.peaks.peak_score`)."""
+        numpy arrays."""
         f_hz, height = kernel_functions(self.kernel).modes_batch(
             self.arrays, embed(self.embedding, _f64(thetas)))
         return np.asarray(f_hz), np.asarray(height)
