@@ -6,6 +6,10 @@ step: the other parameters are fitted with beta held at a decreasing ladder of v
 fit's beta lies above the rung; the lowest chi2 of all free fits wins. The local method is
 the paper's trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Marquardt,
 :mod:`~vibid.identify.fit.trust_region`).
+
+A long AFC (thousands of FFT bins) is fitted on its compressed problem
+(:mod:`~vibid.identify.fit.compress`: a few nodes per band, the same minimum to a bounded
+fraction of a standard deviation), and each run's end point is confirmed on every point.
 """
 
 from __future__ import annotations
@@ -13,9 +17,11 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
+from vibid.identify.fit.compress import compressed, confirmed
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import LocalResult
 from vibid.identify.fit.space import ParameterSpace
@@ -23,8 +29,8 @@ from vibid.identify.fit.trust_region import gauss_newton, trust_region
 
 log = logging.getLogger(__name__)
 
-#: Local methods by name.
-LOCAL_METHODS: dict[str, Callable[..., LocalResult]] = {
+#: The local methods by name, each on the problem as given.
+_METHODS: dict[str, Callable[..., LocalResult]] = {
     "newton": lambda problem, u0, max_iter=200: trust_region(problem, u0, hessian="exact",
                                                              max_iter=max_iter),
     "bfgs": lambda problem, u0, max_iter=200: trust_region(problem, u0, hessian="bfgs",
@@ -32,6 +38,49 @@ LOCAL_METHODS: dict[str, Callable[..., LocalResult]] = {
     "lm": lambda problem, u0, max_iter=200: gauss_newton(problem, u0,
                                                          max_evaluations=2 * max_iter),
 }
+#: Rebuilds of the compressed problem around an end point the full data do not confirm
+#: (then the run is finished on the full problem).
+REBUILDS = 2
+
+
+def confirmed_run(method, problem: LeastSquaresProblem, short: LeastSquaresProblem, u0,
+                  max_iter: int = 200) -> LocalResult:
+    """``method`` on the compressed ``short`` from ``u0``, its end point confirmed on the
+    full ``problem`` (else the compression rebuilt there and the run resumed, at most
+    :data:`REBUILDS` times, then finished on ``problem``); the loss is the full chi2."""
+    r = method(short, u0, max_iter)
+    for _ in range(REBUILDS + 1):
+        if not np.all(np.isfinite(r.u)) or confirmed(problem, short, r.u):
+            return replace(r, loss=problem.chi2(r.u))
+        log.debug("the full data do not confirm the compressed fit: compressed again there")
+        short = compressed(problem, r.u)
+        r = method(short, r.u, max_iter)
+    return method(problem, r.u, max_iter)
+
+
+def _on_compressed(method: Callable[..., LocalResult]) -> Callable[..., LocalResult]:
+    """``method`` run on the problem compressed around its start when the AFC is long
+    (:func:`confirmed_run`; a continuation's rung with parameters held is not confirmed:
+    its loss is the full chi2 at its end)."""
+
+    def run(problem, u0, max_iter=200):
+        if isinstance(problem, HeldProblem):
+            short = compressed(problem.problem, problem.space.full(u0))
+            if short is problem.problem:
+                return method(problem, u0, max_iter)
+            r = method(problem.on(short), u0, max_iter)
+            return replace(r, loss=problem.chi2(r.u))
+        short = compressed(problem, u0)
+        if short is problem:
+            return method(problem, u0, max_iter)
+        return confirmed_run(method, problem, short, u0, max_iter)
+
+    return run
+
+
+#: Local methods by name (compressing a long AFC).
+LOCAL_METHODS: dict[str, Callable[..., LocalResult]] = {
+    name: _on_compressed(method) for name, method in _METHODS.items()}
 #: Iteration limit of each rung of the continuation (the winner is then run to the end).
 RUNG_MAX_ITER = 30
 
@@ -67,6 +116,10 @@ class HeldProblem:
         self.space = _HeldSpace(problem.space, self.free, np.asarray(u_base, float).copy())
         self.n_points = problem.n_points
 
+    def on(self, problem) -> "HeldProblem":
+        """The same coordinates held, on another problem (the compressed one)."""
+        return HeldProblem(problem, self.free, self.space.full(np.zeros(self.free.size)))
+
     def value_and_grad(self, u_free):
         f, g = self.problem.value_and_grad(self.space.full(u_free))
         return f, g[self.free]
@@ -90,13 +143,15 @@ def polish_by_continuation(problem: LeastSquaresProblem, u_start, local: str = "
     """Local fits from ``u_start`` with the loss factor released step by step.
 
     Returns every free fit, best (lowest chi2) first. Without a loss-factor parameter, one
-    local run from ``u_start``.
+    local run from ``u_start``. The rungs of a long AFC run on one compressed problem
+    (built at ``u_start``), the best then confirmed on the full data.
     """
-    run = LOCAL_METHODS[local]
-    space = problem.space
     u = np.asarray(u_start, dtype=float).copy()
+    space = problem.space
     if SMOOTHING_PARAMETER not in space.names:
-        return [run(problem, u)]
+        return [LOCAL_METHODS[local](problem, u)]
+    method = _METHODS[local]
+    short = compressed(problem, u)
     ib = space.names.index(SMOOTHING_PARAMETER)
     t = space.transforms[ib]
     beta = float(space.theta(u)[ib])
@@ -111,18 +166,20 @@ def polish_by_continuation(problem: LeastSquaresProblem, u_start, local: str = "
     results: list[LocalResult] = []
     for b in ladder:
         u[ib] = float(t.to_u(b))
-        held = HeldProblem(problem, free, u)
-        r_held = run(held, u[free], RUNG_MAX_ITER)
+        held = HeldProblem(short, free, u)
+        r_held = method(held, u[free], RUNG_MAX_ITER)
         u = held.space.full(r_held.u)
-        r_free = run(problem, u, RUNG_MAX_ITER)
+        r_free = method(short, u, RUNG_MAX_ITER)
         results.append(r_free)
         log.debug("continuation beta=%.3g: held chi2 %.6g, free chi2 %.6g beta %.3g",
                   b, r_held.loss, r_free.loss, r_free.theta[ib])
         if r_free.theta[ib] >= b * math.sqrt(LADDER_RATIO):
             break  # the free fit's loss factor lies above the rung: lower rungs are useless
+    if short is not problem:  # the full chi2 of each; the best confirmed on the full data
+        results = [replace(r, loss=problem.chi2(r.u)) for r in results]
     results.sort(key=lambda r: (not np.isfinite(r.loss), r.loss))
-    if not results[0].converged:  # finish the best rung's free fit
-        results.insert(0, run(problem, results[0].u))
+    if short is not problem:
+        results[0] = confirmed_run(method, problem, short, results[0].u)
+    elif not results[0].converged:  # finish the best rung's free fit
+        results.insert(0, method(problem, results[0].u))
     return results
-
-

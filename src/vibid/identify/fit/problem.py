@@ -221,10 +221,12 @@ class LeastSquaresProblem:
 
     Immutable once built: all methods take and return numpy arrays; the compiled functions
     are shared by every problem of the same model structure, points and parameter space.
+    ``chi2_offset``: a constant added to chi2, the part of a long AFC's chi2 that its
+    compressed problem (:mod:`~vibid.identify.fit.compress`) leaves out of the residuals.
     """
 
     def __init__(self, model: ForwardModel, data: FitData, space: ParameterSpace,
-                 sigma: np.ndarray | None = None):
+                 sigma: np.ndarray | None = None, chi2_offset: float = 0.0):
         require_x64()
         if tuple(model.parameter_names) != space.names:
             raise VibidError(
@@ -237,6 +239,7 @@ class LeastSquaresProblem:
         self.n_params = space.size
         self.sigma = data_sigma(data) if sigma is None else np.asarray(sigma, float).copy()
         self.sigma.setflags(write=False)
+        self.chi2_offset = float(chi2_offset)
         self._fn, self._arrays, (base, index) = _functions(model)
         self._H = np.asarray(data.H[data.used], complex)
         self._idx = np.asarray(self._model_idx, np.int64)
@@ -259,8 +262,8 @@ class LeastSquaresProblem:
 
     def with_model(self, model: ForwardModel) -> "LeastSquaresProblem":
         """The same data and weights on another model (one rebuilt around an estimate)."""
-        return self if model is self.model else LeastSquaresProblem(model, self.data,
-                                                                    self.space, self.sigma)
+        return self if model is self.model else LeastSquaresProblem(
+            model, self.data, self.space, self.sigma, self.chi2_offset)
 
     def with_data(self, H, std=None) -> "LeastSquaresProblem":
         """The same problem (same compiled functions) on other measured values, same points."""
@@ -284,13 +287,14 @@ class LeastSquaresProblem:
         pad = [(0, 0)] * (x.ndim - 1) + [(0, self._p_pad - self.n_params)]
         return np.pad(x, pad)
 
-    def _jacobian_and_residuals(self, theta) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian_and_residuals_theta(self, theta) -> tuple[np.ndarray, np.ndarray]:
+        """d residuals / d theta and the residuals at physical ``theta``, in one call."""
         J, r = self._fn.jacobian_and_residuals(self._padded(theta), *self._args())
         return np.asarray(J)[:, :self.n_params], np.asarray(r)
 
     def _residuals_and_jacobian_u(self, u) -> tuple[np.ndarray, np.ndarray]:
         u = np.asarray(u, float)
-        J, r = self._jacobian_and_residuals(self.space.theta(u))
+        J, r = self.jacobian_and_residuals_theta(self.space.theta(u))
         return r, J * self.space.dtheta_du(u)[None, :]
 
     def residuals(self, u) -> np.ndarray:
@@ -308,17 +312,17 @@ class LeastSquaresProblem:
 
     def jacobian_theta(self, theta) -> np.ndarray:
         """d residuals / d theta (physical units), for the Fisher information."""
-        return self._jacobian_and_residuals(theta)[0]
+        return self.jacobian_and_residuals_theta(theta)[0]
 
     def chi2(self, u) -> float:
         r = self.residuals(u)
-        v = float(r @ r)
+        v = float(r @ r) + self.chi2_offset
         return v if np.isfinite(v) else np.inf
 
     def value_and_grad(self, u) -> tuple[float, np.ndarray]:
         """chi2 and its gradient in ``u`` (``2 Jᵀ r``: exact, from the forward Jacobian)."""
         r, J = self._residuals_and_jacobian_u(u)
-        return float(r @ r), 2.0 * (J.T @ r)
+        return float(r @ r) + self.chi2_offset, 2.0 * (J.T @ r)
 
     def hessian(self, u) -> np.ndarray:
         B = self._fn.hessian(self._padded(u), *self._args(), self._space)
@@ -326,7 +330,8 @@ class LeastSquaresProblem:
 
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
-        return np.asarray(self._fn.chi2_batch(self._padded(U), *self._args(), self._space))
+        c = np.asarray(self._fn.chi2_batch(self._padded(U), *self._args(), self._space))
+        return c + self.chi2_offset
 
     def on_points(self, model_values) -> np.ndarray:
         """The fitted points' entries of an array over the model's frequencies."""
