@@ -13,6 +13,15 @@ CPU-bound process, a row of the paper's Table 2 took 40-240 s on two threads and
 on one (BENCHMARKS.md). The matrices are small (16-140 unknowns), so one thread loses
 nothing on an idle machine either.
 
+One XLA thread pool thread: XLA's CPU runtime runs its matrix kernels (the batched
+Cholesky, triangular solves and eigh of a population's reduced models) on a multithreaded
+Eigen pool, which has been seen to wedge for good, every thread parked in a futex wait, on
+vmapped graphs: twice in vibid's test suite on a plate's larger bases, and in other
+projects' (PyAutoFit issues 1528 and 1530, fixed there by the same flag).
+``--xla_cpu_multi_thread_eigen=false`` turns that pool off; it must be in ``XLA_FLAGS``
+before JAX starts its CPU backend (the first computation), which :func:`configure` does.
+On two cores the small matrices gain little from it anyway (BENCHMARKS.md).
+
 Compilation cache: every vibid process compiles the same few functions (the model's AFC,
 chi2, its gradient and Hessian, the batched chi2 of the global search), which takes a few
 seconds for seconds of work. JAX's persistent cache keeps the compiled code on disk, so a
@@ -70,10 +79,24 @@ def limit_blas_threads(threads: int = 1) -> None:
     threadpool_limits(limits=int(threads), user_api="blas")
 
 
+#: The XLA flag that keeps the CPU runtime's matrix kernels off the Eigen thread pool.
+XLA_SINGLE_THREAD_EIGEN = "--xla_cpu_multi_thread_eigen=false"
+
+
+def single_thread_eigen() -> None:
+    """Add :data:`XLA_SINGLE_THREAD_EIGEN` to ``XLA_FLAGS`` unless the flag is set there
+    already (either way); effective only before JAX's first computation."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_multi_thread_eigen" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} {XLA_SINGLE_THREAD_EIGEN}".strip()
+
+
 def configure(*, cache: bool = True, blas_threads: int | None = 1) -> str | None:
-    """What an entry point calls once: 64-bit JAX, the compilation cache unless ``cache``
-    is False, and ``blas_threads`` BLAS threads (None leaves them as they are). Returns the
-    cache folder (None if off)."""
+    """What an entry point calls once: 64-bit JAX, XLA's matrix kernels on one thread
+    (:func:`single_thread_eigen`), the compilation cache unless ``cache`` is False, and
+    ``blas_threads`` BLAS threads (None leaves them as they are). Returns the cache folder
+    (None if off)."""
+    single_thread_eigen()
     import jax
 
     jax.config.update("jax_enable_x64", True)

@@ -38,6 +38,7 @@ import numpy as np
 
 from vibid.identify.fit.data import FitData
 from vibid.identify.fit.problem import LeastSquaresProblem, SharedStructure
+from vibid.identify.model.reduced import padded_size
 
 #: Problems with fewer fitted points than this are solved as they are.
 MIN_POINTS = 1000
@@ -181,6 +182,10 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
     nodes, c, s = np.concatenate(nodes), np.concatenate(c), np.concatenate(s)
     if nodes.size > n // 2:
         return problem
+    # padded to a few lengths (one compilation each): nodes of infinite std weigh nothing
+    extra = padded_size(nodes.size) - nodes.size
+    nodes = np.append(nodes, np.full(extra, nodes[-1]))
+    c, s = np.append(c, np.zeros(extra)), np.append(s, np.full(extra, np.inf))
     short = FitData(nodes, c, s, np.ones(nodes.size, bool))
     return LeastSquaresProblem(problem.model.on_frequencies(nodes), short, problem.space, s,
                                chi2_offset=kappa)

@@ -38,10 +38,9 @@ than the strip gets cells sized by its bending wavelength at the top of the band
 Reduced model (:mod:`vibid.identify.model.reduced`), two kinds of basis:
 
 * ``"wide"`` (default when ``theta0`` is not given): modes at the centre of the prior box
-  and at its faces, static corrections and parameter sensitivities, sized to keep the whole
-  box accurate (about 1e-7 of max |H| on the paper's strip; truncated to about 1e-4 for
-  models with more than two stiffness parameters, see ``WIDE_TOL_MANY``); for global
-  search.
+  and at its faces (and its softest corner), static corrections and parameter
+  sensitivities, truncated to about 1e-4 of max |H| over the whole box (``WIDE_TOL``);
+  for global search.
 * ``"local"`` (the default when ``theta0`` is given, and what :meth:`ForwardModel.refresh`
   builds): modes, static corrections and sensitivities at ``theta0`` only, about 20
   unknowns; error below 1e-6 of max |H| within a few per cent of ``theta0`` and 1e-5 within
@@ -78,8 +77,7 @@ from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
-from vibid.identify.model.reduced import (ReducedAFC, ReducedBasis, cached_basis,
-                                          moving_parameters)
+from vibid.identify.model.reduced import ReducedAFC, ReducedBasis, cached_basis
 from vibid.identify.model.structure import embed, embedding
 from vibid.identify.model.terms import PlateModel, theta_from_dict
 from vibid.identify.profile import timed
@@ -97,15 +95,13 @@ ACCURACY = {
     "default": (0.0033334, 4, 12.0, 6),
     "fine": (0.0016667, 6, 24.0, 12),
 }
-#: Up to this many parameters that change the mode shapes or scale (isotropic: D, nu) the
-#: wide basis is kept to rounding (about 1e-7 of max |H| over the whole box, some 90
-#: unknowns). With more (orthotropic, monoclinic, effects) that basis grows to some 440
-#: unknowns and each global-search evaluation to an eigenproblem of that size, so it is
-#: truncated at a relative Gram eigenvalue of WIDE_TOL_MANY: about 140 unknowns and 1e-4 of
-#: max |H| over the box, enough to find the basin; the polish runs on local bases
-#: (``refresh``), accurate to 1e-6.
-WIDE_FEW_PARAMETERS = 2
-WIDE_TOL_MANY = 1e-6
+#: The wide basis (for the global search, which only has to land in the right basin; the
+#: polish runs on local bases, ``refresh``, accurate to 1e-6) is truncated at this relative
+#: Gram eigenvalue: about 1e-4 of max |H| over the whole box. Kept to rounding (1e-13) it
+#: held 88 unknowns on the paper's strip, 148 on a 150 x 100 mm plate and some 440 with
+#: more stiffness parameters, and each global-search evaluation is an eigenproblem of that
+#: size; at 1e-8: 64, 93 and about 190 (a generation of the plate's search 4x faster).
+WIDE_TOL = 1e-8
 #: The a-posteriori check's tolerance (fraction of max |H|) below which refresh keeps a basis.
 REFRESH_TOL = 1e-6
 #: How much softer than theta0 a local basis stays complete (stiffness ratio).
@@ -210,9 +206,8 @@ class ForwardModel:
         if self.kind not in ("wide", "local"):
             raise ValueError(f"unknown basis kind {self.kind!r}")
         if self.basis is None and self.kind == "wide":
-            many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
             set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                       snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13))
+                                       snapshots=True, tol=WIDE_TOL))
         elif self.basis is None:
             set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
                                        snapshots=False, scale_ratio=LOCAL_SCALE_RATIO))

@@ -85,11 +85,15 @@ def _coefficients(model, theta):
 
 
 def stiffness_scale_ratio(model, theta0, bounds) -> float:
-    """How much softer than at ``theta0`` the plate may get inside ``bounds`` (>= 1): the
-    largest ratio of a positive stiffness parameter at ``theta0`` to its lower bound."""
+    """How much softer than at ``theta0`` the whole plate may get inside ``bounds`` (>= 1):
+    the largest ratio of a parameter that scales every stiffness coefficient (an isotropic
+    ``D``) at ``theta0`` to its lower bound. Parameters that soften only part of the plate
+    (one orthotropic modulus, a clamp's spring) change the mode shapes instead: the
+    snapshots at the box's faces take their own modes (:func:`build_basis`)."""
     ratios = [1.0]
     for i, q in enumerate(model.parameters):
-        if q.rule == "positive" and q.name in bounds and bounds[q.name][0] > 0:
+        if (q.rule == "positive" and q.name in bounds and bounds[q.name][0] > 0
+                and _pure_scale(model, theta0, i)):
             ratios.append(float(theta0[i]) / bounds[q.name][0])
     return max(ratios)
 
@@ -117,13 +121,16 @@ def _pure_scale(model, theta0, i) -> bool:
 
 
 def snapshot_points(model, theta0, bounds) -> list[np.ndarray]:
-    """``theta0`` and, for each parameter that changes the mode shapes (not the overall
-    scale), the two points where it sits at its bounds, the others at ``theta0``. Points
-    whose moduli matrix is not positive definite are skipped."""
+    """``theta0``; for each parameter that changes the mode shapes (not the overall
+    scale), the two points where it sits at its bounds, the others at ``theta0``; and,
+    where two or more positive parameters do, the box's softest corner (all of them at
+    their lower bounds), where most modes crowd into the band. Points whose moduli matrix
+    is not positive definite are skipped."""
     theta0 = np.asarray(theta0, float)
     pts = [theta0]
+    corner, soft = theta0.copy(), 0
     for i in moving_parameters(model, theta0):
-        n = model.names[i]
+        q, n = model.parameters[i], model.names[i]
         if n not in bounds or _pure_scale(model, theta0, i):
             continue
         for v in bounds[n]:
@@ -132,6 +139,10 @@ def snapshot_points(model, theta0, bounds) -> list[np.ndarray]:
             if np.isclose(v, theta0[i]) or not _positive_definite(model.moduli(t)):
                 continue
             pts.append(t)
+        if q.rule == "positive" and bounds[n][0] > 0:
+            corner[i], soft = bounds[n][0], soft + 1
+    if soft >= 2 and _positive_definite(model.moduli(corner)):
+        pts.append(corner)
     return pts
 
 
@@ -230,15 +241,13 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         M = mats.inertia_matrix(dict(zip(inertia_names, m))).tocsc()
         f = mats.inertia_load(dict(zip(inertia_names, m)))
         lu = spla.splu(K)
-        # frequencies at this point scale like those at theta0 (same cut in mode count)
-        Phi, freqs = _modes(K, M, lu, min_modes if j == 0 else n_modes, max_modes,
-                            f_top if j == 0 else np.inf)
+        # every point its own modes up to f_top: a face where one modulus is soft has more
+        Phi, freqs = _modes(K, M, lu, min_modes, max_modes, f_top)
+        if freqs[-1] < f_top:
+            log.warning("reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted%s",
+                        Phi.shape[1], freqs[-1], f_top, "" if j == 0 else " at a face")
         if j == 0:
             n_modes, f_reached = Phi.shape[1], float(freqs[-1])
-            if f_reached < f_top:
-                log.warning("reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted",
-                            n_modes, f_reached, f_top)
-        Phi = Phi[:, :n_modes]
         statics = []
         for rhs in [f] + [mats.probes[k] for k in probe_names]:
             v = lu.solve(rhs)
