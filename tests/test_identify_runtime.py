@@ -14,7 +14,7 @@ from vibid.identify.fit import identify
 
 
 def _run(code: str, tmp_path) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "VIBID_", "OPENBLAS_", "OMP_", "XLA_"))}
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "VIBID_", "OPENBLAS_", "OMP_"))}
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                           timeout=300)
@@ -46,13 +46,9 @@ def test_configure_switches_on_64_bits_and_the_cache(tmp_path):
                "from threadpoolctl import threadpool_info\n"
                "print(configure(), jax.config.jax_enable_x64,\n"
                "      sorted({i['num_threads'] for i in threadpool_info()\n"
-               "              if i['user_api'] == 'blas'}) == [1])\n"
-               "import os\nprint(os.environ['XLA_FLAGS'])", tmp_path)
+               "              if i['user_api'] == 'blas'}) == [1])", tmp_path)
     assert out.returncode == 0, out.stderr
-    first, flags = out.stdout.splitlines()
-    # XLA's matrix kernels off the Eigen pool that wedges on vmapped graphs (runtime.py)
-    assert flags.split() == ["--xla_cpu_multi_thread_eigen=false"]
-    folder, x64, one_thread = first.split()
+    folder, x64, one_thread = out.stdout.split()
     assert x64 == "True" and folder == str(tmp_path / "cache" / "vibid" / "jax")
     assert os.path.isdir(folder)
     assert one_thread == "True"  # every BLAS library of the process on one thread

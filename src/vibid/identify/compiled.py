@@ -34,10 +34,12 @@ class KernelFunctions:
 def kernel_functions(kernel) -> KernelFunctions:
     import jax
 
+    from vibid.identify.runtime import over_population
+
     return KernelFunctions(
         afc=jax.jit(kernel),
-        afc_batch=jax.jit(jax.vmap(kernel, in_axes=(None, 0))),
-        modes_batch=jax.jit(jax.vmap(kernel.modes, in_axes=(None, 0))),
+        afc_batch=jax.jit(over_population(kernel)),
+        modes_batch=jax.jit(over_population(kernel.modes)),
     )
 
 

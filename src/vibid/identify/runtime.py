@@ -13,14 +13,11 @@ CPU-bound process, a row of the paper's Table 2 took 40-240 s on two threads and
 on one (BENCHMARKS.md). The matrices are small (16-140 unknowns), so one thread loses
 nothing on an idle machine either.
 
-One XLA thread pool thread: XLA's CPU runtime runs its matrix kernels (the batched
-Cholesky, triangular solves and eigh of a population's reduced models) on a multithreaded
-Eigen pool, which has been seen to wedge for good, every thread parked in a futex wait, on
-vmapped graphs: twice in vibid's test suite on a plate's larger bases, and in other
-projects' (PyAutoFit issues 1528 and 1530, fixed there by the same flag).
-``--xla_cpu_multi_thread_eigen=false`` turns that pool off; it must be in ``XLA_FLAGS``
-before JAX starts its CPU backend (the first computation), which :func:`configure` does.
-On two cores the small matrices gain little from it anyway (BENCHMARKS.md).
+No batched LAPACK calls: a population (the global search's) is evaluated in a loop,
+:func:`over_population`, not vmapped; jaxlib splits a batched LAPACK call over XLA's
+two-thread pool and waits for it, and two such calls at once hung the test suite for good
+(the XLA flag ``--xla_cpu_multi_thread_eigen=false`` did not prevent it). The forward-mode
+derivatives still batch their 4 or 8 tangents; no hang has been seen there.
 
 Compilation cache: every vibid process compiles the same few functions (the model's AFC,
 chi2, its gradient and Hessian, the batched chi2 of the global search), which takes a few
@@ -79,30 +76,33 @@ def limit_blas_threads(threads: int = 1) -> None:
     threadpool_limits(limits=int(threads), user_api="blas")
 
 
-#: The XLA flag that keeps the CPU runtime's matrix kernels off the Eigen thread pool.
-XLA_SINGLE_THREAD_EIGEN = "--xla_cpu_multi_thread_eigen=false"
-
-
-def single_thread_eigen() -> None:
-    """Add :data:`XLA_SINGLE_THREAD_EIGEN` to ``XLA_FLAGS`` unless the flag is set there
-    already (either way); effective only before JAX's first computation."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_multi_thread_eigen" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} {XLA_SINGLE_THREAD_EIGEN}".strip()
-
-
 def configure(*, cache: bool = True, blas_threads: int | None = 1) -> str | None:
-    """What an entry point calls once: 64-bit JAX, XLA's matrix kernels on one thread
-    (:func:`single_thread_eigen`), the compilation cache unless ``cache`` is False, and
-    ``blas_threads`` BLAS threads (None leaves them as they are). Returns the cache folder
-    (None if off)."""
-    single_thread_eigen()
+    """What an entry point calls once: 64-bit JAX, the compilation cache unless ``cache``
+    is False, and ``blas_threads`` BLAS threads (None leaves them as they are). Returns the
+    cache folder (None if off)."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
     if blas_threads is not None:
         limit_blas_threads(blas_threads)
     return enable_compilation_cache() if cache else None
+
+
+def over_population(f):
+    """``f(arrays, theta)`` mapped over a population ``thetas`` (first axis) as a loop
+    (``jax.lax.map``), not ``jax.vmap``. Vmapped, every LAPACK call of the reduced model
+    (Cholesky, triangular solves, eigh) becomes a batched one, which jaxlib splits over
+    XLA's intra-op thread pool and waits for; when two such calls run at once on a
+    two-thread pool, each waits for work queued behind the other and the process hangs
+    for good (every thread in a futex wait: ``jax::ParallelBatchMap`` in
+    ``lapack_dtrsm_ffi``, seen in the test suite's orthotropic search). In a loop each call
+    has one matrix, done where it is called."""
+    import jax
+
+    def mapped(arrays, thetas):
+        return jax.lax.map(lambda theta: f(arrays, theta), thetas)
+
+    return mapped
 
 
 def require_x64() -> None:

@@ -96,6 +96,7 @@ def compile_problem(afc):
     import jax.numpy as jnp
 
     from vibid.identify.fit.space import from_u_coefficients
+    from vibid.identify.runtime import over_population
 
     def placed(place, theta):
         return place["base"].at[place["index"]].set(theta)[:-1]
@@ -114,7 +115,7 @@ def compile_problem(afc):
 
     def chi2_batch(U, arrays, H, sig, idx, place, space):
         thetas = jax.vmap(placed, in_axes=(None, 0))(place, from_u_coefficients(space, U))
-        A = jax.vmap(afc, in_axes=(None, 0))(arrays, thetas)[:, idx]
+        A = over_population(afc)(arrays, thetas)[:, idx]  # a loop: see over_population
         r = (A - H[None, :]) / sig[None, :]
         c = jnp.sum(r.real**2 + r.imag**2, axis=1)
         return jnp.where(jnp.isfinite(c), c, jnp.inf)
