@@ -39,8 +39,9 @@ Reduced model (:mod:`vibid.identify.model.reduced`), two kinds of basis:
 
 * ``"wide"`` (default when ``theta0`` is not given): modes at the centre of the prior box
   and at its faces (and its softest corner), static corrections and parameter
-  sensitivities, truncated to about 1e-4 of max |H| over the whole box (``WIDE_TOL``);
-  for global search.
+  sensitivities, sized to keep the whole box accurate (about 1e-7 of max |H| on the
+  paper's strip; truncated to about 1e-4 for models with more than two stiffness
+  parameters, see ``WIDE_TOL_MANY``); for global search.
 * ``"local"`` (the default when ``theta0`` is given, and what :meth:`ForwardModel.refresh`
   builds): modes, static corrections and sensitivities at ``theta0`` only, about 20
   unknowns; error below 1e-6 of max |H| within a few per cent of ``theta0`` and 1e-5 within
@@ -77,7 +78,8 @@ from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
-from vibid.identify.model.reduced import ReducedAFC, ReducedBasis, cached_basis
+from vibid.identify.model.reduced import (ReducedAFC, ReducedBasis, cached_basis,
+                                          moving_parameters)
 from vibid.identify.model.structure import embed, embedding
 from vibid.identify.model.terms import PlateModel, theta_from_dict
 from vibid.identify.profile import timed
@@ -95,13 +97,15 @@ ACCURACY = {
     "default": (0.0033334, 4, 12.0, 6),
     "fine": (0.0016667, 6, 24.0, 12),
 }
-#: The wide basis (for the global search, which only has to land in the right basin; the
-#: polish runs on local bases, ``refresh``, accurate to 1e-6) is truncated at this relative
-#: Gram eigenvalue: about 1e-4 of max |H| over the whole box. Kept to rounding (1e-13) it
-#: held 88 unknowns on the paper's strip, 148 on a 150 x 100 mm plate and some 440 with
-#: more stiffness parameters, and each global-search evaluation is an eigenproblem of that
-#: size; at 1e-8: 64, 93 and about 190 (a generation of the plate's search 4x faster).
-WIDE_TOL = 1e-8
+#: Up to this many parameters that change the mode shapes or scale (isotropic: D, nu) the
+#: wide basis is kept to rounding (about 1e-7 of max |H| over the whole box: a local fit
+#: on it without refresh is exact); with more (orthotropic, monoclinic, effects) it would
+#: grow to some 440 unknowns, and each global-search evaluation is an eigenproblem of that
+#: size, so it is truncated at a relative Gram eigenvalue of WIDE_TOL_MANY: about 1e-4 of
+#: max |H| over the box, enough to find the basin; the polish runs on local bases
+#: (``refresh``), accurate to 1e-6.
+WIDE_FEW_PARAMETERS = 2
+WIDE_TOL_MANY = 1e-6
 #: The a-posteriori check's tolerance (fraction of max |H|) below which refresh keeps a basis.
 REFRESH_TOL = 1e-6
 #: How much softer than theta0 a local basis stays complete (stiffness ratio).
@@ -206,8 +210,9 @@ class ForwardModel:
         if self.kind not in ("wide", "local"):
             raise ValueError(f"unknown basis kind {self.kind!r}")
         if self.basis is None and self.kind == "wide":
+            many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
             set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                       snapshots=True, tol=WIDE_TOL))
+                                       snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13))
         elif self.basis is None:
             set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
                                        snapshots=False, scale_ratio=LOCAL_SCALE_RATIO))
