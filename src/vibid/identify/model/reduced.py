@@ -12,7 +12,9 @@ model's terms, :class:`~vibid.identify.model.terms.PlateModel`):
   parameter that moves a stiffness or inertia coefficient, which span the first-order
   changes of the mode shapes;
 * with ``snapshots``, the same at the faces of the prior box for every parameter that
-  changes the mode shapes (not a pure scale of the stiffness).
+  changes the mode shapes (not a pure scale of the stiffness), and at the box's softest
+  corner, each point with its own modes up to the cut-off (a face where one modulus is
+  soft has more of them; a pure scale, an isotropic ``D``, raises the cut-off instead).
 
 The basis is made orthonormal in an energy norm (directions below a relative tolerance
 dropped) and every term's matrix is projected once: ``K_k → Vᵀ K_k V``, ``M_k → Vᵀ M_k V``,
