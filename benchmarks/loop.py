@@ -14,7 +14,7 @@ Cases (``benchmarks/loop_cases.py``):
 * ``titanium``: the real AFC of ``../shared/data/real-titanium`` (11 960 points), read as
   ``vibid identify --afc afc.csv --setup setup.json`` reads it; no truth: the row shows the
   effects found, chi2_red and E, nu before and after ("ok" = the loop finished). The
-  costly one: 3 min declared and 10-45 min of loop in earlier runs (BENCHMARKS.md);
+  costly one: 42 s declared and 7 min of loop, idle (BENCHMARKS.md);
 * ``table2`` (``table2-<noise>-<f_max>`` one row): the 12 rows of the paper's Table 2 as
   ``benchmarks/paper_table.py`` defines them; nothing to find (the noiseless rows have no
   std, so the loop cannot test them and returns at once). About 3 min of declared fits for
