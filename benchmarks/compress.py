@@ -9,7 +9,6 @@ the continuation in beta, each on every point and compressed (``identify/fit/com
 with the compressed estimate's distance from the full one in Fisher standard deviations.
 """
 
-import gzip
 import os
 import sys
 import time
@@ -19,27 +18,8 @@ import numpy as np
 from vibid.identify.runtime import configure
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-def titanium_problem():
-    from vibid.cli.modes import load_setup
-    from vibid.identify.fit.data import fit_data
-    from vibid.identify.fit.problem import LeastSquaresProblem
-    from vibid.identify.fit.space import ParameterSpace
-    from vibid.identify.model.forward import build_forward_model, plate_model
-
-    data = os.path.join(HERE, "..", "tests", "data")
-    with gzip.open(os.path.join(data, "titanium_afc.csv.gz"), "rt") as fh:
-        f, re, im, std = np.loadtxt(fh, delimiter=",", skiprows=1, unpack=True)
-    setup = load_setup(os.path.join(data, "titanium_setup.json"))
-    model = plate_model("isotropic")
-    start = {"D": 300.0, "nu": -0.65, "beta": 0.0195}
-    box = model.default_bounds(dict(setup.identification.bounds))
-    space = ParameterSpace.from_bounds(model.names, box,
-                                       {q.name: q.kind for q in model.parameters})
-    fm = build_forward_model(setup, f, model=model, theta0=start)
-    problem = LeastSquaresProblem(fm, fit_data(f, re + 1j * im, std), space)
-    return problem, space.to_u(np.array([start[n] for n in model.names]))
+sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+from test_identify_compress import titanium_problem  # noqa: E402  (the test's problem)
 
 
 def main() -> int:

@@ -45,10 +45,9 @@ def test_the_projection_keeps_chi2_of_every_interpolant():
     assert kappa >= 0
 
 
-@pytest.fixture(scope="module")
-def titanium():
+def titanium_problem():
     """The real titanium AFC (shared/data/real-titanium, all 11 960 bins) and the declared
-    isotropic problem on it, with the declared fit's start."""
+    isotropic problem on it, with the declared fit's start (also benchmarks/compress.py's)."""
     from vibid.cli.modes import load_setup
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
@@ -66,6 +65,11 @@ def titanium():
     fm = build_forward_model(setup, f, model=model, theta0=start)
     problem = LeastSquaresProblem(fm, fit_data(f, re + 1j * im, std), space)
     return problem, space.to_u(np.array([start[n] for n in model.names]))
+
+
+@pytest.fixture(scope="module")
+def titanium():
+    return titanium_problem()
 
 
 @pytest.mark.slow
