@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from vibid.parameters import DESCRIPTIONS, describe, known_parameter
+
 #: Points of the fine grid the model is drawn on, spread evenly over the measured band;
 #: each natural frequency in the band gets FINE_PER_MODE more within a few half-power
 #: bandwidths of it, so its peak is drawn at its height.
@@ -39,16 +41,9 @@ AFC_PNG = "afc.png"
 RESIDUALS_PNG = "residuals.png"
 CONVERGENCE_PNG = "convergence.png"
 
-#: What a lab engineer calls each parameter (units come from the model's terms).
-MEANING = {
-    "D": "bending stiffness", "nu": "Poisson's ratio", "beta": "loss factor",
-    "D11": "bending stiffness along the length", "D22": "bending stiffness across",
-    "D12": "coupling stiffness", "D66": "twisting stiffness", "D16": "coupling stiffness 16",
-    "D26": "coupling stiffness 26", "E_Pa": "Young's modulus", "G_Pa": "shear modulus",
-    "E1_Pa": "Young's modulus along the length", "E2_Pa": "Young's modulus across",
-    "G12_Pa": "in-plane shear modulus", "nu12": "Poisson's ratio 12",
-    "sensor_dy_m": "sensor offset across the width",
-}
+#: What a lab engineer calls each parameter (the catalogue's :data:`vibid.parameters.
+#: DESCRIPTIONS`; an instance's through :func:`vibid.parameters.describe`).
+MEANING = DESCRIPTIONS
 
 
 # -- numbers a person reads -------------------------------------------------------------------
@@ -56,23 +51,8 @@ def unit_of(name: str) -> str:
     """The SI unit of a report parameter (material, effect or engineering constant)."""
     if name.endswith("_Pa"):
         return "Pa"
-    from vibid.identify.effects import EFFECTS
-    from vibid.identify.model.materials import Material
-
-    for effect in EFFECTS.values():
-        for q in effect.parameters:
-            if q.name == name:
-                return q.unit
-    for model in ("isotropic", "orthotropic", "monoclinic"):
-        for per_modulus in (False, True):
-            try:
-                params = Material(model, per_modulus).parameters
-            except (ValueError, AttributeError):
-                continue
-            for q in params:
-                if q.name == name:
-                    return q.unit
-    return "1"
+    q = known_parameter(name)
+    return "1" if q is None else q.unit
 
 
 def _unit_text(unit: str) -> str:
@@ -192,7 +172,7 @@ def figures(data, identified, report: dict) -> dict[str, Any]:
 
 # -- the text ----------------------------------------------------------------------------------
 def _param_rows(params: dict) -> list[str]:
-    return [f"| {n} | {MEANING.get(n, '')} | {with_std(p['value'], p['std'])} | "
+    return [f"| {n} | {describe(n)} | {with_std(p['value'], p['std'])} | "
             f"{unit_of(n).replace(' ', '·')} |" for n, p in params.items()]
 
 

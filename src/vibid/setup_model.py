@@ -21,13 +21,14 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from vibid.errors import VibidError
-
-from vibid.identify.effects import EFFECT_PARAMETERS  # noqa: E402  (light: the catalogue)
-from vibid.identify.model.materials import MODELS, Material  # noqa: E402
-
-#: Parameter names of each material model, in the order the identification uses (the
-#: catalogue itself is :mod:`vibid.identify.model.materials`).
-MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {m: Material(m).names for m in MODELS}
+# the catalogue (no numerical import); MODEL_PARAMETERS: the parameter names of each
+# material model, in the order the identification uses
+from vibid.parameters import (
+    EFFECT_PARAMETERS,
+    MODEL_PARAMETERS,
+    known_effect_parameter,
+    material_parameters,
+)
 
 
 class SetupError(VibidError, ValueError):
@@ -225,22 +226,27 @@ def _identification_problems(ident: Identification) -> list[str]:
             f"expected one of {', '.join(MODEL_PARAMETERS)}"
         ]
     out = []
-    material = Material(ident.model)
-    declared = {q.name: q for q in material.parameters} | EFFECT_PARAMETERS
+    names = MODEL_PARAMETERS[ident.model]
+    own = {q.name: q for q in material_parameters(ident.model)}
+
+    def declared(name: str):
+        """The model's or an effect's parameter ``name`` (an instance's too), or None."""
+        return own.get(name) or known_effect_parameter(name)
+
     got = set(ident.bounds)
-    if missing := [n for n in material.names if n not in got]:
+    if missing := [n for n in names if n not in got]:
         out.append(
             f"setup.identification.bounds: model {ident.model!r} needs bounds for "
             f"{', '.join(missing)}"
         )
-    if extra := sorted(got - set(declared)):
+    if extra := sorted(n for n in got if declared(n) is None):
         out.append(
             f"setup.identification.bounds: {', '.join(extra)} "
             f"{'is' if len(extra) == 1 else 'are'} not a parameter of model {ident.model!r} "
-            f"({', '.join(material.names)}) nor of an effect ({', '.join(EFFECT_PARAMETERS)})"
+            f"({', '.join(names)}) nor of an effect ({', '.join(EFFECT_PARAMETERS)})"
         )
     for name, (lo, hi) in ident.bounds.items():
-        if name in declared and (problem := declared[name].bounds_problem(lo, hi)):
+        if (q := declared(name)) is not None and (problem := q.bounds_problem(lo, hi)):
             out.append(f"setup.identification.bounds.{name}: {problem}")
     return out
 

@@ -22,7 +22,8 @@ of the simulated stand. Units are SI, as everywhere in vibid (voltages in volts)
 ignores it. ``noise`` is each channel's noise standard deviation relative to the base
 acceleration amplitude (as ``vibid simulate --noise``). ``effects`` are undeclared effects of
 the library (``vibid.identify.effects``) that the virtual specimen has and the declared setup
-does not. ``faults`` are fault injections understood by the mocks (see
+does not; an effect that may occur more than once takes a list, e.g. ``"stand_resonance":
+[{"f_hz": 660, "q": 30, "theta_rad_per_m": 0.3}]``. ``faults`` are fault injections understood by the mocks (see
 ``vibid.hardware_mocks``), e.g. ``{"kind": "no_reply", "at_step": 3}``.
 """
 
@@ -77,7 +78,7 @@ class TimingConfig:
 @dataclass(frozen=True)
 class SimulatedConfig:
     params: dict[str, float] = field(default_factory=lambda: {"D": 17.97, "nu": 0.286, "beta": 0.003})
-    effects: dict[str, dict[str, float]] = field(default_factory=dict)
+    effects: dict[str, dict[str, float] | list[dict[str, float]]] = field(default_factory=dict)
     noise: float = 4e-4
     seed: int = 0
     clock_offset_ppm: float = 40.0

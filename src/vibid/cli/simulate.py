@@ -1,6 +1,7 @@
 """`vibid simulate SETUP.json --out S.h5 [--params D=17.97 nu=0.286 beta=0.003]
 [--effect channel_delay:tau_s=2e-5 ...] [--noise 0.003] [--seed N]`: a whole session from
-the virtual stand.
+the virtual stand. ``--effect stand_resonance:f_hz=660,q=30,theta_rad_per_m=0.3`` given
+twice puts two resonances of the stand into the data.
 
 The virtual specimen is the full FE model of the declared plate plus any effect of the
 library (:mod:`vibid.identify.effects`), which goes into the data and nowhere into the
@@ -40,24 +41,35 @@ def add_parser(sub):
 
 def _effects(items) -> tuple[dict[str, float], tuple[str, ...]]:
     """The effects' parameter values, and every effect's name (a bare name for an effect
-    without parameters, e.g. ``transverse_shear``)."""
+    without parameters, e.g. ``transverse_shear``). An effect that may occur more than once
+    (``stand_resonance``) takes one item per instance, its parameters unsuffixed; the k-th
+    item's become ``f_hz_k``, ... (report format)."""
     from vibid.cli.modes import parse_params
     from vibid.identify.effects import EFFECTS
+    from vibid.parameters import effect_parameters, instance_name
 
-    out, names = {}, []
+    out, names, count = {}, [], {}
     for item in items:
         name, sep, rest = item.partition(":")
         if name not in EFFECTS:
             raise VibidError(f"--effect: unknown effect {name!r}, expected one of "
                              f"{', '.join(EFFECTS)}")
         values = parse_params(rest.split(",")) if sep and rest else {}
-        own = {q.name for q in EFFECTS[name].parameters}
+        if EFFECTS[name].instance is None:
+            own = {q.name for q in EFFECTS[name].parameters}
+        else:
+            own = {q.name for q in effect_parameters(name)}
         if set(values) != own:
             raise VibidError(f"--effect {name}: give {', '.join(sorted(own))} "
                              f"(e.g. {name}:{sorted(own)[0]}=...)")
+        if EFFECTS[name].instance is not None:
+            count[name] = k = count.get(name, 0) + 1
+            values = {instance_name(n, k): v for n, v in values.items()}
+        elif name in names:
+            raise VibidError(f"--effect {name}: given twice")
         out |= values
         names.append(name)
-    return out, tuple(names)
+    return out, tuple(dict.fromkeys(names))
 
 
 def run(args) -> int:

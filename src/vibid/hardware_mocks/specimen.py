@@ -43,9 +43,9 @@ class VirtualSpecimen:
         self.setup = setup
         self.f_max_hz = float(f_max_hz)
         self.params = dict(params)
-        self.model = plate_model_for(self.params, effects)
-        self.theta = theta_from_dict(self.model, self.params)
         geometry = Geometry.from_setup(setup)
+        self.model = plate_model_for(self.params, effects).for_geometry(geometry)
+        self.theta = theta_from_dict(self.model, self.params)
         D = np.asarray(self.model.moduli(self.theta), float)
         disc = discretisation(geometry, accuracy, f_max_hz=float(f_max_hz),
                               rigidity_n_m=float(min(D[0], D[3])))

@@ -194,20 +194,31 @@ class VirtualStand:
 
 def true_parameters(config: StandConfig) -> dict[str, float]:
     """The virtual specimen's parameters: ``simulated.params`` and every undeclared
-    effect's, e.g. ``{"D": ..., "k_theta_N_per_rad": ...}``."""
+    effect's, e.g. ``{"D": ..., "k_theta_N_per_rad": ...}``. An effect that may occur more
+    than once (``stand_resonance``) takes a list of instances, each with its parameters
+    unsuffixed (``[{"f_hz": 660, "q": 30, "theta_rad_per_m": 0.3}, ...]``); the k-th
+    instance's names get the suffix ``_k``."""
     from vibid.identify.effects import EFFECTS
+    from vibid.parameters import effect_parameters, instance_name
 
     sim = config.simulated
     out = dict(sim.params)
     for name, values in sim.effects.items():
+        where = f"simulated.effects.{name}"
         if name not in EFFECTS:
-            raise StandConfigError(f"simulated.effects.{name}: unknown effect (known: "
-                                   f"{', '.join(EFFECTS)})")
-        own = {q.name for q in EFFECTS[name].parameters}
-        if set(values) != own:
-            raise StandConfigError(f"simulated.effects.{name}: give {', '.join(sorted(own))}, "
-                                   f"got {', '.join(sorted(values)) or 'nothing'}")
-        out |= {k: float(v) for k, v in values.items()}
+            raise StandConfigError(f"{where}: unknown effect (known: {', '.join(EFFECTS)})")
+        several = EFFECTS[name].instance is not None
+        items = values if several and isinstance(values, list) else [values]
+        for k, item in enumerate(items, start=1):
+            at = f"{where}[{k - 1}]" if isinstance(values, list) else where
+            if not isinstance(item, dict):
+                raise StandConfigError(f"{at}: expected an object of parameter values")
+            own = {q.name for q in (effect_parameters(name) if several
+                                     else EFFECTS[name].parameters)}
+            if set(item) != own:
+                raise StandConfigError(f"{at}: give {', '.join(sorted(own))}, "
+                                       f"got {', '.join(sorted(item)) or 'nothing'}")
+            out |= {(instance_name(n, k) if several else n): float(v) for n, v in item.items()}
     return out
 
 

@@ -110,6 +110,8 @@ REFIT_STARTS_U = (-0.75, -0.25, 0.25, 0.75)
 #: Where a refit restarts a current parameter found outside its prior box (u = ±1 are
 #: the box's faces).
 INSIDE_U = 0.9
+#: How many instances of an effect that may occur more than once the loop adds.
+MAX_INSTANCES = 2
 
 
 # -- candidates ---------------------------------------------------------------------------
@@ -122,14 +124,30 @@ class Candidate:
     def applies(self, model: PlateModel) -> bool:
         if self.name == "anisotropy":
             return model.material.model == "isotropic"
+        from vibid.identify.effects import EFFECTS
+
+        term = EFFECTS[self.name]
+        needs = getattr(term, "requires", None)
+        if needs and needs not in model.effect_names:
+            return False  # a clamp's own loss needs the clamp's spring first
+        if term.instance is not None:
+            return model.effect_names.count(self.name) < MAX_INSTANCES
         return self.name not in model.effect_names
+
+    def term(self, model: PlateModel):
+        """The effect term it adds to ``model`` (the next instance of one that may occur
+        more than once)."""
+        from vibid.identify.effects import EFFECTS
+
+        term = EFFECTS[self.name].for_material(model.material)
+        if term.instance is not None:
+            term = replace(term, instance=model.effect_names.count(self.name) + 1)
+        return term
 
     def extend(self, model: PlateModel) -> PlateModel:
         if self.name == "anisotropy":
             return model.with_material(Material("orthotropic", model.material.per_modulus_loss))
-        from vibid.identify.effects import EFFECTS
-
-        return model.with_effect(EFFECTS[self.name])
+        return model.with_effect(self.term(model))
 
     @property
     def peaks_first(self) -> bool:
@@ -147,13 +165,31 @@ class Candidate:
             # an isotropic plate's transverse shear has G = E / 2(1 + nu) = 6 (1 - nu) D / h³
             return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D,
                           "G13_Pa": 6 * (1 - nu) * D / thickness_m**3}
+        out = dict(values)
+        term = self._term_after(values)
+        own = self.bounds(box, values)
+        nulls = term.null_values(values)
+        for q in term.parameters:
+            if q.name not in nulls:  # no null of its own (a resonance's f, q): the box's
+                lo, hi = own[q.name]  # middle, until the score's scan places it
+                out[q.name] = math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
+            else:
+                null = nulls[q.name]
+                out[q.name] = 100.0 * own[q.name][1] if math.isinf(null) else null
+        return out
+
+    def _term_after(self, values: dict):
+        """The term it adds to a model of parameters ``values`` (its instance from the
+        names: a model with ``f_hz_1`` gets ``stand_resonance`` instance 2)."""
         from vibid.identify.effects import EFFECTS
 
-        out = dict(values)
-        own = self.bounds(box)
-        for q in EFFECTS[self.name].parameters:  # (a material-dependent term: none here)
-            out[q.name] = 100.0 * own[q.name][1] if math.isinf(q.null) else q.null
-        return out
+        term = EFFECTS[self.name]
+        if term.instance is None:
+            return term
+        k = 1
+        while any(n in values for n in replace(term, instance=k).names):
+            k += 1
+        return replace(term, instance=k)
 
     def distance_from_null(self, result) -> float:
         """How many standard deviations the fitted extension lies from its null (Wald z;
@@ -171,28 +207,27 @@ class Candidate:
                 var = float(g @ C @ g)
                 z.append(abs(float(g @ theta)) / math.sqrt(var) if var > 0 else math.inf)
             return max(z)
-        from vibid.identify.effects import EFFECTS
-
+        term = next(t for t in reversed(result.plate_model.effects) if t.name == self.name)
         z = []
-        for q in EFFECTS[self.name].for_material(result.plate_model.material).parameters:
-            v, s = p[q.name], sd[q.name]
+        for name, null in term.null_values(p).items():
+            v, s = p[name], sd[name]
             if not (np.isfinite(s) and s > 0):
                 z.append(math.inf)
-            elif math.isinf(q.null):
+            elif math.isinf(null):
                 z.append(abs(v) / s)
             else:
-                z.append(abs(v - q.null) / s)
+                z.append(abs(v - null) / s)
         return max(z) if z else math.inf  # no parameter: the likelihood ratio alone decides
 
-    def bounds(self, box: dict) -> dict:
-        """The prior box of the new parameters (the setup's if it names them)."""
+    def bounds(self, box: dict, values: dict | None = None) -> dict:
+        """The prior box of the new parameters (the setup's if it names them), for the
+        model of parameters ``values`` (which instance it adds)."""
         if self.name == "anisotropy":
             lo, hi = box["D"]
             return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
                     "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
-        from vibid.identify.effects import EFFECTS
-
-        return {q.name: tuple(box.get(q.name, q.bounds)) for q in EFFECTS[self.name].parameters}
+        term = self._term_after(values or {})
+        return {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
 
 
 def all_candidates() -> tuple[Candidate, ...]:
@@ -308,7 +343,8 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
         if best is None:
             break
         stages.append(best)
-        box = box | next(c for c in todo if c.name == best.added).bounds(box)
+        box = box | next(c for c in todo if c.name == best.added).bounds(
+            box, stages[-2].result.parameters)
     final = stages[-1]
     unexplained = not final.fits_noise
     if unexplained:
@@ -412,7 +448,7 @@ def _round(setup, data, current: Stage, todo, box, local):
         # while the estimate is outside its prior box: an effect that brings it back inside
         # at a chi2 the data cannot tell from the current one explains the excursion (the
         # declared model bent a parameter to mimic it), though it gains nothing in chi2
-        left = _outside_prior(stage.result, box | cand.bounds(box)) if outside else []
+        left = _outside_prior(stage.result, box | cand.bounds(box, values)) if outside else []
         back_inside = (bool(outside) and not passes and stage.result.converged and z > KEEP_Z
                        and not left
                        and gain >= -indistinct_chi2(len(stage.result.values),
@@ -490,12 +526,56 @@ def _extended_problem(setup, data, res, cand, values, box, weights):
 
     model = cand.extend(res.plate_model)
     start = cand.at_null(values, box, setup.specimen.thickness_m)
-    ext_box = model.default_bounds(box | cand.bounds(box))
+    ext_box = model.default_bounds(box | cand.bounds(box, values))
     fm = build_forward_model(setup, data.frequency_hz[data.used], model=model, theta0=start,
                              bounds=ext_box)
     space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
                                        {q.name: q.kind for q in model.parameters})
-    return LeastSquaresProblem(fm, data, space, weights), start, ext_box
+    problem = LeastSquaresProblem(fm, data, space, weights)
+    if cand.name != "anisotropy" and model.rotates_base:
+        term = next(t for t in reversed(model.effects) if t.name == cand.name)
+        start = start | _resonance_start(problem, start, term, res.parameter_names, ext_box)
+    return problem, start, ext_box
+
+
+def _resonance_start(problem, start: dict, term, current_names, box: dict) -> dict:
+    """A stand resonance's ``f_hz`` and ``q`` where its score at the null is largest.
+
+    At ``θ₀ = 0`` the AFC's derivative along ``θ₀`` is ``H_rotation g(f; f₀, q)`` with
+    ``g = 1 / (1 − (f/f₀)² + i f/(f₀ q))``: one Jacobian gives ``H_rotation``, and the
+    score of every (f₀, q) of a grid (each measured frequency and the midpoints, a few
+    quality factors inside the box) follows from it."""
+    names = problem.space.names
+    theta = np.array([start[n] for n in names])
+    J = problem.jacobian_theta(theta)
+    r = problem.residuals_theta(theta)
+    f = np.asarray(problem.model.frequencies_hz, float)
+    if r.size != 2 * f.size:
+        return {}
+    n_f, n_q, n_t = term.names
+    omega = 2 * np.pi * f
+
+    def shape(f0, q):
+        return np.asarray(term.base_rotation({n_f: f0, n_q: q, n_t: 1.0}, omega, np))
+
+    col = J[:f.size, names.index(n_t)] + 1j * J[f.size:, names.index(n_t)]
+    h_rot = col / shape(start[n_f], start[n_q])
+    small = J[:, [names.index(n) for n in current_names if n in names]]
+    base = _projected(small, r)
+    fs = np.unique(f[f > 0])
+    grid_f = np.concatenate([fs, 0.5 * (fs[1:] + fs[:-1])])
+    lo_f, hi_f = box[n_f]
+    grid_f = grid_f[(grid_f >= lo_f) & (grid_f <= hi_f)]
+    lo_q, hi_q = box[n_q]
+    grid_q = np.geomspace(lo_q, hi_q, 7)[1:-1]
+    best, where = -np.inf, {}
+    for f0 in grid_f:
+        for q in grid_q:
+            c = h_rot * shape(f0, q)
+            lm = _projected(np.column_stack([small, np.concatenate([c.real, c.imag])]), r) - base
+            if lm > best:
+                best, where = lm, {n_f: float(f0), n_q: float(q)}
+    return where
 
 
 @timed("loop scoring")
@@ -597,6 +677,10 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
     with np.errstate(divide="ignore"):  # a null on a log parameter's edge: u = -inf
         u0 = space.to_u(np.array([start[n] for n in names]))
     new = [i for i, n in enumerate(names) if n not in res.parameter_names]
+    if cand.name != "anisotropy":  # a resonance's f and q come from the score's scan
+        scanned = set(cand.term(res.plate_model).names) - set(
+            cand.term(res.plate_model).null_values(values))
+        new = [i for i in new if names[i] not in scanned]
     starts = _refit_starts(space, np.clip(u0, -5, 5), new, res.parameter_names)
     run = LOCAL_METHODS[local]
     runs = [run(problem.with_model(problem.model.refresh(space.theta(u))), u) for u in starts]

@@ -12,6 +12,8 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
+from vibid import parameters as _catalogue
+
 
 def _discover() -> dict:
     found = {}
@@ -24,20 +26,24 @@ def _discover() -> dict:
 #: Every effect by its report name.
 EFFECTS: dict = _discover()
 
-#: Every effect parameter by name (the setup's bounds may name them).
 def _all_parameters(term) -> tuple:
     """A term's parameters in every material's form (``transverse_shear`` has ``G13_Pa``
     on an orthotropic plate only)."""
     return getattr(term, "all_parameters", term.parameters)
 
 
-EFFECT_PARAMETERS: dict = {q.name: q for term in EFFECTS.values() for q in _all_parameters(term)}
+#: Every effect parameter by name (the setup's bounds may name them): the catalogue's
+#: (:data:`vibid.parameters.EFFECT_PARAMETERS`; an effect that may occur several times
+#: under its unsuffixed names).
+EFFECT_PARAMETERS: dict = dict(_catalogue.EFFECT_PARAMETERS)
 
 
 def effects_for(names) -> tuple:
-    """The effects whose parameters appear in ``names``, in :data:`EFFECTS` order."""
-    names = set(names)
-    return tuple(t for t in EFFECTS.values() if {q.name for q in _all_parameters(t)} & names)
+    """The effects whose parameters appear in ``names``, in :data:`EFFECTS` order (an
+    instance's name, ``f_hz_2``, names its effect)."""
+    names = {_catalogue.split_instance(n)[0] for n in names}
+    return tuple(t for t in EFFECTS.values()
+                 if {_catalogue.split_instance(q.name)[0] for q in _all_parameters(t)} & names)
 
 
 #: What ``anisotropy`` (the report's other effect name: a material, not a term) is, in a

@@ -12,10 +12,8 @@ from dataclasses import dataclass
 
 import scipy.sparse as sp
 
-from vibid.identify.model.terms import Parameter, Term
-
-MASS = Parameter("mass_kg", "kg", ("log",), bounds=(0.0, 5e-3), null=0.0,
-                 rule="non-negative", noun="the added mass")
+from vibid.identify.model.terms import Term
+from vibid.parameters import MASS  # mass_kg (kg): the catalogue declares it
 
 
 @dataclass(frozen=True)

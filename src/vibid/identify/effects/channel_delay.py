@@ -10,10 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from vibid.identify.model.terms import Parameter, Term
-
-TAU = Parameter("tau_s", "s", ("linear",), bounds=(-1e-4, 1e-4), null=0.0,
-                noun="the delay")
+from vibid.identify.model.terms import Term
+from vibid.parameters import TAU  # tau_s (s): the catalogue declares it
 
 
 @dataclass(frozen=True)

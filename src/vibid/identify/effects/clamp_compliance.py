@@ -16,13 +16,11 @@ finite null is needed (a score test at the null), work in the compliance ``1 / k
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from vibid.identify.model.terms import Parameter, Term
+from vibid.identify.model.terms import Term
+from vibid.parameters import K_THETA  # k_theta_N_per_rad: the catalogue declares it
 
-K_THETA = Parameter("k_theta_N_per_rad", "N/rad", ("log",), bounds=(1e2, 1e9), null=math.inf,
-                    rule="positive", noun="a stiffness")
 #: The clamp's degrees of freedom that only the slope condition fixes.
 SLOPE_DOFS = ("u_x", "u_xy", "u_n")
 

@@ -11,12 +11,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from vibid.identify.model.terms import Parameter, Term
+from vibid.identify.model.terms import Term
+from vibid.parameters import ALPHA  # alpha (1): the catalogue declares it
 
 #: The reference frequency of the law (report format).
 F_REF_HZ = 1000.0
-ALPHA = Parameter("alpha", "1", ("linear",), bounds=(-1.0, 1.0), null=0.0,
-                  noun="the loss exponent")
 
 
 @dataclass(frozen=True)

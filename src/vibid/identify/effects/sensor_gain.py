@@ -9,10 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from vibid.identify.model.terms import Parameter, Term
-
-GAIN = Parameter("gain", "1", ("log",), bounds=(0.8, 1.25), null=1.0, rule="positive",
-                 noun="a gain")
+from vibid.identify.model.terms import Term
+from vibid.parameters import GAIN  # gain (1): the catalogue declares it
 
 
 @dataclass(frozen=True)

@@ -29,12 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from vibid.identify.model.disc import polynomial_through
-from vibid.identify.model.terms import Parameter, Term
-
-#: The box is also the reach of the interpolation across the width (:func:`places`): at
-#: ±10 mm its error on the titanium strip grew from below 2e-4 of |H| to 5.7e-4.
-DY = Parameter("sensor_dy_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,
-               noun="the sensor's offset across the width")
+from vibid.identify.model.terms import Term
+# sensor_dy_m (m): the catalogue declares it. Its default box is also the reach of the
+# interpolation across the width (:func:`places`): at ±10 mm its error on the titanium
+# strip grew from below 2e-4 of |H| to 5.7e-4.
+from vibid.parameters import DY
 
 #: Degree of the interpolation across the width.
 DEGREE = 3

@@ -26,12 +26,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from vibid.identify.model.terms import Parameter, Term
+from vibid.identify.model.terms import Term
+from vibid.parameters import G13  # G13_Pa (Pa): the catalogue declares it
 
 #: Reissner's shear correction factor.
 KAPPA = 5.0 / 6.0
-G13 = Parameter("G13_Pa", "Pa", ("log",), bounds=(1e8, 1e11), null=None, rule="positive",
-                noun="a shear modulus")
 
 
 @dataclass(frozen=True)

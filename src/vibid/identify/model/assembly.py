@@ -10,7 +10,9 @@ For the clamped plate under base excitation (relative motion ``u = 1 + u_rel``, 
 * one inertia matrix per name of ``inertia_names``: ``"plate"``, ``ρh ∫ u v + ρh h²/12 ∫
   ∇u·∇v`` (kg), ``"sensor"``, the sensor disc's ``m/(π r²) ∫_disc (u v + h²/12 ∇u·∇v)``,
   then the effects' own;
-* the rigid-translation load of each inertia matrix, ``(M_full · 1)[free]``;
+* the rigid-translation load of each inertia matrix, ``(M_full · 1)[free]``, and the
+  load of the rigid rotation about the clamp line, ``(M_full · x)[free]`` (``w = x``, for
+  a base that rocks: :mod:`vibid.identify.effects.stand_resonance`);
 * the probe ``c`` with ``u(x_s, y_s) = c · u`` at the sensor centre, and the effects' own
   probe vectors (a sensor displaced from its declared place).
 
@@ -76,15 +78,25 @@ class AssemblyContext:
     basis: object  # skfem CellBasis
     probe: np.ndarray  # (N,) displacement at the sensor centre
 
-    def sensor_shift(self, direction, places) -> dict:
+    def sensor_shift(self, direction, places, shifts=None) -> dict:
         """``{k: M_k}`` (kg/m^k, k = 1..2n): the declared sensor's inertia matrix when its
         disc moves by ``s`` along the unit vector ``direction`` is ``M_sensor + Σ s^k M_k``,
         interpolated through ``s = 0`` and the n ``places`` (m; the disc must lie on the
-        plate there; :func:`~vibid.identify.model.disc.shifted_disc`)."""
+        plate there; :func:`~vibid.identify.model.disc.shifted_disc`). With ``shifts`` the
+        disc lies ``shifts[i]`` (m) away at ``places[i]``, which are then the values of
+        any parameter that moves it (the polynomial is in that parameter)."""
         g = self.geometry
         centre = np.array([g.sensor_x_m, g.sensor_y_m])
-        parts = shifted_disc(self.basis, centre, g.sensor_radius_m, direction, places)
+        parts = shifted_disc(self.basis, centre, g.sensor_radius_m, direction, places, shifts)
         return {k: _disc_inertia(g, uv, grad) for k, (uv, grad) in parts.items()}
+
+    def sensor_tilt(self) -> sp.csr_matrix:
+        """``m/(π r²) ∫_disc ∇u·∇v`` (kg): the declared sensor's mass spread over its disc,
+        times the squared tilt of the plate under it (a rotary inertia per m² of lever)."""
+        g = self.geometry
+        centre = np.array([g.sensor_x_m, g.sensor_y_m])
+        _, grad, _ = assemble_disc(self.basis, centre, g.sensor_radius_m)
+        return (g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2) * grad).tocsr()
 
     def probe_at(self, centre_m) -> np.ndarray:
         """(N,) the probe ``c`` with ``u(x, y) = c · u`` at ``centre_m`` = (x, y)."""
@@ -111,9 +123,12 @@ class PlateMatrices:
     stiffness : dict name -> (n, n) CSR, one per stiffness term.
     inertia : dict name -> (n, n) CSR, one per inertia term.
     load : dict name -> (n,) the rigid unit translation's inertia load of each inertia term.
+    load_rotation : dict name -> (n,) the same for the rigid unit rotation ``w = x`` about
+        the clamp line (kg·m per rad).
     probes : dict name -> (n,), one per probe name of the model, ``"sensor"`` the
         displacement at the declared sensor's centre; ``probes_rigid`` each one's value on
-        the rigid unit translation (1 up to round-off for the sensor's).
+        the rigid unit translation (1 up to round-off for the sensor's); ``probes_rotation``
+        each one's value on the rigid unit rotation (the sensor's x, m per rad).
     probe, probe_rigid : the declared sensor's (properties).
     n_dof : number of free degrees of freedom; ``n_dof_total`` all of them.
     sensor_area_m2 : the integrated area of the sensor disc.
@@ -126,8 +141,10 @@ class PlateMatrices:
     stiffness: dict
     inertia: dict
     load: dict
+    load_rotation: dict
     probes: dict
     probes_rigid: dict
+    probes_rotation: dict
     n_dof: int
     n_dof_total: int
     sensor_area_m2: float
@@ -147,9 +164,12 @@ class PlateMatrices:
         c = coefficients or {k: 1.0 for k in self.inertia}
         return functools.reduce(lambda a, b: a + b, (v * self.inertia[k] for k, v in c.items())).tocsr()
 
-    def inertia_load(self, coefficients: dict | None = None) -> np.ndarray:
+    def inertia_load(self, coefficients: dict | None = None, *, rotation: bool = False) -> np.ndarray:
+        """``Σ m_k (M_k r)[free]``, ``r`` the rigid translation (or with ``rotation`` the
+        rigid rotation about the clamp line)."""
         c = coefficients or {k: 1.0 for k in self.inertia}
-        return sum(v * self.load[k] for k, v in c.items())
+        load = self.load_rotation if rotation else self.load
+        return sum(v * load[k] for k, v in c.items())
 
     @property
     def probe(self) -> np.ndarray:
@@ -164,6 +184,11 @@ class PlateMatrices:
         c = coefficients or {"sensor": 1.0}
         vec = sum(v * self.probes[k] for k, v in c.items())
         return vec, float(sum(v * self.probes_rigid[k] for k, v in c.items()))
+
+    def probe_rotation(self, coefficients: dict | None = None) -> float:
+        """``Σ c_k probe_k · x``: the probe's value on the rigid unit rotation (m/rad)."""
+        c = coefficients or {"sensor": 1.0}
+        return float(sum(v * self.probes_rotation[k] for k, v in c.items()))
 
 
 def make_element(kind: str):
@@ -191,6 +216,7 @@ class _AllDofs:
     stiffness: dict
     inertia: dict
     one: np.ndarray
+    x: np.ndarray  # the rigid rotation about the clamp line, w = x (m per rad)
     sensor_area_m2: float
 
 
@@ -211,8 +237,9 @@ def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs
     sensor, area = _sensor_inertia(basis, g, centre)
     one = np.zeros(basis.N)
     one[basis.nodal_dofs[0]] = 1.0  # the rigid unit translation: 'u' is the first nodal dof
+    x = basis.project(lambda p: p[0])  # exact: the element holds every linear field
     ctx = AssemblyContext(g, d, basis, _probe(basis, centre))
-    return _AllDofs(ctx, stiffness, {"plate": plate, "sensor": sensor}, one, area)
+    return _AllDofs(ctx, stiffness, {"plate": plate, "sensor": sensor}, one, x, area)
 
 
 def _sensor_inertia(basis, g: Geometry, centre: np.ndarray):
@@ -275,14 +302,16 @@ def _model_matrices(geometry: Geometry, discretisation: Discretisation,
     def restrict(a):
         return a[free][:, free].tocsr()
 
-    one = full.one
+    one, x = full.one, full.x
     mats = PlateMatrices(
         geometry=geometry, discretisation=discretisation,
         stiffness={k: restrict(a) for k, a in stiffness.items()},
         inertia={k: restrict(a) for k, a in inertia.items()},
         load={k: (a @ one)[free] for k, a in inertia.items()},
+        load_rotation={k: (a @ x)[free] for k, a in inertia.items()},
         probes={k: c[free] for k, c in probes.items()},
         probes_rigid={k: float(c @ one) for k, c in probes.items()},
+        probes_rotation={k: float(c @ x) for k, c in probes.items()},
         n_dof=free.size, n_dof_total=basis.N, sensor_area_m2=full.sensor_area_m2,
         rigid_mass_kg={k: float(one @ (a @ one)) for k, a in inertia.items()}, free=free,
     )

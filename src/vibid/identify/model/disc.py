@@ -256,7 +256,7 @@ def polynomial_through(f0, others, places) -> list:
     return [sum(inv[k, i] * diffs[i] for i in range(n)) for k in range(n)]
 
 
-def shifted_disc(basis, centre, radius: float, direction, places) -> dict:
+def shifted_disc(basis, centre, radius: float, direction, places, shifts=None) -> dict:
     """The disc's ``∫ φ_i φ_j`` and ``∫ ∇φ_i · ∇φ_j`` when it moves by ``s`` along the unit
     vector ``direction`` (m), as polynomials in ``s``.
 
@@ -264,6 +264,9 @@ def shifted_disc(basis, centre, radius: float, direction, places) -> dict:
     the polynomial through ``s = 0`` and the n ``places`` (m): ``a(s) = φ(p) + Σ s^k c_k``;
     then ``∫ a aᵀ = Σ_k s^k M_k`` (k = 0..2n; a Gram matrix, so positive for every ``s``,
     and exact wherever the field is a polynomial of degree n along ``direction``).
+
+    With ``shifts`` the disc lies ``shifts[i]`` (m) away where the polynomial's variable is
+    ``places[i]`` (a parameter that moves the disc, not the distance itself).
 
     Returns ``{k: (uv_k, grad_k)}`` for k = 1..2n, sparse (N, N) in m²/m^k and 1/m^k
     (``M_0`` is :func:`assemble_disc`'s).
@@ -276,7 +279,7 @@ def shifted_disc(basis, centre, radius: float, direction, places) -> dict:
     w = diags(W.ravel()[keep])
     e = np.asarray(direction, float)[:, None]
     here = _fields_at(basis, pts)
-    there = [_fields_at(basis, pts + t * e) for t in places]
+    there = [_fields_at(basis, pts + t * e) for t in (places if shifts is None else shifts)]
     n = len(places)
     out = {k: [0.0, 0.0] for k in range(1, 2 * n + 1)}
     for comp in range(3):  # value, d/dx, d/dy

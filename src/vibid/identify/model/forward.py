@@ -205,6 +205,7 @@ class ForwardModel:
         set_ = functools.partial(object.__setattr__, self)
         set_("frequencies_hz", np.asarray(self.frequencies_hz, float))
         set_("theta0", np.asarray(self.theta0, float))
+        set_("param", self.param.for_geometry(self.geometry))
         set_("mats", model_matrices(self.geometry, self.discretisation, tuple(self.param.effects)))
         f_max = float(self.frequencies_hz.max())
         if self.kind not in ("wide", "local"):
@@ -374,8 +375,11 @@ def plate_model(model: str, per_modulus_loss: bool = False, effects=()) -> Plate
 def plate_model_for(names, effects=()) -> PlateModel:
     """The PlateModel whose parameters are exactly ``names`` (material and effects), with
     the effects named in ``effects`` too (those without parameters of their own, such as
-    ``transverse_shear`` on an isotropic plate, are added this way only)."""
+    ``transverse_shear`` on an isotropic plate, are added this way only). An effect that
+    may occur more than once (a stand resonance) gets one instance per suffix ``_k`` among
+    ``names`` (report format)."""
     from vibid.identify.effects import EFFECTS, effects_for
+    from vibid.parameters import split_instance
 
     try:
         material = infer_material(names)
@@ -385,12 +389,27 @@ def plate_model_for(names, effects=()) -> PlateModel:
     if unknown:
         raise VibidError(f"unknown effect {', '.join(unknown)}, expected one of {', '.join(EFFECTS)}")
     found = {t.name for t in effects_for(names)} | set(effects)
-    model = PlateModel(material, tuple(t.for_material(material) for t in EFFECTS.values()
-                                       if t.name in found))
+    terms = []
+    for t in EFFECTS.values():
+        if t.instance is None:
+            if t.name in found:
+                terms.append(t.for_material(material))
+            continue
+        own = {q.name.rsplit("_", 1)[0] for q in t.parameters}
+        ks = sorted({k for k in (split_instance(n)[1] for n in names
+                                 if split_instance(n)[0] in own) if k})
+        if t.name in found and not ks:
+            ks = [1]
+        terms += [replace(t, instance=k) for k in ks]
+    model = PlateModel(material, tuple(terms))
     unknown = sorted(set(names) - set(model.names))
     if unknown:
         raise VibidError(f"{', '.join(unknown)}: not a parameter of model {material.model!r} "
                          "nor of any effect")
+    for t in model.effects:
+        needs = getattr(t, "requires", None)
+        if needs and needs not in model.effect_names:
+            raise VibidError(f"{t.name} goes with {needs}: give its parameters too")
     return model
 
 
@@ -425,6 +444,7 @@ def build_forward_model(setup, frequencies_hz=None, *, model=None, effects=(), t
         model = plate_model(model or setup.identification.model, per_modulus_loss, effects)
     box = model.default_bounds(dict(setup.identification.bounds if bounds is None else bounds))
     geometry = Geometry.from_setup(setup)
+    model = model.for_geometry(geometry)
     if theta0 is None:
         missing = [n for n in model.names if n not in box]
         if missing:
@@ -460,8 +480,8 @@ def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "def
     -------
     (frequency_hz (n,), decay_1_per_s (n,)): ``√Λ = 2π f + i γ`` (paper eq. 4.1.13).
     """
-    model = plate_model_for(params, effects)
-    theta = theta_from_dict(model, params)
     geometry = Geometry.from_setup(setup)
+    model = plate_model_for(params, effects).for_geometry(geometry)
+    theta = theta_from_dict(model, params)
     mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))
     return frequencies_and_decays(model_eigenvalues(mats, model, theta, n))

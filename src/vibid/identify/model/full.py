@@ -8,7 +8,10 @@ free dofs is::
 
     (K(θ, ω) − ω² M(θ)) u_rel = ω² M(θ) 1,    K = Σ_k s_k (1 + i β_k L(ω)) K_k,
 
-with the stiffness terms ``k`` and inertia terms of the model
+and, where a term rocks the base about the clamp line by ``θ(ω)`` per unit translation
+(a stand resonance), the rigid rotation ``x`` joins the translation: the load becomes
+``ω² M (1 + θ x)`` and ``H = c·(1 + θ x) + c·u_rel``; with the stiffness terms ``k`` and
+inertia terms of the model
 (:class:`~vibid.identify.model.terms.PlateModel`: the six moduli, then the effects'), ``L``
 its loss law (1 unless a term gives one), and the AFC at the sensor centre
 ``H(ω) = c·1 + c·u_rel`` (``c·1 = 1``), then each term's map (delay, gain). A positive
@@ -29,15 +32,19 @@ from vibid.identify.profile import timed
 
 
 def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=False,
-               probe=None):
+               probe=None, rotation=False):
     """``coefficients``: (T,) complex, or (nf, T) per frequency, over ``mats.stiffness``;
-    ``inertia`` and ``probe``: dicts of coefficients by name (default: the declared ones)."""
+    ``inertia`` and ``probe``: dicts of coefficients by name (default: the declared ones).
+    With ``rotation`` the response to the rigid unit rotation about the clamp line instead
+    of the translation (m per rad)."""
     names = list(mats.stiffness)
     omega = 2 * np.pi * np.asarray(frequencies_hz, float)
     C = np.broadcast_to(np.asarray(coefficients, complex), (omega.size, len(names)))
     M = mats.inertia_matrix(inertia)
-    f = mats.inertia_load(inertia)
+    f = mats.inertia_load(inertia, rotation=rotation)
     c, c_rigid = mats.probe_vector(probe)
+    if rotation:
+        c_rigid = mats.probe_rotation(probe)
     H = np.empty(omega.size, complex)
     S = np.empty((omega.size, len(names)), complex) if sensitivities else None
     K = None
@@ -53,7 +60,8 @@ def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=F
     return H, S
 
 
-def afc_full(mats, complex_moduli, frequencies_hz, inertia=None, probe=None) -> np.ndarray:
+def afc_full(mats, complex_moduli, frequencies_hz, inertia=None, probe=None, *,
+             rotation: bool = False) -> np.ndarray:
     """The plate's AFC ``H(f)`` of the full model (before any term's map on H).
 
     Parameters
@@ -64,19 +72,23 @@ def afc_full(mats, complex_moduli, frequencies_hz, inertia=None, probe=None) -> 
     frequencies_hz : (nf,) excitation frequencies in Hz.
     inertia : dict name -> coefficient of ``mats.inertia`` (default: all 1).
     probe : dict name -> coefficient of ``mats.probes`` (default: the declared sensor's).
+    rotation : the response to the base's rigid unit rotation about the clamp line instead.
 
     Returns
     -------
-    (nf,) complex128: sensor displacement over base displacement.
+    (nf,) complex128: sensor displacement over base displacement (or, with ``rotation``,
+    over the base's rotation, m/rad).
     """
-    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, probe=probe)[0]
+    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, probe=probe,
+                      rotation=rotation)[0]
 
 
-def afc_full_with_sensitivities(mats, complex_moduli, frequencies_hz, inertia=None, probe=None):
+def afc_full_with_sensitivities(mats, complex_moduli, frequencies_hz, inertia=None, probe=None,
+                                *, rotation: bool = False):
     """``H`` (nf,) and ``∂H/∂c_k`` (nf, T) by the adjoint method (``A`` is complex
     symmetric, so ``∂H/∂c_k = −zᵀ K_k u`` with ``Aᵀ z = c``)."""
     return _solve_all(mats, complex_moduli, frequencies_hz, inertia, sensitivities=True,
-                      probe=probe)
+                      probe=probe, rotation=rotation)
 
 
 def stiffness_coefficients(model, theta, omega, xp=np):
@@ -95,8 +107,11 @@ def model_afc_full(mats, model, theta, frequencies_hz) -> np.ndarray:
     omega = 2 * np.pi * np.asarray(frequencies_hz, float)
     inertia = dict(zip(model.inertia_names, model.inertia(theta)))
     probe = dict(zip(model.probe_names, model.probe(theta)))
-    H = afc_full(mats, stiffness_coefficients(model, theta, omega), frequencies_hz, inertia,
-                 probe)
+    C = stiffness_coefficients(model, theta, omega)
+    H = afc_full(mats, C, frequencies_hz, inertia, probe)
+    if model.rotates_base:
+        H = H + model.base_rotation(theta, omega, np) * afc_full(
+            mats, C, frequencies_hz, inertia, probe, rotation=True)
     return model.afc_map(theta, omega, H, np)
 
 
@@ -116,27 +131,37 @@ def make_full_afc_jax(mats, model, frequencies_hz):
     out_h = jax.ShapeDtypeStruct((nf,), jnp.complex128)
     out_s = jax.ShapeDtypeStruct((nf, T), jnp.complex128)
 
-    def host(C, m, c):
-        inertia = dict(zip(model.inertia_names, np.asarray(m)))
-        probe = dict(zip(model.probe_names, np.asarray(c)))
-        h, s = afc_full_with_sensitivities(mats, np.asarray(C), freqs, inertia, probe)
-        return h.astype(np.complex128), s.astype(np.complex128)
+    def responses(rotation):
+        def host(C, m, c):
+            inertia = dict(zip(model.inertia_names, np.asarray(m)))
+            probe = dict(zip(model.probe_names, np.asarray(c)))
+            h, s = afc_full_with_sensitivities(mats, np.asarray(C), freqs, inertia, probe,
+                                               rotation=rotation)
+            return h.astype(np.complex128), s.astype(np.complex128)
 
-    @jax.custom_jvp
-    def plate(C, m, c):
-        return jax.pure_callback(lambda c_, m_, p_: host(c_, m_, p_)[0], out_h, C, m, c)
+        @jax.custom_jvp
+        def plate(C, m, c):
+            return jax.pure_callback(lambda c_, m_, p_: host(c_, m_, p_)[0], out_h, C, m, c)
 
-    @plate.defjvp
-    def _plate_jvp(primals, tangents):
-        (C, m, c), (tC, _, _) = primals, tangents
-        h, s = jax.pure_callback(host, (out_h, out_s), C, m, c)
-        return h, jnp.sum(s * tC, axis=1)
+        @plate.defjvp
+        def _plate_jvp(primals, tangents):
+            (C, m, c), (tC, _, _) = primals, tangents
+            h, s = jax.pure_callback(host, (out_h, out_s), C, m, c)
+            return h, jnp.sum(s * tC, axis=1)
+
+        return plate
+
+    translation, rotation = responses(False), responses(True)
 
     def fn(theta):
         theta = jnp.asarray(theta, jnp.float64)
-        C = stiffness_coefficients(model, theta, jnp.asarray(omega), jnp)
-        H = plate(C, jax.lax.stop_gradient(model.inertia(theta, jnp)),
-                  jax.lax.stop_gradient(model.probe(theta, jnp)))
-        return model.afc_map(theta, jnp.asarray(omega), H, jnp)
+        w = jnp.asarray(omega)
+        C = stiffness_coefficients(model, theta, w, jnp)
+        m = jax.lax.stop_gradient(model.inertia(theta, jnp))
+        c = jax.lax.stop_gradient(model.probe(theta, jnp))
+        H = translation(C, m, c)
+        if model.rotates_base:
+            H = H + model.base_rotation(theta, w, jnp) * rotation(C, m, c)
+        return model.afc_map(theta, w, H, jnp)
 
     return fn

@@ -22,36 +22,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from vibid.identify.model.terms import MODULI, Parameter, Term
-
-
-def _stiffness(name: str, signed: bool = False) -> Parameter:
-    if signed:
-        return Parameter(name, "N m", ("linear",))
-    return Parameter(name, "N m", ("log",), rule="positive", noun="a stiffness")
-
-
-def _loss(name: str) -> Parameter:
-    return Parameter(name, "1", ("log",), rule="non-negative", noun="the loss factor")
-
-
-NU = Parameter("nu", "1", ("logit", -1.0, 0.5), rule=("interval", -1.0, 0.5),
-               noun="Poisson's ratio")
-
-#: Stiffness parameters of each model, in the order the identification uses.
-STIFFNESS = {
-    "isotropic": (_stiffness("D"), NU),
-    "orthotropic": (_stiffness("D11"), _stiffness("D12", True), _stiffness("D22"),
-                    _stiffness("D66")),
-    "monoclinic": (_stiffness("D11"), _stiffness("D12", True), _stiffness("D22"),
-                   _stiffness("D66"), _stiffness("D16", True), _stiffness("D26", True)),
-}
-#: Loss factors of each model with one loss per modulus.
-PER_MODULUS_LOSS = {
-    "isotropic": ("beta11", "beta12", "beta66"),
-    "orthotropic": ("beta11", "beta12", "beta22", "beta66"),
-    "monoclinic": ("beta11", "beta12", "beta22", "beta66", "beta16", "beta26"),
-}
-MODELS = tuple(STIFFNESS)
+# The parameters' declarations (units, transforms, prior rules) are the catalogue's:
+# STIFFNESS (stiffness parameters of each model, in the order the identification uses),
+# PER_MODULUS_LOSS (loss factors of each model with one loss per modulus), MODELS.
+from vibid.parameters import (  # noqa: F401  (NU: this module's public name)
+    MODELS,
+    NU,
+    PER_MODULUS_LOSS,
+    STIFFNESS,
+    material_parameters,
+)
 
 
 def flexural_rigidity(young_pa: float, poisson: float, thickness_m: float) -> float:
@@ -99,8 +79,7 @@ class Material(Term):
 
     @property
     def parameters(self) -> tuple[Parameter, ...]:
-        losses = PER_MODULUS_LOSS[self.model] if self.per_modulus_loss else ("beta",)
-        return STIFFNESS[self.model] + tuple(_loss(n) for n in losses)
+        return material_parameters(self.model, self.per_modulus_loss)
 
     @property
     def stiffness_names(self) -> tuple[str, ...]:

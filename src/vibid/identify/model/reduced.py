@@ -7,7 +7,8 @@ model's terms, :class:`~vibid.identify.model.terms.PlateModel`):
   that the band ``[0, f_max]`` stays covered, with margin, for the softest parameters in
   the prior box;
 * the static correction ``K0⁻¹ M 1`` (the quasi-static response to the base motion, which
-  carries the truncated modes' share) and its Krylov successors, and the same for each probe;
+  carries the truncated modes' share) and its Krylov successors, and the same for each probe
+  (and, for a model whose base rocks, for the rotation's load ``M x``);
 * parameter-sensitivity vectors ``K0⁻¹ (∂K/∂θ_j) φ`` (and ``K0⁻¹ (∂M/∂θ_j) φ``) for every
   parameter that moves a stiffness or inertia coefficient, which span the first-order
   changes of the mode shapes;
@@ -29,7 +30,8 @@ Evaluation (JAX, float64, pure, jit-able, differentiable to any order), by
 * ``direct`` path (one loss per modulus): a batched dense solve of
   ``(Σ ŝ_k K̃_k − ω² M̃) q = ω² f`` per frequency;
 
-then the terms' maps on H (delay, gain).
+and, where a term rocks the base, ``H_translation + θ(ω) H_rotation`` with the rotation's
+load in place of the translation's; then the terms' maps on H (delay, gain).
 """
 
 from __future__ import annotations
@@ -61,6 +63,8 @@ class ReducedBasis:
     load : (S, n) projected inertia loads ``Vᵀ M_k 1``; probe : (P, n) projected probes
         ``Vᵀ c_k`` (``PlateModel.probe_names``, the declared sensor's first).
     probe_rigid : (P,) value of each probe on the rigid translation (1, then 0s).
+    load_rotation : (S, n) and probe_rotation : (P,) the same for the rigid rotation about
+        the clamp line (``w = x``, per radian).
     n_modes : how many modes it holds; f_top_hz : the highest of them at ``theta0``.
     theta0 : where it was built; moduli0 : (T,) and inertia0 : (S,) the coefficients there.
     """
@@ -71,6 +75,8 @@ class ReducedBasis:
     load: np.ndarray
     probe: np.ndarray
     probe_rigid: np.ndarray
+    load_rotation: np.ndarray
+    probe_rotation: np.ndarray
     n_modes: int
     f_top_hz: float
     theta0: np.ndarray
@@ -242,6 +248,8 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         K = mats.stiffness_matrix(dict(zip(names, s))).tocsc()
         M = mats.inertia_matrix(dict(zip(inertia_names, m))).tocsc()
         f = mats.inertia_load(dict(zip(inertia_names, m)))
+        loads = [f] + ([mats.inertia_load(dict(zip(inertia_names, m)), rotation=True)]
+                       if model.rotates_base else [])
         lu = spla.splu(K)
         # every point its own modes up to f_top: a face where one modulus is soft has more
         Phi, freqs = _modes(K, M, lu, min_modes, max_modes, f_top)
@@ -251,7 +259,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         if j == 0:
             n_modes, f_reached = Phi.shape[1], float(freqs[-1])
         statics = []
-        for rhs in [f] + [mats.probes[k] for k in probe_names]:
+        for rhs in loads + [mats.probes[k] for k in probe_names]:
             v = lu.solve(rhs)
             for _ in range(krylov):
                 statics.append(v)
@@ -282,7 +290,9 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         M=np.array([project(mats.inertia[k]) for k in inertia_names]),
         load=np.array([V.T @ mats.load[k] for k in inertia_names]),
         probe=np.array([V.T @ mats.probes[k] for k in probe_names]),
-        probe_rigid=np.array([mats.probes_rigid[k] for k in probe_names]), n_modes=n_modes,
+        probe_rigid=np.array([mats.probes_rigid[k] for k in probe_names]),
+        load_rotation=np.array([V.T @ mats.load_rotation[k] for k in inertia_names]),
+        probe_rotation=np.array([mats.probes_rotation[k] for k in probe_names]), n_modes=n_modes,
         f_top_hz=f_reached, theta0=theta0, moduli0=s0, inertia0=m0,
     )
     log.info("reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
@@ -314,7 +324,7 @@ def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tu
         at.append((s.tobytes(), m.tobytes(), tuple(directions)))
     return ((mats.geometry, mats.discretisation, tuple(mats.stiffness), tuple(mats.inertia),
              tuple(mats.probes), mats.n_dof), model.stiffness_names, model.inertia_names,
-            model.probe_names, float(ratio), float(f_max_hz), tuple(at),
+            model.probe_names, model.rotates_base, float(ratio), float(f_max_hz), tuple(at),
             tuple(sorted((k, v) for k, v in options.items() if k != "scale_ratio")))
 
 
@@ -372,21 +382,30 @@ class ReducedKernel:
         w2 = a["w2"]
         omega = jnp.sqrt(w2)
         law = model.loss_law(theta, omega, jnp)
+        # the base's translation, and where it rocks its rotation: (load, rigid value) each
+        loads = [(load, rigid)]
+        if model.rotates_base:
+            m, c = model.inertia(theta, jnp), model.probe(theta, jnp)
+            loads.append((m @ a["load_rotation"], c @ a["probe_rotation"]))
         if model.proportional:
             beta = model.common_loss(theta, jnp)
-            mu, weight = self._modal(a, s, Mr, load, probe)
+            mu, weights = self._modal(a, s, Mr, [f for f, _ in loads], probe)
             loss = 1.0 + 1j * beta * (1.0 if law is None else law)
             denom = loss[..., None] * jnp.ones((w2.shape[0], 1)) - w2[:, None] * mu[None, :]
-            H = rigid + (w2[:, None] * weight[None, :] / denom).sum(axis=1)
+            Hs = [r + (w2[:, None] * wt[None, :] / denom).sum(axis=1)
+                  for (_, r), wt in zip(loads, weights)]
         else:
             b = model.losses(theta, jnp)
             c = s[None, :] * (1.0 + 1j * b[None, :] * (1.0 if law is None else law[:, None]))
             c = c * jnp.ones((w2.shape[0], 1))
             A = jnp.einsum("ft,tij->fij", c, a["K"].astype(jnp.complex128)) + a["pad"]
             sys = A - w2[:, None, None] * Mr[None]
-            rhs = (w2[:, None] * load[None, :]).astype(jnp.complex128)
-            q = jnp.linalg.solve(sys, rhs[..., None])[..., 0]
-            H = rigid + q @ probe
+            rhs = jnp.stack([w2[:, None] * f[None, :] for f, _ in loads], axis=-1)
+            q = jnp.linalg.solve(sys, rhs.astype(jnp.complex128))  # (nf, m, loads)
+            Hs = [r + q[..., j] @ probe for j, (_, r) in enumerate(loads)]
+        H = Hs[0]
+        if model.rotates_base:
+            H = H + model.base_rotation(theta, omega, jnp) * Hs[1]
         return model.afc_map(theta, omega, H, jnp)
 
     def _inertia(self, a: dict, theta):
@@ -405,7 +424,8 @@ class ReducedKernel:
     @staticmethod
     def _modal(a: dict, s, Mr, load, probe):
         """``(mu, weight)``: inverse eigenvalues ``mu = 1/λ`` (s²/rad², ascending) of the
-        real pencil ``(Σ s_k K_k, M)`` and each mode's weight (probe x load) in H.
+        real pencil ``(Σ s_k K_k, M)`` and each mode's weight (probe x load) in H (a list
+        of weights for a list of loads).
 
         (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z: well
         conditioned whatever the spread of λ (μ is bounded by 1/λ_min)."""
@@ -416,7 +436,10 @@ class ReducedKernel:
         solve = lambda b: jax.scipy.linalg.solve_triangular(L, b, lower=True)  # noqa: E731
         B = solve(solve(Mr).T)
         mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
-        return mu, (Z.T @ solve(probe)) * (Z.T @ solve(load))
+        zp = Z.T @ solve(probe)
+        if isinstance(load, list):
+            return mu, [zp * (Z.T @ solve(f)) for f in load]
+        return mu, zp * (Z.T @ solve(load))
 
     def modes(self, arrays: dict, theta):
         """Natural frequencies (Hz, ascending) of the reduced model and the height of each
@@ -476,10 +499,14 @@ def padded_arrays(basis: ReducedBasis, omega, model, structure) -> dict:
     M = laid_out(basis.M, model.inertia_names, structure.inertia_names, (m, m))
     load = laid_out(basis.load, model.inertia_names, structure.inertia_names, (m,))
     probe = laid_out(basis.probe, model.probe_names, structure.probe_names, (m,))
+    load_rotation = laid_out(basis.load_rotation, model.inertia_names, structure.inertia_names,
+                             (m,))
     rigid = np.zeros(len(structure.probe_names))
+    rotation = np.zeros(len(structure.probe_names))
     for k, i in enumerate(slots(model.probe_names, structure.probe_names)):
         if i is not None:
             rigid[k] = basis.probe_rigid[i]
+            rotation[k] = basis.probe_rotation[i]
     M_pad = np.zeros((m, m))
     M_pad[n:, n:] = np.eye(n_pad)
     pad = np.zeros((m, m))
@@ -488,9 +515,11 @@ def padded_arrays(basis: ReducedBasis, omega, model, structure) -> dict:
                                      np.tensordot(basis.inertia0, basis.M, axes=1))
         pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
     # device_put, not jnp.asarray: no compiled conversion per array shape
-    return jax.device_put({"K": K, "M": M, "M_pad": M_pad, "pad": pad, "load": load,
-                           "probe": probe, "probe_rigid": rigid,
-                           "w2": np.asarray(omega, float) ** 2})
+    arrays = {"K": K, "M": M, "M_pad": M_pad, "pad": pad, "load": load, "probe": probe,
+              "probe_rigid": rigid, "w2": np.asarray(omega, float) ** 2}
+    if structure.rotates_base:
+        arrays |= {"load_rotation": load_rotation, "probe_rotation": rotation}
+    return jax.device_put(arrays)
 
 
 @dataclass(frozen=True, eq=False)

@@ -22,6 +22,13 @@ The model's AFC is thus the structure's, to rounding. The code depends on the st
 on the arrays' shapes only, and JAX compiles it once per shape: a model with one more
 parameter or a larger basis compiles again, an effect of the same size does not.
 
+Some terms cost the structure's code something even where they are absent: a clamp with
+a loss of its own makes the modes complex (the direct solve per frequency instead of the
+modal sum), a stand resonance adds the base rotation's load, and a stretch of the free
+length is bound to its plate's length. The structure holds those only where the model
+does (each instance of a stand resonance the model has), so a model without them runs the
+plain code.
+
 A model with a term outside the library (a test's own term) is its own structure.
 """
 
@@ -45,9 +52,17 @@ def structure_of(model: PlateModel) -> PlateModel:
 
     material = model.material
     library = tuple(t.for_material(material) for t in EFFECTS.values())
-    if not all(t in library for t in model.effects):
+    optional = {t.name for t in library if not t.in_every_structure}
+    if not all(t in library or t.name in optional for t in model.effects):
         return model
-    return PlateModel(material, library)
+    terms = []
+    for t in library:
+        if t.in_every_structure:
+            terms.append(t)
+        else:
+            terms += sorted((e for e in model.effects if e.name == t.name),
+                            key=lambda e: e.instance or 0)
+    return PlateModel(material, tuple(terms))
 
 
 def absent_value(parameter) -> float:

@@ -17,7 +17,16 @@ and what it contributes, any of:
 * ``probe(p, xp) -> {probe name: coefficient}``: the term adds probe vectors (assembled by
   ``assemble``) to the declared sensor's, ``c = c_sensor + Σ_k c_k(p) c_k`` (a sensor
   that is not where the setup says);
+* ``loss_factors(p, xp) -> {matrix name: loss factor}``: a loss factor of its own for
+  another term's stiffness matrix (a clamp that dissipates unlike the plate); such a term
+  sets ``proportional = False`` (the modes are then complex);
+* ``scales(p, xp) -> {matrix name: factor}``: factors on other terms' stiffness or inertia
+  coefficients (a stretch of the plate along x scales each bending matrix by a power of
+  the stretch);
 * ``loss_law(p, omega, xp) -> (nf,)``: a frequency law multiplying every loss factor;
+* ``base_rotation(p, omega, xp) -> (nf,) complex``: a rotation of the base about the clamp
+  line, in rad per metre of base translation (a stand's own resonance); such a term sets
+  ``rotates_base = True`` and the AFC becomes ``H_translation + Σ θ(ω) H_rotation``;
 * ``afc_map(p, omega, H, xp) -> H``: a map applied to the plate's AFC (delay, gain).
 
 ``p`` is the dict of every parameter of the model by name (values or JAX tracers) and
@@ -30,53 +39,11 @@ the parameter vector ``theta`` is the material's parameters followed by each eff
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Parameter:
-    """One parameter of a term.
-
-    Attributes
-    ----------
-    name : as in the session format and the report, e.g. ``"D"``, ``"tau_s"``.
-    unit : SI unit, e.g. ``"N m"``, ``"s"``, ``"1"``.
-    kind : how the optimisers map it onto the real line (:mod:`vibid.identify.fit.space`):
-        ``("log",)``, ``("logit", a, b)`` or ``("linear",)``.
-    bounds : default prior box ``(low, high)`` for an effect (None: the setup must give it).
-    null : the value at which the term vanishes exactly (None for material parameters;
-        may be ``inf``, e.g. a rigid clamp's stiffness).
-    rule : what a prior box must respect: ``"positive"``, ``"non-negative"``,
-        ``("interval", a, b)`` (open at a, closed at b) or None.
-    noun : what the parameter is, for messages (``"a stiffness"``, ``"the loss factor"``).
-    """
-
-    name: str
-    unit: str
-    kind: tuple = ("linear",)
-    bounds: tuple[float, float] | None = None
-    null: float | None = None
-    rule: object = None
-    noun: str = ""
-
-    def bounds_problem(self, low: float, high: float) -> str | None:
-        """Why ``[low, high]`` cannot be this parameter's prior box, or None."""
-        if not (math.isfinite(low) and math.isfinite(high)):
-            return f"bounds must be finite, got [{low!r}, {high!r}]"
-        if not low < high:
-            return f"low {low!r} must be below high {high!r}"
-        if self.rule == "positive" and low <= 0:
-            return f"{self.name} is {self.noun or 'positive'} and must be positive, low is {low!r}"
-        if self.rule == "non-negative" and low < 0:
-            return f"{self.noun or self.name} cannot be negative, low is {low!r}"
-        if isinstance(self.rule, tuple) and self.rule[0] == "interval":
-            a, b = self.rule[1], self.rule[2]
-            if not (a < low and high <= b):
-                return f"{self.noun} bounds must lie in ({a:g}, {b:g}], got [{low!r}, {high!r}]"
-        return None
+from vibid.parameters import Parameter
 
 
 class Term:
@@ -92,6 +59,16 @@ class Term:
     inertia_matrices: tuple[str, ...] = ()
     probe_vectors: tuple[str, ...] = ()
     released: tuple[str, ...] = ()
+    #: False for a term that gives a stiffness matrix a loss factor of its own
+    proportional = True
+    #: True for a term with a ``base_rotation``
+    rotates_base = False
+    #: False for a term that costs its structure's code something even when absent (a
+    #: non-proportional loss, a second load): only models that have it carry it
+    #: (:mod:`vibid.identify.model.structure`)
+    in_every_structure = True
+    #: which instance of an effect that may occur more than once (None: it may not)
+    instance = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -109,7 +86,16 @@ class Term:
     def probe(self, p: dict, xp) -> dict:
         return {}
 
+    def loss_factors(self, p: dict, xp) -> dict:
+        return {}
+
+    def scales(self, p: dict, xp) -> dict:
+        return {}
+
     def loss_law(self, p: dict, omega, xp):
+        return None
+
+    def base_rotation(self, p: dict, omega, xp):
         return None
 
     def afc_map(self, p: dict, omega, H, xp):
@@ -118,6 +104,16 @@ class Term:
     def for_material(self, material) -> "Term":
         """This term's form for a plate of ``material`` (a term whose parameters depend on
         the material, e.g. the transverse shear, returns its variant)."""
+        return self
+
+    def null_values(self, values: dict) -> dict:
+        """Its parameters at which it vanishes, given the model's ``values``: each one's
+        null (a parameter without a fixed null, a resonance's frequency, has none)."""
+        return {q.name: q.null for q in self.parameters if q.null is not None}
+
+    def for_geometry(self, geometry) -> "Term":
+        """This term bound to a plate's geometry (a term whose coefficients need the
+        declared dimensions, e.g. a stretch of the free length, returns its bound form)."""
         return self
 
 
@@ -171,13 +167,25 @@ class PlateModel:
     @property
     def proportional(self) -> bool:
         """True when every stiffness term shares one loss factor (real modes exist)."""
-        return self.material.proportional
+        return self.material.proportional and all(t.proportional for t in self.effects)
+
+    @property
+    def rotates_base(self) -> bool:
+        """True when a term rotates the base (the AFC then needs the rotation's load)."""
+        return any(t.rotates_base for t in self.effects)
 
     def with_effect(self, term: Term) -> "PlateModel":
-        """This model with one more effect (a new value; this one is unchanged)."""
-        if term.name in self.effect_names:
+        """This model with one more effect (a new value; this one is unchanged). An effect
+        it has already (the same instance of it) is not added twice."""
+        if any((t.name, t.instance) == (term.name, term.instance) for t in self.effects):
             return self
         return PlateModel(self.material, tuple(self.effects) + (term.for_material(self.material),))
+
+    def for_geometry(self, geometry) -> "PlateModel":
+        """This model with each term bound to ``geometry``
+        (:class:`~vibid.identify.model.assembly.Geometry`; see :meth:`Term.for_geometry`)."""
+        effects = tuple(t.for_geometry(geometry) for t in self.effects)
+        return self if effects == tuple(self.effects) else PlateModel(self.material, effects)
 
     def with_material(self, material) -> "PlateModel":
         """This model's effects on another material (each in its form for that material)."""
@@ -211,6 +219,13 @@ class PlateModel:
         for t in self.terms:
             for k, (s, b) in t.stiffness(p, xp).items():
                 entries[k] = (s, common if b is None else b)
+        for t in self.effects:
+            for k, b in t.loss_factors(p, xp).items():
+                if k in entries:
+                    entries[k] = (entries[k][0], b)
+            for k, f in t.scales(p, xp).items():
+                if k in entries:
+                    entries[k] = (entries[k][0] * f, entries[k][1])
         zero = 0.0 * theta[0]
         names = self.stiffness_names
         s = xp.stack([xp.asarray(entries[k][0]) + zero for k in names])
@@ -249,6 +264,11 @@ class PlateModel:
         entries = {k: 1.0 for k in base}
         for t in self.effects:
             entries.update(getattr(t, contribution)(p, xp))
+        if contribution == "inertia":
+            for t in self.effects:
+                for k, f in t.scales(p, xp).items():
+                    if k in entries:
+                        entries[k] = entries[k] * f
         zero = 0.0 * theta[0]
         return xp.stack([xp.asarray(entries[k]) + zero for k in names])
 
@@ -261,6 +281,17 @@ class PlateModel:
             if m is not None:
                 law = m if law is None else law * m
         return law
+
+    def base_rotation(self, theta, omega, xp=np):
+        """(nf,) complex rotation of the base about the clamp line per unit base translation
+        (rad/m) at ``omega`` (rad/s), the sum over the terms that rotate it, or None."""
+        p = self.values(theta)
+        out = None
+        for t in self.effects:
+            r = t.base_rotation(p, omega, xp)
+            if r is not None:
+                out = r if out is None else out + r
+        return out
 
     def afc_map(self, theta, omega, H, xp=np):
         """The observed AFC from the plate's: each term's map in turn."""
