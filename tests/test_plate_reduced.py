@@ -1,5 +1,7 @@
 """The reduced JAX model against the full sparse model; derivatives; refresh; conventions."""
 
+from types import SimpleNamespace
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -165,9 +167,12 @@ def test_coefficient_derivatives_by_complex_step_equal_autodiff(material):
     model = PlateModel(Material(material, False), ())
     for term in EFFECTS.values():
         model = model.with_effect(term)
+    model = model.for_geometry(SimpleNamespace(length_m=0.1))  # the free length's stretch
     rng = np.random.default_rng(3)
     theta = np.array([{"nu": 0.3, "beta": 0.01, "sensor_dy_m": 2e-3, "G13_Pa": 4e10,
-                       "mass_kg": 3e-4, "tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4}.get(n, 1.0)
+                       "mass_kg": 3e-4, "tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4,
+                       "dL_m": 2e-3, "height_m": 3e-3, "beta_clamp": 0.05,
+                       "f_hz_1": 660.0, "q_1": 30.0, "theta_rad_per_m_1": 0.3}.get(n, 1.0)
                       * rng.uniform(0.8, 1.2) * (18.0 if n.startswith("D") else 1.0)
                       for n in model.names])
     Js, Jm = _coefficient_jacobians(model, theta)

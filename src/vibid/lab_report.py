@@ -100,10 +100,17 @@ def fine_model(setup, result, *, n_points: int = FINE_POINTS):
     return grid, np.asarray(model.afc(np.asarray(result.values, float))), fn[inband]
 
 
+def flat_name(effect: dict, name: str) -> str:
+    """An effect parameter's name in a flat list: with the instance's suffix ``_k`` for an
+    effect that occurs more than once (report format)."""
+    return name if "instance" not in effect else f"{name}_{effect['instance']}"
+
+
 # -- the figures -------------------------------------------------------------------------------
 def _values_text(report: dict) -> str:
     rows = [(n, p["value"], p["std"]) for n, p in report["parameters"].items()]
-    rows += [(n, p["value"], p["std"]) for e in report["effects"] for n, p in e["parameters"].items()]
+    rows += [(flat_name(e, n), p["value"], p["std"])
+             for e in report["effects"] for n, p in e["parameters"].items()]
     rows += [(n, p["value"], p["std"]) for n, p in report.get("engineering", {}).items()
              if n.endswith("_Pa")]
     return "\n".join(f"{n:>7} = {with_std(v, s)}{_unit_text(unit_of(n))}" for n, v, s in rows)
@@ -352,8 +359,9 @@ def parameter_table(report: dict) -> list[dict[str, Any]]:
     constants): name, value, std, unit, and which block it comes from."""
     rows = [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
              "source": "model"} for n, p in report["parameters"].items()]
-    rows += [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
-              "source": e["name"]} for e in report["effects"] for n, p in e["parameters"].items()]
+    rows += [{"quantity": flat_name(e, n), "value": p["value"], "std": p["std"],
+              "unit": unit_of(n), "source": e["name"]}
+             for e in report["effects"] for n, p in e["parameters"].items()]
     rows += [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
               "source": "engineering"} for n, p in report.get("engineering", {}).items()]
     return rows

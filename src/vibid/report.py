@@ -50,6 +50,25 @@ def afc_block(result) -> dict[str, Any]:
     }
 
 
+def free_length_share(result) -> str | None:
+    """How much of the bending stiffness's (and so E's) uncertainty a fitted free length
+    carries: a longer span is a softer plate, and the two are nearly collinear. None when
+    the model has no ``dL_m``."""
+    names = list(result.parameter_names)
+    stiff = "D" if "D" in names else "D11" if "D11" in names else None
+    if "dL_m" not in names or stiff is None:
+        return None
+    C = np.asarray(result.covariance, float)
+    i, j = names.index(stiff), names.index("dL_m")
+    if not (np.isfinite(C[i, i]) and np.isfinite(C[j, j]) and C[i, i] > 0 and C[j, j] > 0):
+        return None
+    share = C[i, j] ** 2 / (C[i, i] * C[j, j])
+    known = math.sqrt(max(C[i, i] * (1.0 - share), 0.0))
+    return (f"free_length: dL carries {100 * share:.0f} % of the variance of {stiff} (and so "
+            f"of E): with dL known, {stiff}'s std would be {known:.3g} instead of "
+            f"{math.sqrt(C[i, i]):.3g} N m")
+
+
 def _stage_block(added, result) -> dict[str, Any]:
     return {
         "added": added,
@@ -59,20 +78,33 @@ def _stage_block(added, result) -> dict[str, Any]:
     }
 
 
-def _effect_terms(loop) -> dict:
-    """The final model's effect terms by name (in their form for its material)."""
+def _effect_terms(loop) -> tuple:
+    """The final model's effect terms (in their form for its material), in the order
+    the loop added them."""
     model = getattr(loop.final, "plate_model", None)
-    return {t.name: t for t in (model.effects if model is not None else ())}
+    return tuple(model.effects) if model is not None else ()
 
 
 def _loop_block(loop) -> tuple[list, dict]:
-    """(effects, loop block) of a :class:`vibid.identify.loop.LoopResult`."""
+    """(effects, loop block) of a :class:`vibid.identify.loop.LoopResult`. An effect that
+    occurs more than once has one entry per instance, ``"instance": k``, its parameters
+    unsuffixed (report format, "Effect names")."""
+    from vibid.parameters import split_instance
+
     final = loop.final
     std = dict(zip(final.parameter_names, final.std))
-    terms = _effect_terms(loop)
-    effects = [{"name": name, "parameters": {
-        q.name: {"value": _num(final.parameters[q.name]), "std": _num(std[q.name])}
-        for q in terms[name].parameters}} for name in loop.effects if name in terms]
+    effects = []
+    for t in _effect_terms(loop):
+        if t.name not in loop.effects:
+            continue
+        entry = {"name": t.name}
+        if t.instance is not None:
+            entry["instance"] = t.instance
+        entry["parameters"] = {
+            (split_instance(q.name)[0] if t.instance is not None else q.name): {
+                "value": _num(final.parameters[q.name]), "std": _num(std[q.name])}
+            for q in t.parameters}
+        effects.append(entry)
     stages = []
     for st in loop.stages:
         block = _stage_block(st.added, st.result)
@@ -107,11 +139,14 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
         result = loop.final
     effect_params = set()
     if loop is not None:
-        effect_params = {q.name for t in _effect_terms(loop).values() for q in t.parameters}
+        effect_params = {q.name for t in _effect_terms(loop) for q in t.parameters}
     params = {n: {"value": _num(v), "std": _num(s)}
               for n, v, s in zip(result.parameter_names, result.values, result.std)
               if n not in effect_params}
     warnings = list(result.warnings) + (list(loop.warnings) if loop is not None else [])
+    shared = free_length_share(result)
+    if shared:
+        warnings.append(shared)
     if not result.noise_known:
         warnings.append("the AFC's uncertainty is unknown: the fit cannot be tested against "
                         "the noise (unexplained_residual is false by default)")

@@ -1,0 +1,72 @@
+"""Sessions for the closed loop made by a model vibid did not write: the paper's strip
+(100 x 20 x 1 mm steel) with nu = 0 and its 1 g sensor on the centre line, whose AFC is the
+exact Rayleigh beam of tests/beam_reference.py (with nu = 0 and a centred sensor the strip
+bends as that beam: no torsion is excited, no anticlastic coupling). The declared setup's
+Poisson's ratio box reaches below 0, so that the truth lies inside it.
+
+Effects enter the beam as their physics, not as vibid's terms: a stand resonance as the
+base's rotation theta(f), a clamp as a root spring k_r = k_theta W (complex with its own
+loss), a free length as a longer beam with the sensor further out, the sensor's height as
+its rotary inertia m (h e + e²)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import beam_reference as beam
+import numpy as np
+from loop_data import noisy
+from plate_helpers import strip_setup
+
+from vibid.setup_model import Identification
+
+L, W, H_M, RHO = 0.100, 0.020, 0.001, 7920.0
+TRUTH = {"D": 17.97, "nu": 0.0, "beta": 0.003}
+F = np.linspace(1500.0 / 60, 1500.0, 60)
+
+
+def setup(freqs=F):
+    """The declared setup: the strip, its sensor centred, stepped at ``freqs``."""
+    s = strip_setup(y_m=W / 2)
+    return dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(map(float, freqs))),
+        identification=Identification("isotropic", {"D": (1.0, 100.0), "nu": (-0.3, 0.5),
+                                                    "beta": (1e-4, 0.1)}))
+
+
+def _beam(effects: dict) -> dict:
+    r = setup().sensors.response
+    D, beta = TRUTH["D"], TRUTH["beta"]
+    kw = dict(L=L, EI=D * W * (1 + 1j * beta), rhoA=RHO * H_M * W,
+              rhoI=RHO * H_M**3 / 12 * W, x_s=r.x_m, m=r.mass_kg,
+              J=r.mass_kg * (r.radius_m**2 / 4 + H_M**2 / 12))
+    if "k_theta_N_per_rad" in effects:
+        loss = effects.get("beta_clamp", beta)
+        kw["k_root"] = effects["k_theta_N_per_rad"] * W * (1 + 1j * loss)
+    if "dL_m" in effects:
+        kw["L"] += effects["dL_m"]
+        kw["x_s"] += effects["dL_m"]
+    if "height_m" in effects:
+        e = effects["height_m"]
+        kw["J"] += r.mass_kg * (H_M * e + e**2)
+    return kw
+
+
+@functools.lru_cache(maxsize=None)
+def _afc(key: tuple) -> np.ndarray:
+    effects = dict(key)
+    omega = 2 * math.pi * F
+    theta = 0.0
+    if "f_hz_1" in effects:
+        f0, q, t0 = effects["f_hz_1"], effects["q_1"], effects["theta_rad_per_m_1"]
+        theta = t0 / (1 - (F / f0) ** 2 + 1j * F / (f0 * q))
+    H = beam.afc(omega, **_beam(effects), rotation_per_translation=theta)
+    H.setflags(write=False)
+    return H
+
+
+def data(effects: dict, seed: int = 0):
+    """(H, std) of the beam with ``effects`` on :data:`F`, 0.3 % noise drawn with ``seed``."""
+    return noisy(_afc(tuple(sorted(effects.items()))).copy(), seed)
