@@ -177,11 +177,38 @@ def test_open_stand_finds_the_simulated_stand_by_name():
 @pytest.mark.parametrize("doc, match", [
     ({"generator": {"url": "/dev/ttyUSB0"}}, "generator.url: the simulated stand needs vibidsim://NAME"),
     ({"simulated": {"effects": {"glue": {"x": 1.0}}}}, "simulated.effects.glue: unknown effect"),
+    ({"simulated": {"effects": {"stand_resonance": [{"f_hz": 660.0}]}}},
+     "simulated.effects.stand_resonance: give f_hz, q, theta_rad_per_m, got f_hz"),
+    ({"simulated": {"effects": {"sensor_gain": [{"gain": 1.0}, {"gain": 1.1}]}}},
+     "simulated.effects.sensor_gain: sensor_gain occurs once, given 2 times"),
     ({"simulated": {"faults": [{"kind": "fire"}]}}, "simulated: unknown fault kind 'fire'"),
 ])
 def test_bad_simulated_configuration_is_one_line(doc, match):
     with pytest.raises(StandConfigError, match=match):
         open_simulated_stand(setup_with((300.0,)), StandConfig.from_dict(doc), accuracy="default")
+
+
+def test_two_stand_resonances_are_two_instances_of_the_truth():
+    from vibid.hardware_mocks.virtual_stand import true_parameters
+
+    doc = {"simulated": {"effects": {"stand_resonance": [
+        {"f_hz": 660.0, "q": 30.0, "theta_rad_per_m": 0.3},
+        {"f_hz": 300.0, "q": 10.0, "theta_rad_per_m": -0.2}]}}}
+    truth = true_parameters(StandConfig.from_dict(doc))
+    assert truth["f_hz_1"] == 660.0 and truth["f_hz_2"] == 300.0
+    assert truth["theta_rad_per_m_2"] == -0.2
+
+
+def test_simulate_takes_an_effect_once_per_instance():
+    from vibid.cli.simulate import _effects
+    from vibid.errors import VibidError
+
+    item = "stand_resonance:f_hz=660,q=30,theta_rad_per_m=0.3"
+    values, names = _effects([item, item.replace("660", "300"), "channel_delay:tau_s=2e-5"])
+    assert names == ("stand_resonance", "channel_delay")
+    assert values["f_hz_1"] == 660.0 and values["f_hz_2"] == 300.0 and values["tau_s"] == 2e-5
+    with pytest.raises(VibidError, match="--effect stand_resonance: give f_hz, q, theta"):
+        _effects(["stand_resonance:f_hz=660"])
 
 
 def test_undeclared_effect_is_in_the_specimen_not_the_setup():

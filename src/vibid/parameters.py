@@ -258,6 +258,24 @@ def split_instance(name: str) -> tuple[str, int | None]:
     return name, None
 
 
+def flat_values(effect: str, instances: list[dict]) -> dict[str, float]:
+    """One flat parameter dict from an effect's values given per instance, each with its
+    parameters unsuffixed (``[{"f_hz": 660, ...}, ...]`` -> ``{"f_hz_1": 660, ...}``); an
+    effect without instances takes one. ValueError, in a sentence that names what to give,
+    when an item's names are not the effect's or it occurs more often than it may."""
+    own = sorted(q.name for q in effect_parameters(effect))
+    several = effect in MULTI_INSTANCE
+    if len(instances) > 1 and not several:
+        raise ValueError(f"{effect} occurs once, given {len(instances)} times")
+    out = {}
+    for k, values in enumerate(instances, start=1):
+        if not isinstance(values, dict) or set(values) != set(own):
+            got = ", ".join(sorted(values)) if isinstance(values, dict) else repr(values)
+            raise ValueError(f"give {', '.join(own)}, got {got or 'nothing'}")
+        out |= {(instance_name(n, k) if several else n): float(v) for n, v in values.items()}
+    return out
+
+
 # -- look-ups ---------------------------------------------------------------------------------------
 def _build() -> dict[str, Parameter]:
     out = dict(MATERIAL_PARAMETERS)

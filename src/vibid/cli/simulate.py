@@ -46,30 +46,22 @@ def _effects(items) -> tuple[dict[str, float], tuple[str, ...]]:
     item's become ``f_hz_k``, ... (report format)."""
     from vibid.cli.modes import parse_params
     from vibid.identify.effects import EFFECTS
-    from vibid.parameters import effect_parameters, instance_name
+    from vibid.parameters import flat_values
 
-    out, names, count = {}, [], {}
+    given: dict[str, list[dict]] = {}
     for item in items:
         name, sep, rest = item.partition(":")
         if name not in EFFECTS:
             raise VibidError(f"--effect: unknown effect {name!r}, expected one of "
                              f"{', '.join(EFFECTS)}")
-        values = parse_params(rest.split(",")) if sep and rest else {}
-        if EFFECTS[name].instance is None:
-            own = {q.name for q in EFFECTS[name].parameters}
-        else:
-            own = {q.name for q in effect_parameters(name)}
-        if set(values) != own:
-            raise VibidError(f"--effect {name}: give {', '.join(sorted(own))} "
-                             f"(e.g. {name}:{sorted(own)[0]}=...)")
-        if EFFECTS[name].instance is not None:
-            count[name] = k = count.get(name, 0) + 1
-            values = {instance_name(n, k): v for n, v in values.items()}
-        elif name in names:
-            raise VibidError(f"--effect {name}: given twice")
-        out |= values
-        names.append(name)
-    return out, tuple(dict.fromkeys(names))
+        given.setdefault(name, []).append(parse_params(rest.split(",")) if sep and rest else {})
+    out = {}
+    for name, instances in given.items():
+        try:
+            out |= flat_values(name, instances)
+        except ValueError as exc:
+            raise VibidError(f"--effect {name}: {exc}") from None
+    return out, tuple(given)
 
 
 def run(args) -> int:

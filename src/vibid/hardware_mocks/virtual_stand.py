@@ -199,7 +199,7 @@ def true_parameters(config: StandConfig) -> dict[str, float]:
     unsuffixed (``[{"f_hz": 660, "q": 30, "theta_rad_per_m": 0.3}, ...]``); the k-th
     instance's names get the suffix ``_k``."""
     from vibid.identify.effects import EFFECTS
-    from vibid.parameters import effect_parameters, instance_name
+    from vibid.parameters import flat_values
 
     sim = config.simulated
     out = dict(sim.params)
@@ -207,18 +207,10 @@ def true_parameters(config: StandConfig) -> dict[str, float]:
         where = f"simulated.effects.{name}"
         if name not in EFFECTS:
             raise StandConfigError(f"{where}: unknown effect (known: {', '.join(EFFECTS)})")
-        several = EFFECTS[name].instance is not None
-        items = values if several and isinstance(values, list) else [values]
-        for k, item in enumerate(items, start=1):
-            at = f"{where}[{k - 1}]" if isinstance(values, list) else where
-            if not isinstance(item, dict):
-                raise StandConfigError(f"{at}: expected an object of parameter values")
-            own = {q.name for q in (effect_parameters(name) if several
-                                     else EFFECTS[name].parameters)}
-            if set(item) != own:
-                raise StandConfigError(f"{at}: give {', '.join(sorted(own))}, "
-                                       f"got {', '.join(sorted(item)) or 'nothing'}")
-            out |= {(instance_name(n, k) if several else n): float(v) for n, v in item.items()}
+        try:
+            out |= flat_values(name, values if isinstance(values, list) else [values])
+        except ValueError as exc:
+            raise StandConfigError(f"{where}: {exc}") from None
     return out
 
 

@@ -134,20 +134,10 @@ class Candidate:
             return model.effect_names.count(self.name) < MAX_INSTANCES
         return self.name not in model.effect_names
 
-    def term(self, model: PlateModel):
-        """The effect term it adds to ``model`` (the next instance of one that may occur
-        more than once)."""
-        from vibid.identify.effects import EFFECTS
-
-        term = EFFECTS[self.name].for_material(model.material)
-        if term.instance is not None:
-            term = replace(term, instance=model.effect_names.count(self.name) + 1)
-        return term
-
     def extend(self, model: PlateModel) -> PlateModel:
         if self.name == "anisotropy":
             return model.with_material(Material("orthotropic", model.material.per_modulus_loss))
-        return model.with_effect(self.term(model))
+        return model.with_effect(self.term_after(model.names))
 
     @property
     def peaks_first(self) -> bool:
@@ -166,7 +156,7 @@ class Candidate:
             return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D,
                           "G13_Pa": 6 * (1 - nu) * D / thickness_m**3}
         out = dict(values)
-        term = self._term_after(values)
+        term = self.term_after(values)
         own = self.bounds(box, values)
         nulls = term.null_values(values)
         for q in term.parameters:
@@ -178,16 +168,17 @@ class Candidate:
                 out[q.name] = 100.0 * own[q.name][1] if math.isinf(null) else null
         return out
 
-    def _term_after(self, values: dict):
-        """The term it adds to a model of parameters ``values`` (its instance from the
-        names: a model with ``f_hz_1`` gets ``stand_resonance`` instance 2)."""
+    def term_after(self, names):
+        """The effect term it adds to a model of parameters ``names`` (the next instance
+        of one that may occur more than once: a model with ``f_hz_1`` gets
+        ``stand_resonance`` instance 2)."""
         from vibid.identify.effects import EFFECTS
 
         term = EFFECTS[self.name]
         if term.instance is None:
             return term
         k = 1
-        while any(n in values for n in replace(term, instance=k).names):
+        while any(n in names for n in replace(term, instance=k).names):
             k += 1
         return replace(term, instance=k)
 
@@ -226,7 +217,7 @@ class Candidate:
             lo, hi = box["D"]
             return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
                     "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
-        term = self._term_after(values or {})
+        term = self.term_after(values or {})
         return {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
 
 
@@ -695,8 +686,8 @@ def _refit(setup, data, res, cand, values, box, local, search: bool = False):
         u0 = space.to_u(np.array([start[n] for n in names]))
     new = [i for i, n in enumerate(names) if n not in res.parameter_names]
     if cand.name != "anisotropy":  # a resonance's f and q come from the score's scan
-        scanned = set(cand.term(res.plate_model).names) - set(
-            cand.term(res.plate_model).null_values(values))
+        term = cand.term_after(res.parameter_names)
+        scanned = set(term.names) - set(term.null_values(values))
         new = [i for i in new if names[i] not in scanned]
     starts = _refit_starts(space, np.clip(u0, -5, 5), new, res.parameter_names)
     run = LOCAL_METHODS[local]

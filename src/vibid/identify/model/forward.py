@@ -395,9 +395,8 @@ def plate_model_for(names, effects=()) -> PlateModel:
             if t.name in found:
                 terms.append(t.for_material(material))
             continue
-        own = {q.name.rsplit("_", 1)[0] for q in t.parameters}
-        ks = sorted({k for k in (split_instance(n)[1] for n in names
-                                 if split_instance(n)[0] in own) if k})
+        own = {split_instance(q.name)[0] for q in t.parameters}
+        ks = sorted({k for base, k in map(split_instance, names) if base in own and k})
         if t.name in found and not ks:
             ks = [1]
         terms += [replace(t, instance=k) for k in ks]

@@ -377,16 +377,10 @@ class ReducedKernel:
         a, model = arrays, self.model
         theta = jnp.asarray(theta, jnp.float64)
         s = model.moduli(theta, jnp)
-        Mr, load = self._inertia(a, theta)
-        probe, rigid = self._probe(a, theta)
+        Mr, probe, loads = self._sides(a, theta)
         w2 = a["w2"]
         omega = jnp.sqrt(w2)
         law = model.loss_law(theta, omega, jnp)
-        # the base's translation, and where it rocks its rotation: (load, rigid value) each
-        loads = [(load, rigid)]
-        if model.rotates_base:
-            m, c = model.inertia(theta, jnp), model.probe(theta, jnp)
-            loads.append((m @ a["load_rotation"], c @ a["probe_rotation"]))
         if model.proportional:
             beta = model.common_loss(theta, jnp)
             mu, weights = self._modal(a, s, Mr, [f for f, _ in loads], probe)
@@ -408,24 +402,23 @@ class ReducedKernel:
             H = H + model.base_rotation(theta, omega, jnp) * Hs[1]
         return model.afc_map(theta, omega, H, jnp)
 
-    def _inertia(self, a: dict, theta):
+    def _sides(self, a: dict, theta):
+        """``(M, probe, loads)`` at ``theta``: the reduced inertia (m, m), the probe vector
+        (m,), and ``(load (m,), the probe's rigid value)`` for the base's translation and,
+        where a term rocks the base, for its rotation about the clamp line."""
         import jax.numpy as jnp
 
-        m = self.model.inertia(theta, jnp)
-        return jnp.tensordot(m, a["M"], axes=1) + a["M_pad"], m @ a["load"]
-
-    def _probe(self, a: dict, theta):
-        """The probe vector (m,) and its rigid-translation value at ``theta``."""
-        import jax.numpy as jnp
-
-        c = self.model.probe(theta, jnp)
-        return c @ a["probe"], c @ a["probe_rigid"]
+        m, c = self.model.inertia(theta, jnp), self.model.probe(theta, jnp)
+        loads = [(m @ a["load"], c @ a["probe_rigid"])]
+        if self.model.rotates_base:
+            loads.append((m @ a["load_rotation"], c @ a["probe_rotation"]))
+        return jnp.tensordot(m, a["M"], axes=1) + a["M_pad"], c @ a["probe"], loads
 
     @staticmethod
-    def _modal(a: dict, s, Mr, load, probe):
-        """``(mu, weight)``: inverse eigenvalues ``mu = 1/λ`` (s²/rad², ascending) of the
-        real pencil ``(Σ s_k K_k, M)`` and each mode's weight (probe x load) in H (a list
-        of weights for a list of loads).
+    def _modal(a: dict, s, Mr, loads, probe):
+        """``(mu, weights)``: inverse eigenvalues ``mu = 1/λ`` (s²/rad², ascending) of the
+        real pencil ``(Σ s_k K_k, M)`` and, for each of ``loads``, each mode's weight
+        (probe x load) in H.
 
         (A - λ M) φ = 0 with A = L Lᵀ  <=>  (L⁻¹ M L⁻ᵀ) z = μ z, μ = 1/λ, φ = L⁻ᵀ z: well
         conditioned whatever the spread of λ (μ is bounded by 1/λ_min)."""
@@ -437,9 +430,7 @@ class ReducedKernel:
         B = solve(solve(Mr).T)
         mu, Z = jnp.linalg.eigh(0.5 * (B + B.T))
         zp = Z.T @ solve(probe)
-        if isinstance(load, list):
-            return mu, [zp * (Z.T @ solve(f)) for f in load]
-        return mu, zp * (Z.T @ solve(load))
+        return mu, [zp * (Z.T @ solve(f)) for f in loads]
 
     def modes(self, arrays: dict, theta):
         """Natural frequencies (Hz, ascending) of the reduced model and the height of each
@@ -449,9 +440,9 @@ class ReducedKernel:
 
         theta = jnp.asarray(theta, jnp.float64)
         beta = self.model.common_loss(theta, jnp)
-        Mr, load = self._inertia(arrays, theta)
-        probe, _ = self._probe(arrays, theta)
-        mu, weight = self._modal(arrays, self.model.moduli(theta, jnp), Mr, load, probe)
+        Mr, probe, loads = self._sides(arrays, theta)
+        mu, (weight, *_) = self._modal(arrays, self.model.moduli(theta, jnp), Mr,
+                                       [loads[0][0]], probe)
         mu, weight = mu[::-1], weight[::-1]  # largest mu = lowest frequency first
         f_hz = 1.0 / jnp.sqrt(jnp.abs(mu)) / (2 * jnp.pi)
         return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)

@@ -223,9 +223,8 @@ class PlateModel:
             for k, b in t.loss_factors(p, xp).items():
                 if k in entries:
                     entries[k] = (entries[k][0], b)
-            for k, f in t.scales(p, xp).items():
-                if k in entries:
-                    entries[k] = (entries[k][0] * f, entries[k][1])
+        storage = self._scaled({k: v[0] for k, v in entries.items()}, p, xp)
+        entries = {k: (storage[k], v[1]) for k, v in entries.items()}
         zero = 0.0 * theta[0]
         names = self.stiffness_names
         s = xp.stack([xp.asarray(entries[k][0]) + zero for k in names])
@@ -264,13 +263,19 @@ class PlateModel:
         entries = {k: 1.0 for k in base}
         for t in self.effects:
             entries.update(getattr(t, contribution)(p, xp))
-        if contribution == "inertia":
-            for t in self.effects:
-                for k, f in t.scales(p, xp).items():
-                    if k in entries:
-                        entries[k] = entries[k] * f
+        entries = self._scaled(entries, p, xp)
         zero = 0.0 * theta[0]
         return xp.stack([xp.asarray(entries[k]) + zero for k in names])
+
+    def _scaled(self, coefficients: dict, p: dict, xp) -> dict:
+        """``coefficients`` by matrix name times every term's :meth:`Term.scales` of them
+        (a stretch of the mesh); a probe is never scaled (no term names one)."""
+        out = dict(coefficients)
+        for t in self.effects:
+            for k, f in t.scales(p, xp).items():
+                if k in out:
+                    out[k] = out[k] * f
+        return out
 
     def loss_law(self, theta, omega, xp=np):
         """(nf,) multiplier of every loss factor at ``omega`` (rad/s), or None (1)."""
