@@ -69,7 +69,7 @@ class Parameter:
         return None
 
 
-# -- the material ------------------------------------------------------------------------------
+# -- the material --------------------------------------------------------------------------
 # The moment law is ``M = D κ`` with the moduli D11, D12, D16, D22, D26, D66 (N·m) and complex
 # moduli ``D_α (1 + i β_α)`` (:mod:`vibid.identify.model.materials`). Material parameters
 # have no default box (the setup gives it) and no null.
@@ -144,7 +144,7 @@ MATERIAL_PARAMETERS: dict[str, Parameter] = {
     q.name: q for m in MODELS for pml in (False, True) for q in material_parameters(m, pml)}
 
 
-# -- the effects (vibid.identify.effects, one module each) ----------------------------------------
+# -- the effects (vibid.identify.effects, one module each) ---------------------------------
 #: ``added_mass``: an undeclared point mass at the response sensor (null 0).
 MASS = Parameter("mass_kg", "kg", ("log",), bounds=(0.0, 5e-3), null=0.0,
                  rule="non-negative", noun="the added mass")
@@ -236,7 +236,7 @@ _INSTANCE_PARAMETERS = frozenset(
 _SUFFIX = re.compile(r"^(.+)_([1-9][0-9]*)$")
 
 
-# -- instances -------------------------------------------------------------------------------------
+# -- instances -----------------------------------------------------------------------------
 def instance_name(name: str, k: int) -> str:
     """The name of parameter ``name`` of the ``k``-th instance (k = 1, 2, ...) of its
     effect: ``instance_name("f_hz", 2) == "f_hz_2"``. ValueError when ``name`` is not a
@@ -276,7 +276,7 @@ def flat_values(effect: str, instances: list[dict]) -> dict[str, float]:
     return out
 
 
-# -- look-ups ---------------------------------------------------------------------------------------
+# -- look-ups ------------------------------------------------------------------------------
 def _build() -> dict[str, Parameter]:
     out = dict(MATERIAL_PARAMETERS)
     for name, q in EFFECT_PARAMETERS.items():
@@ -314,7 +314,7 @@ def known_effect_parameter(name: str) -> Parameter | None:
     return known_parameter(name) if base in EFFECT_PARAMETERS else None
 
 
-# -- what a lab calls them ----------------------------------------------------------------------------
+# -- what a lab calls them -----------------------------------------------------------------
 #: What a lab engineer calls each parameter (and each engineering constant the report
 #: derives from them), one line each; units come from the declarations.
 DESCRIPTIONS: dict[str, str] = {

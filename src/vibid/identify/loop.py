@@ -540,9 +540,9 @@ def _extended_problem(setup, data, res, cand, values, box, weights):
     space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
                                        {q.name: q.kind for q in model.parameters})
     problem = LeastSquaresProblem(fm, data, space, weights)
-    if cand.name != "anisotropy" and model.rotates_base:
-        term = next(t for t in reversed(model.effects) if t.name == cand.name)
-        start = start | _resonance_start(problem, start, term, res.parameter_names, ext_box)
+    added = None if cand.name == "anisotropy" else cand.term_after(values)
+    if added is not None and added.rotates_base:  # (not a model that rocks already)
+        start = start | _resonance_start(problem, start, added, res.parameter_names, ext_box)
     return problem, start, ext_box
 
 

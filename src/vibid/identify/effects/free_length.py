@@ -20,8 +20,10 @@ at ``x = s ξ`` of the plate. The forms, written on the mesh, then scale by powe
 So the term keeps the one mesh and stays affine in its coefficients, and exact derivatives
 cost nothing more. The stretch needs the declared length: the library's term has none,
 and a model is bound to its plate's (:meth:`PlateModel.for_geometry
-<vibid.identify.model.terms.PlateModel.for_geometry>`) where its forward model is built. Not stretched: the sensor's disc itself (its footprint's length along x
-changes by ``dL / L``, a part in a hundred of a rotary inertia that is itself small), an
+<vibid.identify.model.terms.PlateModel.for_geometry>`) where its forward model is built.
+
+Not stretched: the sensor's disc itself (its footprint's length along x changes by
+``dL / L``, a part in a hundred of a rotary inertia that is itself small), an
 ``added_mass`` (it stays at the declared centre), and a stand resonance's rotation, whose
 ``H_rotation`` grows by ``s`` (its ``theta_rad_per_m`` takes that up). ``dL`` and the
 bending stiffness are nearly collinear (a longer span is a softer plate): the fit's
@@ -64,9 +66,9 @@ class FreeLength(Term):
 
     length_m: float | None = None
     name = "free_length"
-    in_every_structure = False
     meaning = "a free span longer than declared (the clamp's effective edge inside the jaws)"
     parameters = (DL,)
+    in_every_structure = False  # bound to its plate's length
     inertia_matrices = ("plate_slope_x",) + tuple(f"sensor_dx{k}" for k in POWERS)
     probe_vectors = tuple(f"probe_dx{k}" for k in range(1, DEGREE + 1))
 

@@ -164,7 +164,8 @@ class PlateMatrices:
         c = coefficients or {k: 1.0 for k in self.inertia}
         return functools.reduce(lambda a, b: a + b, (v * self.inertia[k] for k, v in c.items())).tocsr()
 
-    def inertia_load(self, coefficients: dict | None = None, *, rotation: bool = False) -> np.ndarray:
+    def inertia_load(self, coefficients: dict | None = None, *,
+                     rotation: bool = False) -> np.ndarray:
         """``Σ m_k (M_k r)[free]``, ``r`` the rigid translation (or with ``rotation`` the
         rigid rotation about the clamp line)."""
         c = coefficients or {k: 1.0 for k in self.inertia}
