@@ -79,10 +79,19 @@ def limit_blas_threads(threads: int = 1) -> None:
 def configure(*, cache: bool = True, blas_threads: int | None = 1) -> str | None:
     """What an entry point calls once: 64-bit JAX, the compilation cache unless ``cache``
     is False, and ``blas_threads`` BLAS threads (None leaves them as they are). Returns the
-    cache folder (None if off)."""
+    cache folder (None if off).
+
+    Compiled code runs on the calling thread, not dispatched to XLA's intra-op pool: a
+    batched LAPACK call (a solve per frequency under a Hessian's batched tangents) splits
+    its batch over that pool and waits; run from a pool thread, on two cores, it can wait
+    for work queued behind itself for good (``jax::ParallelBatchMap`` in
+    ``lapack_ztrsm_ffi``, under ``ThreadPoolAsyncWorkRunner``: the Monte Carlo test hung in
+    2 runs of 5 and in a fresh clone's suite; 10 of 10 passed at the same speed with the
+    dispatch off). vibid waits for every result it asks for, so it loses nothing."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    jax.config.update("jax_cpu_enable_async_dispatch", False)
     if blas_threads is not None:
         limit_blas_threads(blas_threads)
     return enable_compilation_cache() if cache else None
