@@ -1,0 +1,326 @@
+"""Read a fit's residual as a structural dynamicist would: the poles of measured / model.
+
+Fitted: ``R(f) = H_measured / H_model`` (1 where the model is right) by a real-system rational
+model ``R ≈ d + e s + Σ r_k / (s - p_k) (+ conjugates)``, ``s = 2πi f``. A resonance the
+model lacks is a pole of R; a misplaced mode, a pole at the measured mode beside a zero at
+the model's; a delay or gain, a smooth ``d + e s`` plus real poles. Not ``H_measured -
+H_model``: that carries every plate mode as a pole, R only the discrepancies.
+
+How: scikit-rf's ``VectorFitting`` (any frequencies, ``fit_proportional=True``) places the
+poles. It has no per-frequency weights (only one weight per response), so it sees only the
+points where R's noise ``std_R = std / |H_model|`` is below 10 times its median (it is huge
+at the model's antiresonances), at most ``_VF_POINTS`` of them. Residues, ``d``, ``e`` are
+re-solved here by least squares weighted by ``1 / std_R`` on all points (giving ``chi2``),
+and the best ``_POLISHED`` candidates' poles moved to the weighted optimum (real poles may
+cross into the right half-plane: a zero of a non-minimum-phase H_model is a pole of R there,
+which vector fitting flips). The model (0..``max_pole_pairs`` complex pairs, 0..2 real poles)
+is chosen by BIC, ``chi2 + k ln 2N`` (``k`` real parameters, ``2N`` real data): pure noise
+gives no poles. Without ``std``: weights 1 and ``2N ln(chi2 / 2N) + k ln 2N``.
+
+Classification of a complex pole ``p`` (``f_hz = |p| / 2π``, ``q = |p| / 2|Re p|``): out of
+the band (2 % margin) or ``q < 2`` → part of the trend; within ``max(2 f_k / Q_k, 3 % f_k)``
+(5 % without ``plate_q``) of a plate mode ``f_k`` → ``mode_shift`` if the offset from the
+model's pole is mostly in frequency (``|Δ Im p| ≥ |Δ Re p|``; without ``plate_q``: ``|f - f_k|
+> f_k / 4q``), else ``damping``; at a dip of ``|H_model|`` (a misplaced antiresonance of the
+model is a pole of R) → ``mode_shift``, the note says so; else ``extra_pole``. One ``trend``
+gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase and magnitude
+change and the delay a linear phase means. ``size``: the peak over the band of ``|ΔR|``, the
+feature's term in R (trend: ``|T - 1|``).
+
+Significance: ``sqrt(max(Δchi2 / b - ν, 0))``; ``Δchi2`` the rise of chi2 when the feature's
+terms are dropped and the rest refitted (trend: ``T`` fixed to 1), ``ν`` its number of linear
+parameters, ``b = max(1, chi2 / (2N - k))`` (the fit's reduced chi2 where it leaves more than
+noise). Pure noise gives 0 to about 2, a lone feature about its amplitude over the noise.
+Features below ``min_significance`` are dropped; without ``std`` it is NaN and features with
+``size < min_size`` are dropped instead.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+_VF_POINTS = 1500  # vector fitting sees at most this many points (its time grows with N)
+_POLISHED = 3  # how many of the best candidates get their poles polished
+_NAN = float("nan")
+
+
+@dataclass(frozen=True)
+class Feature:
+    kind: str  # "extra_pole" | "mode_shift" | "damping" | "trend"
+    f_hz: float = _NAN
+    q: float = _NAN
+    size: float = _NAN
+    significance: float = _NAN
+    note: str = ""
+
+    def as_report(self) -> dict:
+        out = {"kind": self.kind}
+        for key in ("f_hz", "q", "size"):
+            if math.isfinite(getattr(self, key)):
+                out[key] = float(getattr(self, key))
+        return out | ({"note": self.note} if self.note else {})
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    features: tuple[Feature, ...] = ()
+    poles: tuple[complex, ...] = ()  # rad/s, one of each conjugate pair
+    residues: tuple[complex, ...] = ()  # real for a real pole
+    constant: float = 1.0
+    proportional_s: float = 0.0  # coefficient of s = 2πi f
+    chi2: float = _NAN  # weighted chi2 of the rational fit
+    chi2_unity: float = _NAN  # weighted chi2 of R - 1
+    n_points: int = 0
+    message: str = ""  # why there is no diagnosis, or what failed
+
+    @property
+    def poles_hz(self) -> tuple[float, ...]:
+        return tuple(abs(p) / (2 * math.pi) for p in self.poles)
+
+    def ratio(self, frequency_hz) -> np.ndarray:
+        """The fitted rational model of H_measured / H_model at ``frequency_hz``."""
+        f = np.asarray(frequency_hz, float)
+        coef = [self.constant, self.proportional_s]
+        for p, r in zip(self.poles, self.residues):
+            coef += [r.real] if p.imag == 0 else [r.real, r.imag]
+        A = np.concatenate(_columns(f.ravel(), np.asarray(self.poles, complex)), axis=1)
+        return (A @ np.asarray(coef, float)).reshape(f.shape)
+
+    def extra_poles(self) -> tuple[Feature, ...]:
+        return tuple(x for x in self.features if x.kind == "extra_pole")
+
+    def as_report(self) -> list[dict]:
+        return [x.as_report() for x in self.features]
+
+
+@contextlib.contextmanager
+def _quiet():
+    log = logging.getLogger("skrf")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        log.setLevel(level)
+
+
+def _columns(f_hz, poles) -> list[np.ndarray]:
+    """Column groups of the real-coefficient basis: [1], [s], then one group per pole."""
+    s = 2j * np.pi * np.asarray(f_hz, float)[:, None]
+    groups = [np.ones_like(s), s]
+    for p in poles:
+        a, b = 1 / (s - p), 1 / (s - np.conj(p))
+        groups.append(a if p.imag == 0 else np.hstack([a + b, 1j * (a - b)]))
+    return groups
+
+
+def _solve(groups, R, w, keep=None):
+    """Weighted least squares of R (of R - 1 when the constant is dropped) on the kept groups:
+    coefficients and weighted residual vector."""
+    keep = [True] * len(groups) if keep is None else keep
+    kept = [g for g, k in zip(groups, keep) if k]
+    A = np.concatenate(kept, axis=1) if kept else np.zeros((len(R), 0))
+    ww = np.concatenate([w, w])
+    Ar = np.vstack([A.real, A.imag]) * ww[:, None]
+    target = R if keep[0] else R - 1
+    b = np.concatenate([target.real, target.imag]) * ww
+    if not A.shape[1]:
+        return np.zeros(0), b
+    scale = 1 / np.maximum(np.linalg.norm(Ar, axis=0), 1e-300)
+    x = np.linalg.lstsq(Ar * scale, b, rcond=None)[0] * scale
+    return x, b - Ar @ x
+
+
+def _chi2(groups, R, w, keep=None) -> float:
+    return float(np.sum(_solve(groups, R, w, keep)[1] ** 2))
+
+
+def _vector_fit(f_hz, R, n_real, n_cmplx) -> np.ndarray:
+    from skrf import Network
+    from skrf.vectorFitting import VectorFitting
+
+    vf = VectorFitting(Network(f=f_hz, s=R, f_unit="Hz"))
+    vf.max_iterations = 50
+    vf.vector_fit(n_poles_real=n_real, n_poles_cmplx=n_cmplx, fit_proportional=True)
+    return np.asarray(vf.poles, complex)
+
+
+def _polish(f, R, w, poles) -> np.ndarray:
+    """Poles moved to the minimum of the weighted chi2 (residues solved inside)."""
+    from scipy.optimize import least_squares
+
+    cplx, unit = poles.imag != 0, 2 * np.pi * np.mean(f)
+
+    def unpack(x):
+        p = x[:len(poles)] * unit + 0j
+        p[cplx] += 1j * x[len(poles):] * unit
+        return p
+
+    x0 = np.concatenate([poles.real, poles.imag[cplx]]) / unit
+    fit = least_squares(lambda x: _solve(_columns(f, unpack(x)), R, w)[1], x0, method="lm",
+                        max_nfev=40 * (len(x0) + 1))
+    return unpack(fit.x)
+
+
+def _n_params(poles) -> int:
+    return 2 + sum(2 if p.imag == 0 else 4 for p in poles)
+
+
+def _select(f, R, w, known_noise, max_pairs):
+    """Poles of the BIC-best rational model of R, its chi2, and skrf's errors if any."""
+    use = np.flatnonzero(w >= 0.1 * np.median(w))
+    use = use[np.unique(np.linspace(0, len(use) - 1, min(len(use), _VF_POINTS)).astype(int))]
+    n2 = 2 * len(f)
+
+    def scored(poles):
+        poles = poles[np.isfinite(poles) & (np.abs(poles) > 0)]
+        chi2 = _chi2(_columns(f, poles), R, w)
+        fit = chi2 if known_noise else n2 * math.log(max(chi2, 1e-300) / n2)
+        bic = fit + _n_params(poles) * math.log(n2)
+        ok = math.isfinite(bic) and np.count_nonzero(poles.imag) <= max_pairs
+        return (bic if ok else math.inf), chi2, poles
+
+    candidates, errors = [scored(np.zeros(0, complex))], []
+    for n_real in range(3):
+        for n_cmplx in range(max_pairs + 1):
+            if 0 < n_real + n_cmplx and n_real + 2 * n_cmplx + 3 <= len(use):
+                try:
+                    candidates.append(scored(_vector_fit(f[use], R[use], n_real, n_cmplx)))
+                except Exception as exc:  # noqa: BLE001 - a failure of skrf: try the next order
+                    errors.append(f"{type(exc).__name__}: {exc}")
+    candidates.sort(key=lambda c: c[0])
+    for _, _, poles in [c for c in candidates[:_POLISHED] if len(c[2]) and math.isfinite(c[0])]:
+        try:
+            candidates.append(scored(_polish(f[use], R[use], w[use], poles)))
+        except Exception as exc:  # noqa: BLE001 - keep the unpolished poles
+            errors.append(f"{type(exc).__name__}: {exc}")
+    _, chi2, poles = min(candidates, key=lambda c: c[0])
+    return poles, chi2, errors
+
+
+def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips):
+    """(kind, note) of the complex pole p (rad/s); kind "trend" when it is no resonance."""
+    f_p, q_p = abs(p) / (2 * math.pi), abs(p) / (2 * abs(p.real))
+    if q_p < 2 or not 0.98 * f_lo <= f_p <= 1.02 * f_hi:
+        return "trend", ""
+    for f_k, q_k in zip(modes_hz, modes_q):
+        if abs(f_p - f_k) > (max(2 * f_k / q_k, 0.03 * f_k) if q_k > 0 else 0.05 * f_k):
+            continue
+        if q_k > 0:  # the model's pole: -w_k / 2Q_k + i w_k sqrt(1 - 1 / 4Q_k²)
+            w_k = 2 * math.pi * f_k
+            d_im = abs(p.imag - w_k * math.sqrt(max(1 - 1 / (4 * q_k**2), 0)))
+            shift = d_im >= abs(abs(p.real) - w_k / (2 * q_k))
+            model = f", {q_k:.3g} in the model"
+        else:
+            shift, model = abs(f_p - f_k) > f_k / (4 * q_p), ""
+        if shift:
+            return "mode_shift", (f"the mode the model puts at {f_k:.4g} Hz is at {f_p:.4g} Hz "
+                                  f"in the data ({100 * (f_p / f_k - 1):+.1f} %)")
+        return "damping", (f"the mode at {f_p:.4g} Hz is damped otherwise: "
+                           f"Q {q_p:.3g} in the data{model}")
+    if any(lo <= f_p <= hi or abs(f_p - mid) <= 0.03 * mid for lo, mid, hi in dips):
+        return "mode_shift", (f"the ratio resonates at {f_p:.4g} Hz (Q {q_p:.3g}) where the "
+                              "model has an antiresonance: the modes around it are misplaced "
+                              "or misweighted")
+    return "extra_pole", f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has no mode"
+
+
+def _trend_note(f_hz, T) -> str:
+    mag, phase = np.abs(T), np.unwrap(np.angle(T))
+    slope, intercept = np.polyfit(f_hz, phase, 1)
+    d_phase, d_mag, gain = phase[-1] - phase[0], mag[-1] / mag[0] - 1, float(np.mean(mag)) - 1
+    linear = bool(np.max(np.abs(phase - slope * f_hz - intercept)) <= 0.2 * abs(d_phase))
+    least = max(0.2 * max(abs(d_phase), abs(d_mag), abs(gain)), 1e-3)  # what is worth a word
+    parts = []
+    if abs(d_phase) >= least:
+        tau_us = -slope / (2 * math.pi) * 1e6
+        why = f": a time delay of {tau_us:.3g} µs?" if tau_us > 0 else ": a time advance?"
+        parts.append(f"phase {'falls' if d_phase < 0 else 'rises'} {'linearly ' * linear}by "
+                     f"{abs(math.degrees(d_phase)):.2g}° across the band "
+                     f"(slope {slope:.3g} rad/Hz{why * linear})")
+    if abs(d_mag) >= least:
+        parts.append(f"magnitude {'rises' if d_mag > 0 else 'falls'} by {abs(100 * d_mag):.3g} % "
+                     "across the band")
+    if abs(gain) >= least:
+        parts.append(f"magnitude {100 * gain:+.3g} % off the model on average")
+    size = 100 * np.max(np.abs(T - 1))
+    return "; ".join(parts) or f"the ratio drifts smoothly by up to {size:.2g} %"
+
+
+def diagnose(frequency_hz, H_measured, H_model, std, *, plate_modes_hz, plate_q=None,
+             max_pole_pairs: int = 4, min_significance: float = 5.0,
+             min_size: float = 0.02) -> Diagnosis:
+    """Features of ``H_measured / H_model`` (module docstring); never raises, prints nothing."""
+    try:
+        with _quiet():
+            return _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
+                             max(int(max_pole_pairs), 0), min_significance, min_size)
+    except Exception as exc:  # noqa: BLE001 - a diagnosis must never stop the loop
+        return Diagnosis(message=f"diagnosis failed: {type(exc).__name__}: {exc}")
+
+
+def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
+              max_pairs, min_significance, min_size) -> Diagnosis:
+    f = np.asarray(frequency_hz, float).ravel()
+    sd = np.broadcast_to(np.asarray(np.nan if std is None else std, float), f.shape)
+    order = np.argsort(f, kind="stable")
+    f, sd = f[order], sd[order]
+    H0 = np.asarray(H_model, complex).ravel()[order]
+    R = np.asarray(H_measured, complex).ravel()[order] / H0
+    ok = np.isfinite(f) & (f > 0) & np.isfinite(R)
+    f, R, H0, sd = f[ok], R[ok], H0[ok], sd[ok]
+    if len(f) < 10:
+        return Diagnosis(n_points=len(f), message=f"too few usable points ({len(f)}) to diagnose")
+    sd_R = sd / np.abs(H0)
+    good = np.isfinite(sd_R) & (sd_R > 0)
+    known_noise = bool(good.any())
+    w = 1 / np.where(good, sd_R, np.median(sd_R[good]) if known_noise else 1.0)
+    poles, chi2, errors = _select(f, R, w, known_noise, max_pairs)
+    groups = _columns(f, poles)
+    coef = _solve(groups, R, w)[0]
+    starts = np.cumsum([0] + [g.shape[1] for g in groups])
+    f_dense = np.union1d(f, np.geomspace(f[0], f[-1], 400))
+    term = [g @ coef[a:b] for g, a, b in zip(_columns(f_dense, poles), starts[:-1], starts[1:])]
+    birge = max(1.0, chi2 / max(2 * len(f) - _n_params(poles), 1))
+
+    def significance(drop):
+        if not known_noise:
+            return _NAN
+        rise = (_chi2(groups, R, w, [i not in drop for i in range(len(groups))]) - chi2) / birge
+        return math.sqrt(max(rise - sum(groups[i].shape[1] for i in drop), 0.0))
+
+    modes_hz = np.atleast_1d(np.asarray(plate_modes_hz, float)).ravel()
+    modes_q = np.broadcast_to(np.asarray(np.nan if plate_q is None else plate_q, float),
+                              modes_hz.shape)
+    a = np.abs(H0)
+    i = np.flatnonzero((a[1:-1] < a[:-2]) & (a[1:-1] < a[2:])) + 1
+    dips = np.stack([f[i - 1], f[i], f[i + 1]], axis=1)  # the model's antiresonances
+    features, trend = [], [0, 1]
+    for k, p in enumerate(poles, start=2):
+        kind, note = "trend", ""
+        if p.imag != 0:
+            kind, note = _classify(p, f[0], f[-1], modes_hz, modes_q, dips)
+        if kind == "trend":
+            trend.append(k)
+        else:
+            f_p, q_p = float(abs(p) / (2 * math.pi)), float(abs(p) / (2 * abs(p.real)))
+            size = float(np.max(np.abs(term[k])))
+            features.append(Feature(kind, f_p, q_p, size, significance({k}), note))
+    T = sum(term[k] for k in trend)
+    features.append(Feature("trend", size=float(np.max(np.abs(T - 1))),
+                            significance=significance(set(trend)), note=_trend_note(f_dense, T)))
+    rank = (lambda x: x.significance) if known_noise else (lambda x: x.size)
+    limit = min_significance if known_noise else min_size
+    residues = [complex(*coef[a:b]) for a, b in zip(starts[2:-1], starts[3:])]
+    kept = sorted((x for x in features if rank(x) >= limit), key=rank, reverse=True)
+    return Diagnosis(tuple(kept), tuple(complex(p) for p in poles), tuple(residues),
+                     float(coef[0]), float(coef[1]), chi2, float(np.sum((w * np.abs(R - 1)) ** 2)),
+                     len(f), "; ".join(dict.fromkeys(errors)) if errors and not len(poles) else "")

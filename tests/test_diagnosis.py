@@ -1,0 +1,211 @@
+"""Residual diagnosis (vibid.identify.diagnosis) on an analytic three-mode AFC, independent of
+the plate model: H = 1 + sum_k a_k r_k^2 / (1 - r_k^2 + i r_k / Q_k), r_k = f / f_k, sampled
+on an unsorted stepped-sine-like grid (sparse overall, dense around the modes), with complex
+Gaussian noise of standard deviation 0.3 % of |H| per real and imaginary part."""
+
+import json
+import logging
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from vibid.identify.diagnosis import Diagnosis, Feature, diagnose
+
+MODES_HZ = np.array([150.0, 420.0, 1100.0])
+AMPLITUDES = np.array([1.0, 0.6, 0.3])
+Q = np.array([40.0, 35.0, 30.0])
+REL_NOISE = 0.003
+SPEC_KEYS = {"kind", "f_hz", "q", "size", "note"}
+
+
+def modal_afc(f_hz, modes_hz=MODES_HZ, q=Q):
+    r = f_hz[:, None] / modes_hz
+    return 1 + np.sum(AMPLITUDES * r**2 / (1 - r**2 + 1j * r / q), axis=1)
+
+
+def stepped_grid(rng):
+    """~150 points 20-1500 Hz, 40 log-spaced plus 36 within ±12 % of each mode, shuffled."""
+    around = [m * (1 + np.linspace(-0.12, 0.12, 36)) for m in MODES_HZ]
+    f = np.concatenate([np.geomspace(20, 1500, 40)] + around)
+    return rng.permutation(f[(f >= 20) & (f <= 1500)])
+
+
+def measure(H_true, rng):
+    std = REL_NOISE * np.abs(H_true)
+    noise = rng.standard_normal(H_true.shape) + 1j * rng.standard_normal(H_true.shape)
+    return H_true + std * noise, std
+
+
+def resonance(f_hz, f0=660.0, q0=30.0):
+    return 1 / (1 - (f_hz / f0) ** 2 + 1j * f_hz / (f0 * q0))
+
+
+THETA = 0.01  # peak |ΔR| = THETA * q0 = 0.3
+
+
+def extra_pole_case(seed):
+    rng = np.random.default_rng(seed)
+    f = stepped_grid(rng)
+    H = modal_afc(f)
+    Hm, std = measure(H * (1 + THETA * resonance(f)), rng)
+    return f, Hm, H, std
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_pure_noise_gives_no_features(seed):
+    rng = np.random.default_rng(seed)
+    f = stepped_grid(rng)
+    H = modal_afc(f)
+    Hm, std = measure(H, rng)
+    d = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=Q)
+    assert d.features == () and d.as_report() == []
+    assert d.poles == () and d.message == ""
+    # chi2 of R - 1 is the noise's: about 2N
+    assert abs(d.chi2_unity / (2 * d.n_points) - 1) < 0.3
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_an_unmodelled_resonance_is_one_extra_pole(seed):
+    f, Hm, H, std = extra_pole_case(seed)
+    d = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=Q)
+    (x,) = d.extra_poles()
+    assert abs(x.f_hz / 660 - 1) < 0.01
+    assert abs(x.q / 30 - 1) < 0.2
+    assert 0.2 < x.size < 0.4  # |THETA g| peaks at THETA * 30 = 0.3
+    assert x.significance > 20
+    assert "660" in x.note or "659" in x.note or "661" in x.note
+    # nothing at the plate modes: the only other feature a trend may be
+    assert {y.kind for y in d.features} <= {"extra_pole", "trend"}
+    # the fitted rational model is the ratio 1 + THETA g where measured, to a few noise std
+    assert np.max(np.abs(d.ratio(f) - (1 + THETA * resonance(f)))) < 5 * REL_NOISE * 1.3
+    assert d.ratio(660.0).shape == ()
+
+
+@pytest.mark.parametrize("seed", [0, 6, 7])
+def test_a_misplaced_mode_is_a_mode_shift_not_an_extra_pole(seed):
+    rng = np.random.default_rng(seed)
+    f = stepped_grid(rng)
+    model_modes = MODES_HZ * np.array([1.02, 1, 1])
+    Hm, std = measure(modal_afc(f), rng)
+    d = diagnose(f, Hm, modal_afc(f, model_modes), std, plate_modes_hz=model_modes, plate_q=Q)
+    assert d.extra_poles() == ()
+    shifts = [x for x in d.features if x.kind == "mode_shift" and abs(x.f_hz / 150 - 1) < 0.01]
+    assert len(shifts) == 1
+    assert abs(shifts[0].q / 40 - 1) < 0.1  # the measured mode's Q
+    assert "153" in shifts[0].note and "150" in shifts[0].note
+    # the strongest feature is that mode
+    assert d.features[0] == shifts[0]
+    # the ratio has a real pole in the right half-plane here (H_model, sum a_k > 1, has a zero
+    # there), which vector fitting cannot place; the polished fit still reaches the noise
+    assert d.chi2 < 1.3 * 2 * d.n_points
+
+
+def test_a_wrongly_damped_mode_is_damping():
+    rng = np.random.default_rng(7)
+    f = stepped_grid(rng)
+    model_q = Q * np.array([1.5, 1, 1])
+    Hm, std = measure(modal_afc(f), rng)
+    d = diagnose(f, Hm, modal_afc(f, q=model_q), std, plate_modes_hz=MODES_HZ, plate_q=model_q)
+    assert d.extra_poles() == ()
+    (x,) = [x for x in d.features if abs(x.f_hz / 150 - 1) < 0.02]
+    assert x.kind == "damping"
+    assert abs(x.q / 40 - 1) < 0.1
+
+
+def test_a_channel_delay_is_a_phase_trend():
+    rng = np.random.default_rng(3)
+    f = stepped_grid(rng)
+    H = modal_afc(f)
+    tau_s = 20e-6
+    Hm, std = measure(H * np.exp(-2j * np.pi * f * tau_s), rng)
+    d = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=Q)
+    assert [x.kind for x in d.features] == ["trend"]
+    (x,) = d.features
+    assert "phase falls linearly" in x.note and "delay" in x.note
+    # phase change across the band 2π (f_max - f_min) τ = 10.6°; size = max |exp(-iωτ) - 1|
+    assert abs(x.size - 2 * math.sin(math.pi * 1500 * tau_s)) < 0.01
+    delay_us = float(x.note.split("time delay of ")[1].split(" µs")[0])
+    assert abs(delay_us - 20) < 1
+
+
+def test_a_gain_error_is_a_magnitude_trend():
+    rng = np.random.default_rng(4)
+    f = stepped_grid(rng)
+    H = modal_afc(f)
+    Hm, std = measure(1.05 * H, rng)
+    d = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=Q)
+    (x,) = d.features
+    assert x.kind == "trend" and abs(x.size - 0.05) < 0.005
+    assert "magnitude +5" in x.note and "phase" not in x.note
+
+
+def test_report_holds_the_spec_keys_only_and_is_json():
+    d = diagnose(*extra_pole_case(0), plate_modes_hz=MODES_HZ, plate_q=Q)
+    report = d.as_report()
+    assert report and all(set(r) <= SPEC_KEYS and "kind" in r for r in report)
+    assert all(type(r[k]) is float for r in report for k in ("f_hz", "q", "size") if k in r)
+    json.dumps(report, allow_nan=False)
+    assert Feature("trend", note="x").as_report() == {"kind": "trend", "note": "x"}
+
+
+def test_unsorted_input_gives_the_sorted_result_and_is_not_mutated():
+    f, Hm, H, std = extra_pole_case(1)
+    copies = [a.copy() for a in (f, Hm, H, std)]
+    o = np.argsort(f)
+    shuffled = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=Q)
+    ordered = diagnose(f[o], Hm[o], H[o], std[o], plate_modes_hz=MODES_HZ, plate_q=Q)
+    assert shuffled == ordered and shuffled.features
+    for a, b in zip((f, Hm, H, std), copies):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_without_std_the_size_decides_and_nan_std_is_unknown():
+    f, Hm, H, std = extra_pole_case(2)
+    d = diagnose(f, Hm, H, None, plate_modes_hz=MODES_HZ)
+    (x,) = d.extra_poles()
+    assert abs(x.f_hz / 660 - 1) < 0.01 and math.isnan(x.significance)
+    std = std.copy()
+    std[::3] = np.nan
+    (y,) = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ).extra_poles()
+    assert abs(y.f_hz / 660 - 1) < 0.01 and y.significance > 20
+    rng = np.random.default_rng(5)
+    Hn, _ = measure(H, rng)
+    assert diagnose(f, Hn, H, None, plate_modes_hz=MODES_HZ).features == ()
+
+
+def test_odd_data_never_raises():
+    f, Hm, H, std = extra_pole_case(3)
+    few = diagnose(f[:7], Hm[:7], H[:7], std[:7], plate_modes_hz=MODES_HZ)
+    assert few == Diagnosis(n_points=7, message=few.message) and "few" in few.message
+    assert diagnose(f, Hm * np.nan, H, std, plate_modes_hz=MODES_HZ).features == ()
+    assert diagnose(-f, Hm, H, std, plate_modes_hz=MODES_HZ).features == ()
+    # no plate modes: the resonance at 660 Hz is still found
+    (x,) = diagnose(f, Hm, H, std, plate_modes_hz=[], plate_q=[]).extra_poles()
+    assert abs(x.f_hz / 660 - 1) < 0.01
+    # no complex pole allowed: the resonance can only show as a trend
+    no_pairs = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, max_pole_pairs=0)
+    assert {x.kind for x in no_pairs.features} == {"trend"}
+    # a measured AFC of zeros: the ratio is 0, a -100 % trend
+    (z,) = diagnose(f, np.zeros_like(Hm), H, std, plate_modes_hz=MODES_HZ).features
+    assert z.kind == "trend" and abs(z.size - 1) < 1e-9
+    # plate_q of the wrong length: an empty diagnosis that says why
+    bad = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=[1.0, 2.0])
+    assert bad.features == () and "failed" in bad.message
+    # a 1 Hz band, noiseless 1 % gain
+    band = np.linspace(100, 101, 12)
+    (g,) = diagnose(band, np.full(12, 1.01), np.ones(12), 1e-3, plate_modes_hz=MODES_HZ).features
+    assert g.kind == "trend" and abs(g.size - 0.01) < 1e-6
+
+
+def test_no_console_noise(capsys, caplog):
+    caplog.set_level(logging.DEBUG)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        diagnose(*extra_pole_case(4), plate_modes_hz=MODES_HZ, plate_q=Q)
+    assert caught == []
+    assert caplog.records == []
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == ""
+    assert logging.getLogger("skrf").level == logging.NOTSET  # left as found
