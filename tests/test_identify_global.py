@@ -87,7 +87,7 @@ def test_noise_known_gives_chi2_near_one(strip_1000):
     assert set(report["parameters"]) == {"D", "nu", "beta"}
     assert report["parameters"]["D"]["std"] == pytest.approx(res.std[0])
     (stage,) = report["loop"]["stages"]
-    assert stage["added"] is None and stage["chi2_reduced"] == pytest.approx(res.chi2_reduced)
+    assert stage["added"] is None and stage["chi2_reduced"] == pytest.approx(res.chi2_reduced_reported)
     assert report["effects"] == [] and report["loop"]["unexplained_residual"] is False
 
 

@@ -29,12 +29,12 @@ def _nums(a) -> list:
 
 
 def unexplained(result) -> bool:
-    """Whether the fit leaves a residual above the noise
-    (:func:`vibid.identify.fit.noise.fits_noise`). Without a known noise level nothing can
-    be said, and the answer is False (with a warning in the result)."""
-    from vibid.identify.fit.noise import fits_noise
+    """Whether the fit leaves a residual above the noise (the one judge,
+    :func:`vibid.identify.fit.noise.explains`, as the loop's). Without a known noise level
+    nothing can be said, and the answer is False (with a warning in the result)."""
+    from vibid.identify.fit.noise import explains
 
-    return fits_noise(result.chi2, result.dof, result.noise_known) is False
+    return explains(result) is False
 
 
 def afc_block(result) -> dict[str, Any]:
@@ -72,7 +72,9 @@ def free_length_share(result) -> str | None:
 def _stage_block(added, result) -> dict[str, Any]:
     return {
         "added": added,
-        "chi2_reduced": _num(result.chi2_reduced),
+        "chi2_reduced": _num(result.chi2_reduced_reported),
+        # the fit's own weights add the model's estimated discretisation error
+        "chi2_reduced_with_model_error": _num(result.chi2_reduced),
         "rel_rms_residual": _num(result.rel_rms_residual),
         "parameters": {n: _num(v) for n, v in zip(result.parameter_names, result.values)},
     }
@@ -112,10 +114,15 @@ def _loop_block(loop) -> tuple[list, dict]:
         stages.append(block)
     rounds = [[{"candidate": sc.name, "score": _num(sc.score), "dof": sc.dof,
                 "p_value": _num(sc.p_value), "collinearity": _num(sc.collinearity),
-                "delta_chi2": _num(sc.delta_chi2), "kept": sc.kept, "note": sc.note}
+                "delta_chi2": _num(sc.delta_chi2), "kept": sc.kept,
+                "verdict": sc.verdict.value, "note": sc.note}
                for sc in rnd] for rnd in loop.rounds]
-    return effects, {"stages": stages, "unexplained_residual": bool(loop.unexplained_residual),
-                     "rounds": rounds, "seconds": _num(loop.seconds)}
+    block = {"stages": stages, "unexplained_residual": bool(loop.unexplained_residual),
+             "rounds": rounds, "seconds": _num(loop.seconds)}
+    if any(st.diagnosis is not None for st in loop.stages):
+        block["diagnosis"] = [[] if st.diagnosis is None else st.diagnosis.as_report()
+                              for st in loop.stages]
+    return effects, block
 
 
 def build_report(result, *, session_id: str = "", declared_model: str | None = None,

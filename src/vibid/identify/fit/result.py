@@ -159,6 +159,14 @@ class IdentificationResult:
         return self.status.ok
 
     @property
+    def chi2_reduced_reported(self) -> float:
+        """The reduced chi2 a report prints: with the data's standard uncertainties alone as
+        weights (the model's own error is reported beside it, not in it); the fit's own
+        where the data's are unknown."""
+        v = self.chi2_reduced_data_weights
+        return float(v) if np.isfinite(v) else float(self.chi2_reduced)
+
+    @property
     def parameters(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.parameter_names, self.values)}
 
