@@ -1,7 +1,9 @@
 """The closed loop on sessions vibid did not simulate (tests/beam_sessions.py: the exact
 beam of tests/beam_reference.py, with each effect as its physics): each effect of issue #24
-is named alone and the truth comes back. The four are candidates on request
-(``loop.ON_REQUEST``), here with the library effects they could be mistaken for."""
+is named alone and the truth comes back, here among the library effects it could be
+mistaken for (``free_length`` and ``sensor_inertia`` are candidates on request,
+``loop.ON_REQUEST``; test_identify_loop_diagnosed.py runs the stand resonance and the
+clamp's loss among every default candidate)."""
 
 import beam_sessions as bs
 import pytest

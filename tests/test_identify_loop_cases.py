@@ -164,18 +164,18 @@ def test_too_few_points_for_every_candidate_is_reported_not_fitted():
 def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
     """The delay's refit raises (a solver failure): its round says so, the loop goes on with
     the other candidates, and the report has no NaN."""
-    import vibid.identify.loop as loop_module
+    import vibid.identify.loop.refit as refit_module
     from vibid.report import build_report
 
     H, sd = data({"tau_s": 2e-5}, 7)  # test_identify_loop's undeclared delay
-    real_refit = loop_module._refit
+    real_refit = refit_module.refit
 
     def refit(setup, data, res, cand, *a, **k):
         if cand.name == "channel_delay":
             raise RuntimeError("simulated solver failure")
         return real_refit(setup, data, res, cand, *a, **k)
 
-    monkeypatch.setattr(loop_module, "_refit", refit)
+    monkeypatch.setattr(refit_module, "refit", refit)
     # the declared fit is no refit: the same as test_identify_loop's, computed once
     loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
                       declared=declared_fit({"tau_s": 2e-5}, 7))
@@ -191,7 +191,7 @@ def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(mo
     refit had chi2_red 7e-5). It must not spare the global search, and is never kept."""
     import dataclasses
 
-    import vibid.identify.loop as loop_module
+    import vibid.identify.loop.refit as loop_module
     from vibid.identify.fit.result import Status
 
     H, sd = data({"tau_s": 2e-5}, 7)  # test_identify_loop's undeclared delay

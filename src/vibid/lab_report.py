@@ -132,21 +132,27 @@ def _flagged(afc) -> list:
     return out
 
 
-def _stage_residual(label, result):
+def _stage_residual(label, result, diagnosis=None):
+    """One stage's residual in the data's standard deviations (the reported chi2's
+    weights; the fit's own where the data's are unknown), with its diagnosed features."""
     from vibid.plots import StageResidual
 
     u = np.asarray(result.used, bool)
-    w = result.weights if result.weights is not None else np.ones(int(u.sum()))
+    w = (np.asarray(result.H_std)[u] if result.H_std is not None
+         else result.weights if result.weights is not None else np.ones(int(u.sum())))
     r = (np.asarray(result.H)[u] - np.asarray(result.model_afc)[u]) / np.asarray(w, float)
+    features = tuple((float(f.f_hz), f"{f.kind} {f.f_hz:.4g} Hz")
+                     for f in getattr(diagnosis, "features", ()) if np.isfinite(f.f_hz))
     return StageResidual(label, np.asarray(result.frequency_hz, float)[u], r.real, r.imag,
-                         float(result.chi2_reduced))
+                         float(result.chi2_reduced_reported), features)
 
 
-def _stages(identified) -> list[tuple[str, Any]]:
+def _stages(identified) -> list[tuple[str, Any, Any]]:
+    """(label, result, diagnosis) of every stage."""
     if identified.loop is None:
-        return [("declared model", identified.result)]
-    return [("declared model" if st.added is None else f"+ {st.added}", st.result)
-            for st in identified.loop.stages]
+        return [("declared model", identified.result, None)]
+    return [("declared model" if st.added is None else f"+ {st.added}", st.result,
+             st.diagnosis) for st in identified.loop.stages]
 
 
 def figures(data, identified, report: dict) -> dict[str, Any]:
@@ -167,10 +173,10 @@ def figures(data, identified, report: dict) -> dict[str, Any]:
               + "".join(f" + {e['name']}" for e in report["effects"]) + ")")}
     stages = _stages(identified)
     out[RESIDUALS_PNG] = residual_figure(
-        [_stage_residual(label, r) for label, r in stages],
+        [_stage_residual(label, r, d) for label, r, d in stages],
         title="normalised residual (measured − model) / std, loop stage by stage")
     histories = [(label, [[h.loss for h in run.history] for run in r.local_results])
-                 for label, r in stages]
+                 for label, r, _ in stages]
     if any(len(h) for _, runs in histories for h in runs):
         out[CONVERGENCE_PNG] = convergence_figure(
             histories, title="local optimiser: χ² per iteration")
@@ -223,6 +229,19 @@ def _effect_text(report: dict) -> list[str]:
     return lines
 
 
+def _diagnosis_text(report: dict) -> list[str]:
+    """What each stage's residual showed (``loop.diagnosis``), as a list."""
+    per_stage = report["loop"].get("diagnosis")
+    if not per_stage:
+        return []
+    lines = ["", "What the residual showed (its diagnosis, stage by stage):", ""]
+    for st, features in zip(report["loop"]["stages"], per_stage):
+        name = "declared model" if st["added"] is None else "+ " + st["added"]
+        said = "; ".join(f["note"] for f in features) or "nothing beyond the noise"
+        lines.append(f"- {name}: {said}")
+    return lines
+
+
 def _pct(x) -> str:
     return "n/a" if x is None else f"{100 * x:.3g} %"
 
@@ -260,10 +279,14 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
         lines += _param_rows(report["engineering"])
     lines += ["", "## Effects the loop found", ""] + _effect_text(report)
     lines += ["", "## Fit quality, stage by stage", "",
-              "| stage | χ²/dof | relative RMS residual |", "|---|---|---|"]
+              "| stage | χ²/dof (the data's std) | χ²/dof (with the model's own error) | "
+              "relative RMS residual |", "|---|---|---|---|"]
     for st in report["loop"]["stages"]:
         lines.append(f"| {'declared model' if st['added'] is None else '+ ' + st['added']} | "
-                     f"{_chi2(st['chi2_reduced'])} | {_pct(st['rel_rms_residual'])} |")
+                     f"{_chi2(st['chi2_reduced'])} | "
+                     f"{_chi2(st.get('chi2_reduced_with_model_error'))} | "
+                     f"{_pct(st['rel_rms_residual'])} |")
+    lines += _diagnosis_text(report)
     captions = {AFC_PNG: "Measured AFC (±2 std) and the identified model on a fine grid; "
                          "natural frequencies dotted, flagged steps crossed",
                 RESIDUALS_PNG: "Normalised residual with its ±2 band, before and after each effect",
@@ -277,7 +300,8 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
     lines += ["", "## Details", ""]
     if ident:
         lines.append(f"- optimiser: {ident.get('message', '')}")
-        lines.append(f"- χ² = {_chi2(ident.get('chi2'))} over {ident.get('dof')} degrees of freedom;"
+        lines.append(f"- χ² = {_chi2(ident.get('chi2'))} over {ident.get('dof')} degrees of "
+                     "freedom (weights: the data's std and the model's own error);"
                      f" χ²/dof with the data's own weights {_chi2(ident.get('chi2_reduced_data_weights'))}")
         g = ident.get("global_search")
         if g:

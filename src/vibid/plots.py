@@ -37,6 +37,8 @@ class StageResidual:
     re: np.ndarray
     im: np.ndarray
     chi2_reduced: float
+    #: what the residual's diagnosis found: (frequency_hz, short label) per feature
+    features: tuple[tuple[float, str], ...] = ()
 
 
 def _figure(figsize):
@@ -117,7 +119,7 @@ def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
 def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
     """The normalised residual against frequency with its ±2 band, one panel per loop
     stage side by side (the declared model first): the error before and after each
-    effect the loop added."""
+    effect the loop added, with the features its diagnosis found marked."""
     n = max(1, len(stages))
     fig = _figure((max(7.0, 4.2 * n + 1), 4.4))
     axes = np.atleast_1d(fig.subplots(1, n, squeeze=False)[0])
@@ -126,6 +128,11 @@ def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
         ax.plot(st.frequency_hz, st.re, "o-", ms=3, lw=0.7, color="C0", label="Re")
         ax.plot(st.frequency_hz, st.im, "s-", ms=3, lw=0.7, color="C1", label="Im")
         ax.axhline(0, color="0.4", lw=0.6)
+        for k, (f_hz, text) in enumerate(st.features):
+            ax.axvline(f_hz, color="C3", lw=1.0, ls="--",
+                       label="diagnosed feature" if k == 0 else None)
+            ax.annotate(text, (f_hz, 1.0), xycoords=("data", "axes fraction"),
+                        rotation=90, va="top", ha="right", fontsize=7, color="C3")
         if np.nanmax(np.abs(np.concatenate([st.re, st.im])), initial=0.0) > 20:
             # linear within the band, logarithmic beyond: a misfit of thousands of std and
             # the ±2 band show on one axis

@@ -19,6 +19,7 @@ class ChannelDelay(Term):
     """``H → H exp(-i ω τ_s)``."""
 
     name = "channel_delay"
+    explains = ("trend",)
     meaning = "a time skew between the two measurement channels"
     parameters = (TAU,)
 

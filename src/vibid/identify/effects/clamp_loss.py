@@ -26,6 +26,7 @@ class ClampLoss(Term):
     """The clamp spring's loss factor ``beta_clamp`` instead of the plate's."""
 
     name = "clamp_loss"
+    explains = ("damping",)
     meaning = "the clamp's own loss (its spring dissipates unlike the plate)"
     parameters = (BETA_CLAMP,)
     proportional = False

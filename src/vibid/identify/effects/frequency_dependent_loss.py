@@ -23,6 +23,7 @@ class FrequencyDependentLoss(Term):
     """Loss factors times ``(f / 1 kHz)^alpha``."""
 
     name = "frequency_dependent_loss"
+    explains = ("damping",)
     meaning = "a loss factor that varies with frequency"
     parameters = (ALPHA,)
 

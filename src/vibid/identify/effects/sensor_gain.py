@@ -18,6 +18,7 @@ class SensorGain(Term):
     """``H → gain H``."""
 
     name = "sensor_gain"
+    explains = ("trend",)
     meaning = "a sensitivity error of the response sensor against the base sensor"
     parameters = (GAIN,)
 

@@ -38,6 +38,8 @@ class StandResonance(Term):
 
     instance: int = 1
     name = "stand_resonance"
+    explains = ("extra_pole",)
+    needs_feature = True
     meaning = "a resonance of the shaker table or fixture (the base rocks about the clamp line)"
     rotates_base = True
     in_every_structure = False

@@ -69,6 +69,15 @@ class Term:
     in_every_structure = True
     #: which instance of an effect that may occur more than once (None: it may not)
     instance = None
+    #: the effect a model must have before this one can be added (a clamp's own loss
+    #: needs the clamp's spring)
+    requires = None
+    #: the residual's features (:mod:`vibid.identify.diagnosis`) it can explain: the loop
+    #: prefers a kept effect whose feature the diagnosis found
+    explains: tuple[str, ...] = ("mode_shift",)
+    #: True for an effect the loop tries only where the diagnosis found its feature (a
+    #: stand resonance: a pole where the plate has none, which also places its start)
+    needs_feature = False
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -180,6 +189,11 @@ class PlateModel:
         if any((t.name, t.instance) == (term.name, term.instance) for t in self.effects):
             return self
         return PlateModel(self.material, tuple(self.effects) + (term.for_material(self.material),))
+
+    def without_effect(self, term: Term) -> "PlateModel":
+        """This model less one effect (that instance of it)."""
+        return PlateModel(self.material, tuple(
+            t for t in self.effects if (t.name, t.instance) != (term.name, term.instance)))
 
     def for_geometry(self, geometry) -> "PlateModel":
         """This model with each term bound to ``geometry``

@@ -1,0 +1,40 @@
+"""The closed loop: read the residual, then add the plainest effect that explains it.
+
+Starting from the declared model's fit, each round over a frozen state (the stages so far
+and their prior box, :mod:`~vibid.identify.loop.rounds`):
+
+1. **Judge** the current fit with the one judge of "fits the data"
+   (:func:`vibid.identify.fit.noise.explains`, which the report asks too): a fit that
+   explains the data to the level of their noise ends the loop, so nothing is ever added
+   to data the model already explains.
+2. **Diagnose** its residual (:mod:`vibid.identify.diagnosis`): the ratio measured / model
+   fitted with poles and residues, read as resonances where the plate has none, plate modes
+   misplaced or damped wrongly, and smooth trends.
+3. **Score** every candidate (:mod:`~vibid.identify.loop.candidates`: an effect or a new
+   material, behind one protocol) that applies to the model and the diagnosis (a stand
+   resonance needs a diagnosed pole, which also places its frequency and Q) with a score
+   test at the current fit (:mod:`~vibid.identify.loop.scoring`).
+4. **Refit** the candidates whose score asks for it, best first
+   (:mod:`~vibid.identify.loop.refit`), and search the top one globally when no local
+   refit explains most of the misfit.
+5. **Judge** each refit (:class:`Verdict`): significant, away from its null, and explaining
+   a real share of the misfit; or bringing a parameter the declared model bent out of its
+   prior box back inside it.
+6. **Choose** among the passing refits the plainest explanation the data cannot tell from
+   the best: an effect whose feature the diagnosis found before one without, an effect
+   of the stand before a new material.
+
+The loop ends when the fit explains the data, when no candidate passes, or after
+``max_rounds``. A residual that remains is reported (``unexplained_residual``) and the
+final covariance is scaled by its reduced chi2 (the Birge ratio squared): the misfit then
+measures how far the model is from the data.
+"""
+
+from vibid.identify.loop.candidates import (MAX_INSTANCES, ON_REQUEST, Candidate, EffectCandidate,
+                                            MaterialCandidate, all_candidates, default_candidates)
+from vibid.identify.loop.rounds import close_loop, scaled_by_misfit
+from vibid.identify.loop.verdicts import LoopResult, Score, Stage, Verdict
+
+__all__ = ["MAX_INSTANCES", "ON_REQUEST", "Candidate", "EffectCandidate", "LoopResult",
+           "MaterialCandidate", "Score", "Stage", "Verdict", "all_candidates", "close_loop",
+           "default_candidates", "scaled_by_misfit"]

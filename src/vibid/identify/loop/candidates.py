@@ -1,0 +1,247 @@
+"""Candidates: the ways the loop may extend a model, behind one small protocol.
+
+A candidate is an effect term (:class:`EffectCandidate`) or a change of material
+(:class:`MaterialCandidate`: the isotropic plate replaced by the orthotropic one). The loop
+asks each the same questions: does it apply to this model and this diagnosis, what is the
+extended model, where does the extended model equal the current one (its null), what are
+its new parameters' prior boxes and starts, how far from its null did a refit leave it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+
+from vibid.identify.model.materials import Material
+from vibid.identify.model.terms import PlateModel
+
+#: How many instances of an effect that may occur more than once the loop adds.
+MAX_INSTANCES = 2
+
+
+class Candidate(Protocol):
+    """What the loop needs of a way to extend a model."""
+
+    name: str
+    #: 0 for an effect of the stand or sensor, 1 for a new material: the loop prefers the
+    #: plainer explanation
+    plainness: int
+    #: the diagnosis's feature kinds it can explain (:mod:`vibid.identify.diagnosis`)
+    explains: tuple[str, ...]
+    #: whether its global search matches the resonance peaks first
+    peaks_first: bool
+
+    def applies(self, model: PlateModel, diagnosis) -> bool: ...
+
+    def extend(self, model: PlateModel) -> PlateModel: ...
+
+    def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict: ...
+
+    def bounds(self, box: dict, values: dict) -> dict: ...
+
+    def placed(self, values: dict) -> set[str]: ...
+
+    def directions(self, J, names, values: dict, current_names): ...
+
+    def distance_from_null(self, result) -> float: ...
+
+
+@dataclass(frozen=True)
+class EffectCandidate:
+    """An effect of :mod:`vibid.identify.effects`, added as a term."""
+
+    name: str
+    plainness = 0
+    peaks_first = False
+
+    @property
+    def term(self):
+        from vibid.identify.effects import EFFECTS
+
+        return EFFECTS[self.name]
+
+    @property
+    def explains(self) -> tuple[str, ...]:
+        return self.term.explains
+
+    def applies(self, model: PlateModel, diagnosis) -> bool:
+        term = self.term
+        if term.requires and term.requires not in model.effect_names:
+            return False  # a clamp's own loss needs the clamp's spring first
+        if term.needs_feature and not self.feature(model.names, diagnosis):
+            return False  # a stand resonance needs a pole where the plate has none
+        if term.instance is not None:
+            return model.effect_names.count(self.name) < MAX_INSTANCES
+        return self.name not in model.effect_names
+
+    def feature(self, names, diagnosis):
+        """The diagnosed feature that places its new parameters (the strongest pole the
+        model has no resonance for), or None."""
+        if diagnosis is None or not self.term.needs_feature:
+            return None
+        found = [f for f in diagnosis.features if f.kind in self.explains]
+        return max(found, key=lambda f: f.significance, default=None)
+
+    def extend(self, model: PlateModel) -> PlateModel:
+        return model.with_effect(self.term_after(model.names))
+
+    def term_after(self, names):
+        """The term it adds to a model of parameters ``names`` (the next instance of one
+        that may occur more than once: a model with ``f_hz_1`` gets instance 2)."""
+        term = self.term
+        if term.instance is None:
+            return term
+        k = 1
+        while any(n in names for n in replace(term, instance=k).names):
+            k += 1
+        return replace(term, instance=k)
+
+    def bounds(self, box: dict, values: dict) -> dict:
+        """The prior box of its new parameters (the setup's where it names them)."""
+        term = self.term_after(values)
+        return {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
+
+    def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict:
+        """The extended model's parameters where it equals the current one: each new
+        parameter at its null value (a stand-in far beyond the box for a null at
+        infinity); one without a null (a resonance's frequency and Q) where the diagnosed
+        feature places it."""
+        out = dict(values)
+        term = self.term_after(values)
+        own = self.bounds(box, values)
+        nulls = term.null_values(values)
+        feature = self.feature(values, diagnosis)
+        for q in term.parameters:
+            if q.name in nulls:
+                null = nulls[q.name]
+                out[q.name] = 100.0 * own[q.name][1] if math.isinf(null) else null
+                continue
+            lo, hi = own[q.name]
+            placed = _from_feature(q.name, feature)
+            out[q.name] = (min(max(placed, lo), hi) if placed is not None
+                           else math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi))
+        return out
+
+    def placed(self, values: dict) -> set[str]:
+        """Its new parameters that have no null of their own (started from the diagnosis,
+        not varied by the refit's starts)."""
+        term = self.term_after(values)
+        return set(term.names) - set(term.null_values(values))
+
+    def directions(self, J, names, values: dict, current_names):
+        """The current model's sensitivities inside the extended model's (its tangent space
+        at the null), and the indices of the new directions."""
+        i = {n: k for k, n in enumerate(names)}
+        shared = [i[n] for n in current_names if n in i]
+        return J[:, shared], [k for k in range(len(names)) if k not in shared]
+
+    def distance_from_null(self, result) -> float:
+        """How many standard deviations the fitted effect lies from its null (Wald z; for
+        a null at infinity, in the compliance 1/k: z = k / std k)."""
+        term = next(t for t in reversed(result.plate_model.effects) if t.name == self.name)
+        return distance_from_null(term, result)
+
+
+def distance_from_null(term, result) -> float:
+    """How many standard deviations ``term``'s parameters lie from their null in
+    ``result`` (the largest Wald z; inf for a term without parameters: the likelihood
+    ratio alone decides)."""
+    p, sd = result.parameters, result.parameter_std
+    z = [abs(p[n] if math.isinf(null) else p[n] - null) / sd[n]
+         if np.isfinite(sd[n]) and sd[n] > 0 else math.inf
+         for n, null in term.null_values(p).items()]
+    return max(z) if z else math.inf
+
+
+def _from_feature(name: str, feature) -> float | None:
+    """A resonance's frequency or Q from a diagnosed pole (names ``f_hz``/``q``, any
+    instance suffix)."""
+    if feature is None:
+        return None
+    from vibid.parameters import split_instance
+
+    base = split_instance(name)[0]
+    value = {"f_hz": feature.f_hz, "q": feature.q}.get(base)
+    return float(value) if value is not None and np.isfinite(value) else None
+
+
+@dataclass(frozen=True)
+class MaterialCandidate:
+    """The isotropic material replaced by the orthotropic one, started from the isotropic
+    fit (its null: D11 = D22 = D, D12 = ν D, D66 = (1 − ν) D / 2)."""
+
+    name: str = "anisotropy"
+    plainness = 1
+    explains = ("mode_shift",)
+    #: the anisotropic material moves every resonance its own way, and the isotropic fit
+    #: lies far from the orthotropic basin, where chi2's minima are needles
+    peaks_first = True
+
+    def applies(self, model: PlateModel, diagnosis) -> bool:
+        return model.material.model == "isotropic"
+
+    def extend(self, model: PlateModel) -> PlateModel:
+        return model.with_material(Material("orthotropic", model.material.per_modulus_loss))
+
+    def bounds(self, box: dict, values: dict) -> dict:
+        lo, hi = box["D"]
+        return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
+                "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
+
+    def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict:
+        D, nu = values["D"], values["nu"]
+        out = {k: v for k, v in values.items() if k not in ("D", "nu")}
+        # an isotropic plate's transverse shear has G = E / 2(1 + nu) = 6 (1 - nu) D / h³
+        return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D,
+                      "G13_Pa": 6 * (1 - nu) * D / thickness_m**3}
+
+    def placed(self, values: dict) -> set[str]:
+        return set()
+
+    def directions(self, J, names, values: dict, current_names):
+        """d(D11, D12, D22, D66)/d(D, ν) at the null span the isotropic directions; D22
+        and D66 are the new ones."""
+        i = {n: k for k, n in enumerate(names)}
+        D, nu = values["D"], values["nu"]
+        jD = J[:, i["D11"]] + nu * J[:, i["D12"]] + J[:, i["D22"]] + 0.5 * (1 - nu) * J[:, i["D66"]]
+        jnu = D * J[:, i["D12"]] - 0.5 * D * J[:, i["D66"]]
+        shared = [i[n] for n in current_names if n in i]
+        return np.column_stack([jD, jnu] + [J[:, k] for k in shared]), [i["D22"], i["D66"]]
+
+    def distance_from_null(self, result) -> float:
+        """Wald z of the anisotropy's two contrasts, D22 − D11 and 2 D66 − D11 + D12 (the
+        larger)."""
+        names = list(result.parameter_names)
+        C = np.asarray(result.covariance)
+        theta = np.asarray(result.values)
+        z = []
+        for combo in ({"D22": 1.0, "D11": -1.0}, {"D66": 2.0, "D11": -1.0, "D12": 1.0}):
+            g = np.zeros(len(names))
+            for n, c in combo.items():
+                g[names.index(n)] = c
+            var = float(g @ C @ g)
+            z.append(abs(float(g @ theta)) / math.sqrt(var) if var > 0 else math.inf)
+        return max(z)
+
+
+#: Effects the loop tries only when asked (``candidates=``, ``--candidates``): a free
+#: length is nearly collinear with the bending stiffness (a longer span is a softer plate:
+#: only a declared prior on the length separates them) and a tall sensor's rotary inertia
+#: with the transverse shear of a thick strip (both lower the higher modes most); among
+#: the default candidates they took the place of the one the data held.
+ON_REQUEST = ("free_length", "sensor_inertia")
+
+
+def all_candidates() -> tuple:
+    """Every candidate the loop knows (by default it tries :func:`default_candidates`)."""
+    from vibid.identify.effects import EFFECTS
+
+    return tuple(EffectCandidate(n) for n in EFFECTS) + (MaterialCandidate(),)
+
+
+def default_candidates() -> tuple:
+    """The candidates the loop tries unless told which: all but :data:`ON_REQUEST`."""
+    return tuple(c for c in all_candidates() if c.name not in ON_REQUEST)

@@ -1,0 +1,125 @@
+"""Refit a candidate's extended model from the current fit.
+
+Local fits from the current estimate, with several starts along the new parameters (a
+parameter the diagnosis placed, a resonance's frequency and Q, is not varied), then the
+full identification (weights with the model's own error, covariance) from the best. Where
+the current estimate lies outside its prior box (the declared model bent a parameter to
+mimic what it lacks) the starts also move those parameters just inside the box and to
+its centre. With ``search``, when the local refit does not fit the noise, the extended
+model is also searched globally over its box (the current estimate may lie in a wrong
+basin of it: an orthotropic plate fitted as isotropic).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from vibid.identify.fit.local import LOCAL_METHODS
+from vibid.identify.fit.minima import best_inside_prior
+from vibid.identify.fit.noise import fits_noise
+from vibid.identify.fit.result import IdentificationResult
+from vibid.identify.fit.strategy import gives_modes, identify
+from vibid.identify.loop.scoring import extended_problem
+from vibid.identify.profile import timed
+
+log = logging.getLogger(__name__)
+
+#: Starts of a refit along the new parameters, in the coordinates u of their prior box.
+STARTS_U = (-0.75, -0.25, 0.25, 0.75)
+#: Where a refit restarts a current parameter found outside its prior box (u = ±1 are
+#: the box's faces).
+INSIDE_U = 0.9
+
+
+@dataclass(frozen=True)
+class Refit:
+    """A refitted candidate: its result, its likelihood ratio ``gain`` = Δχ² under the
+    current fit's weights, and whether it was searched globally."""
+
+    result: IdentificationResult
+    gain: float
+    searched: bool
+
+
+def starts(space, u0, new, current_names) -> list[np.ndarray]:
+    """The current estimate, and it with the new parameters at :data:`STARTS_U`; where
+    current parameters lie outside their prior box, the same again with those moved just
+    inside it and to its centre (a physical value, far from the bent one)."""
+    out = set(space.out_of_bounds(space.theta(u0))) & set(current_names)
+    outside = [i for i, n in enumerate(space.names) if n in out]
+    bases = [u0]
+    if outside:
+        moved, centred = u0.copy(), u0.copy()
+        moved[outside] = np.clip(moved[outside], -INSIDE_U, INSIDE_U)
+        centred[outside] = 0.0
+        bases += [moved, centred]
+    found = []
+    for base in bases:
+        found.append(base)
+        for v in STARTS_U if new else ():
+            u = base.copy()
+            u[new] = v
+            found.append(u)
+    return found
+
+
+@timed("loop refits")
+def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = False) -> Refit:
+    """Refit ``cand``'s extended model from ``res`` (module doc)."""
+    problem, start, ext_box = extended_problem(setup, data, res, cand, box, diagnosis)
+    space = problem.space
+    names = space.names
+    with np.errstate(divide="ignore"):  # a null on a log parameter's edge: u = -inf
+        u0 = space.to_u(np.array([start[n] for n in names]))
+    placed = cand.placed(res.parameters)
+    new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
+    run = LOCAL_METHODS[local]
+    runs = [run(problem.with_model(problem.model.refresh(space.theta(u))), u)
+            for u in starts(space, np.clip(u0, -5, 5), new, res.parameter_names)]
+    runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
+    inside = best_inside_prior(runs, space, max(1.0, float(res.chi2_reduced)))
+    best = inside if inside is not None else runs[0]
+    fm = problem.model.refresh(best.theta)
+    result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
+                      model=fm.param.model, forward_model=fm, method="local",
+                      start=dict(zip(names, best.theta)), bounds=ext_box, local=local)
+    loss = best.loss
+    if search and not _fits(result):
+        result, loss = _search(setup, data, cand, problem, fm, start, ext_box, local,
+                               result, loss)
+    log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
+    return Refit(result, float(res.chi2 - loss), search)
+
+
+def _fits(r) -> bool:
+    """A refit that did not converge fits nothing, whatever its chi2 (a runaway's model
+    error can swamp its own weights)."""
+    return r.converged and bool(fits_noise(r.chi2, r.dof, True))
+
+
+def _search(setup, data, cand, problem, fm, start, ext_box, local, result, loss):
+    """The extended model searched over its whole box: on the resonance peaks first for a
+    candidate that moves every resonance its own way, then on chi2 unless that already
+    fits; the best converged one (chi2 under the current fit's weights) wins."""
+    from vibid.identify.model.forward import build_forward_model
+
+    space = problem.space
+    wide = build_forward_model(setup, data.frequency_hz[data.used], model=fm.param,
+                               bounds=ext_box)
+    peaks = cand.peaks_first and gives_modes(wide)
+    for peaks_only in ([start] if peaks else []) + [None]:
+        found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
+                         model=fm.param.model, forward_model=wide, bounds=ext_box,
+                         restarts=3, seed=0, local=local, peaks_only=peaks_only)
+        found_loss = problem.with_model(problem.model.refresh(found.values)).chi2(
+            space.to_u(found.values))
+        log.info("loop: %s searched globally%s, chi2 %.6g (local refit %.6g)", cand.name,
+                 " on its peaks" if peaks_only else "", found_loss, loss)
+        if found.converged and found_loss < loss:
+            result, loss = found, found_loss
+        if _fits(result):
+            break
+    return result, loss

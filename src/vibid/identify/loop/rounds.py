@@ -1,0 +1,391 @@
+"""The loop's rounds: diagnose → score → refit → judge → choose, each a small function over
+a frozen :class:`State` (the algorithm: :mod:`vibid.identify.loop`)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from vibid.errors import VibidError
+from vibid.identify.fit.data import FitData, fit_data
+from vibid.identify.fit.minima import indistinct_chi2
+from vibid.identify.fit.result import IdentificationResult
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.strategy import identify
+from vibid.identify.loop import refit as refits
+from vibid.identify.loop.candidates import all_candidates, default_candidates, distance_from_null
+from vibid.identify.loop.scoring import score
+from vibid.identify.loop.verdicts import LoopResult, Score, Stage, Verdict
+
+log = logging.getLogger(__name__)
+
+#: A candidate's score must pass this quantile of chi-square to be refitted, and its
+#: refit's likelihood ratio the same to be kept.
+KEEP_QUANTILE = 0.99
+#: A kept effect must explain at least this share of the chi2 above the noise (chi2 - dof):
+#: where a residual no candidate explains remains, every extra parameter lowers chi2 a
+#: little and passes the likelihood-ratio test, which assumes the extended model right; an
+#: effect that removes a few per cent of a misfit is no explanation of it.
+KEEP_SHARE = 0.10
+#: A kept effect must lie this many standard deviations from its null value (Wald): a
+#: refit that lowers chi2 while its effect stays at the null adds nothing physical.
+KEEP_Z = 3.0
+#: Candidates refitted per round (the highest scores that pass the score test).
+REFITS_PER_ROUND = 3
+#: The top candidate is searched globally only when no local refit explains this share
+#: of the chi2 above the noise.
+SEARCH_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """What stays the same across the rounds."""
+
+    setup: object
+    data: FitData
+    pool: tuple
+    local: str
+
+
+@dataclass(frozen=True)
+class State:
+    """The loop between rounds: its stages (the last is the current fit), the prior box
+    of the current model's parameters, and the rounds so far."""
+
+    stages: tuple[Stage, ...]
+    box: dict
+    rounds: tuple[tuple[Score, ...], ...] = ()
+
+    @property
+    def current(self) -> Stage:
+        return self.stages[-1]
+
+
+# -- the loop -----------------------------------------------------------------------------
+def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_rounds: int = 4,
+               restarts: int = 5, seed=0, progress=None, local: str = "newton",
+               declared: IdentificationResult | None = None) -> LoopResult:
+    """Fit the declared model, then add the effects its residual asks for
+    (:mod:`vibid.identify.loop`).
+
+    ``candidates``: names to consider (default :func:`default_candidates`);
+    ``declared``: the declared model's result when already computed.
+    """
+    t0 = time.perf_counter()
+    pool = _pool(candidates)
+    if declared is None:
+        declared = identify(setup, frequency_hz, H, std, used=used, restarts=restarts,
+                            seed=seed, progress=progress, local=local)
+    if not declared.noise_known:
+        return LoopResult((Stage.of(None, declared),), (), False, (
+            "the AFC's uncertainty is unknown: the loop cannot test the residual against the "
+            "noise, so no effect was looked for",), time.perf_counter() - t0)
+    inputs = Inputs(setup, fit_data(frequency_hz, H, std, used), pool, local)
+    state = State((diagnosed(setup, Stage.of(None, declared)),),
+                  dict(setup.identification.bounds))
+    while len(state.rounds) < max_rounds and not state.current.fits_noise:
+        todo = [c for c in pool if c.applies(state.current.result.plate_model,
+                                             state.current.diagnosis)]
+        if not todo:
+            break
+        state, added = play_round(inputs, state, todo)
+        if not added:
+            break
+    return finish(state, time.perf_counter() - t0)
+
+
+def _pool(candidates) -> tuple:
+    if candidates is None:
+        return default_candidates()
+    known = {c.name: c for c in all_candidates()}
+    unknown = sorted(set(candidates) - set(known))
+    if unknown:
+        raise VibidError(f"unknown candidate {', '.join(unknown)}: expected some of "
+                         f"{', '.join(sorted(known))}")
+    return tuple(c for c in known.values() if c.name in set(candidates))
+
+
+def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
+    """One round: every candidate scored, the best refitted and judged, one chosen. Returns
+    the next state and whether a candidate was added."""
+    current = state.current
+    scores = [scored(inputs, current, c, state.box) for c in todo]
+    judged = refit_and_judge(inputs, state, todo, scores)
+    scores, chosen = choose(scores, judged, current.result,
+                            {c.name: c.plainness for c in todo})
+    rounds = state.rounds + (tuple(scores),)
+    if chosen is None:
+        return replace(state, rounds=rounds), False
+    cand = next(c for c in todo if c.name == chosen.added)
+    box = state.box | cand.bounds(state.box, current.result.parameters)
+    chosen, gone = withdraw(inputs, chosen, box, [s.added for s in state.stages[1:]])
+    if gone:
+        rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
+    dropped = {s.name for s in gone}
+    stages = tuple(s for s in state.stages if s.added not in dropped)
+    return State(stages + (diagnosed(inputs.setup, chosen),), box, rounds), True
+
+
+def finish(state: State, seconds: float) -> LoopResult:
+    """The loop's result: a final residual above the noise scales the covariance by the
+    misfit; a kept effect nearly collinear with the declared parameters is a warning."""
+    stages = list(state.stages)
+    unexplained = not stages[-1].fits_noise
+    if unexplained:
+        stages[-1] = replace(stages[-1], result=scaled_by_misfit(stages[-1].result))
+    warnings = [
+        f"{s.name} is nearly collinear with the declared parameters (cosine "
+        f"{s.collinearity:.5f}): the data separate them only through the "
+        f"{100 * math.sqrt(max(1 - s.collinearity**2, 0)):.2g} % of its sensitivity the "
+        "others cannot mimic; its std and theirs include that"
+        for s in (state.rounds[-1] if state.rounds else ()) if s.kept and s.collinearity > 0.9]
+    return LoopResult(tuple(stages), state.rounds, unexplained, tuple(warnings), seconds)
+
+
+# -- diagnose -------------------------------------------------------------------------------
+def diagnosed(setup, stage: Stage) -> Stage:
+    """``stage`` with its residual's diagnosis (None where it cannot be made)."""
+    from vibid.identify.diagnosis import diagnose
+
+    r = stage.result
+    try:
+        modes_hz, q = model_resonances(setup, r)
+        u = np.asarray(r.used)
+        found = diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
+                         None if r.H_std is None else np.asarray(r.H_std)[u],
+                         plate_modes_hz=modes_hz, plate_q=q)
+    except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
+        log.warning("loop: the residual could not be diagnosed: %s", exc)
+        return stage
+    return replace(stage, diagnosis=found)
+
+
+def model_resonances(setup, result, n: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """(frequency_hz, Q) of the fitted model's resonances: its plate's modes and its stand
+    resonances."""
+    from vibid.identify.model.forward import natural_frequencies
+
+    params = result.parameters
+    f_hz, decay = natural_frequencies(setup, params, n)
+    q = np.pi * np.asarray(f_hz) / np.maximum(np.asarray(decay), 1e-30)
+    stand = [(params[k], params["q" + k[4:]]) for k in params if k.startswith("f_hz_")]
+    if stand:
+        f_hz = np.concatenate([f_hz, [s[0] for s in stand]])
+        q = np.concatenate([q, [s[1] for s in stand]])
+    return np.asarray(f_hz, float), np.asarray(q, float)
+
+
+# -- score ----------------------------------------------------------------------------------
+def scored(inputs: Inputs, current: Stage, cand, box) -> Score:
+    """``cand``'s score test at the current fit (a failure is its verdict, not fatal)."""
+    asked = bool(current.diagnosis is not None and any(
+        f.kind in cand.explains for f in current.diagnosis.features))
+    try:
+        lm, dof, cos = score(inputs.setup, inputs.data, current.result, cand, box,
+                             current.diagnosis)
+    except Exception as exc:  # noqa: BLE001
+        return Score(cand.name, math.nan, 0, math.nan, math.nan, verdict=Verdict.NOT_SCORED,
+                     detail=(("error", str(exc)),), asked=asked)
+    p = float(chi2_dist.sf(lm, dof))
+    return Score(cand.name, lm, dof, p, cos, detail=(("p", p),), asked=asked)
+
+
+# -- refit and judge ------------------------------------------------------------------------
+def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
+    """Refit the candidates whose score asks for it, best first, and judge each: name ->
+    (verdict, detail, refit or None, parameters it leaves outside the prior box).
+
+    The best few are refitted locally, stopping at one that fits the noise; the top one is
+    also searched globally when no refit explains most of the misfit. While the current
+    estimate lies outside its prior box every candidate is refitted, whatever its score,
+    the top one searched first: the effect behind an excursion scores low at the bent
+    estimate (the bent parameter already mimics it), and its refit starts with the bent
+    parameters back inside the box."""
+    res = state.current.result
+    by_name = {c.name: c for c in todo}
+    judged = {}
+    n_residuals = 2 * int(np.count_nonzero(inputs.data.used))
+    for s in scores:
+        n = len(by_name[s.name].extend(res.plate_model).names)
+        if s.verdict is Verdict.BELOW_SCORE and n >= n_residuals:
+            judged[s.name] = (Verdict.TOO_FEW_POINTS, (("n", n), ("residuals", n_residuals)),
+                              None, [])
+    outside = outside_prior(res, state.box)
+    asking = sorted((s for s in scores if s.name not in judged and np.isfinite(s.score)
+                     and (outside or s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof))),
+                    key=lambda s: -s.score)
+    ranked = asking[:None if outside else REFITS_PER_ROUND]
+    for s in asking[len(ranked):]:
+        judged[s.name] = (Verdict.NOT_REFITTED, (), None, [])
+    excess = max(res.chi2 - res.dof, 0.0)
+
+    def attempt(s: Score, search: bool):
+        cand = by_name[s.name]
+        try:
+            fit = refits.refit(inputs.setup, inputs.data, res, cand, state.box,
+                               state.current.diagnosis, inputs.local, search=search)
+        except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
+            return Verdict.REFIT_FAILED, (("error", str(exc)),), None, []
+        return judge(cand, s, fit, res, state.box, outside, excess)
+
+    for k, s in enumerate(ranked):
+        judged[s.name] = attempt(s, bool(outside) and k == 0)
+        verdict, _, fit, _ = judged[s.name]
+        if verdict.passes and Stage.of(s.name, fit.result).fits_noise:
+            for rest in ranked[k + 1:]:  # another could at best tie, for a refit's price
+                judged[rest.name] = (Verdict.NOT_REFITTED, (("by", s.name),), None, [])
+            break
+    else:
+        explained = max((f.gain for v, _, f, _ in judged.values() if v.passes), default=0.0)
+        if ranked and not outside and explained < SEARCH_SHARE * excess:
+            top = ranked[0].name
+            searched, plain = attempt(ranked[0], True), judged[top]
+            if searched[0].passes and (not plain[0].passes or searched[2].gain > plain[2].gain):
+                judged[top] = searched
+    return judged
+
+
+def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess):
+    """The verdict on one refit: significant under the current weights (likelihood ratio
+    past :data:`KEEP_QUANTILE`), converged, lower in chi2 under its own weights, its effect
+    :data:`KEEP_Z` std from its null, and :data:`KEEP_SHARE` of the misfit explained; or,
+    while the estimate is outside its prior box, one that brings it back inside at a chi2
+    the data cannot tell from the current one (the excursion was this effect)."""
+    r, gain = fit.result, fit.gain
+    z = cand.distance_from_null(r)
+    significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
+    left = outside_prior(r, box | cand.bounds(box, res.parameters)) if outside else []
+    detail = (("searched", fit.searched),)
+    if not r.converged:
+        return Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit, left
+    if z <= KEEP_Z:
+        return Verdict.AT_NULL, detail + (("z", z),), fit, left
+    if significant and gain >= KEEP_SHARE * excess:
+        return Verdict.OUTRANKED, detail, fit, left  # passes; :func:`choose` decides
+    if outside and not left and gain >= -indistinct_chi2(len(r.values),
+                                                         max(1.0, float(res.chi2_reduced))):
+        return (Verdict.EXPLAINS_EXCURSION, detail + (("outside", ", ".join(outside)),),
+                fit, left)
+    if significant:
+        return (Verdict.SMALL_SHARE, detail + (("share", 100 * gain / excess),
+                                               ("need", 100 * KEEP_SHARE)), fit, left)
+    return Verdict.NOT_SIGNIFICANT, detail, fit, left
+
+
+# -- withdraw ---------------------------------------------------------------------------------
+def withdraw(inputs: Inputs, stage: Stage, box: dict, added: list) -> tuple[Stage, list]:
+    """``stage`` less the effects added in earlier rounds that it leaves at their null
+    value (the new effect explains what they stood in for: an isotropic fit's extra peak
+    taken for a stand resonance, then the orthotropic material that places it), where the
+    data cannot tell the model without one from the model with it (likelihood ratio,
+    data weights, below :data:`KEEP_QUANTILE` in units of the reduced chi2). Returns the
+    stage and a :class:`Score` per withdrawn effect."""
+    from vibid.identify.model.forward import build_forward_model
+
+    gone = []
+    for term in reversed(stage.result.plate_model.effects):
+        res = stage.result
+        if term.name == stage.added or term.name not in added or not term.parameters:
+            continue
+        z = distance_from_null(term, res)
+        if z > KEEP_Z:
+            continue
+        model = res.plate_model.without_effect(term)
+        start = {n: v for n, v in res.parameters.items() if n in model.names}
+        d = inputs.data
+        fm = build_forward_model(inputs.setup, d.frequency_hz[d.used], model=model,
+                                 theta0=start, bounds=model.default_bounds(box))
+        try:
+            smaller = identify(inputs.setup, d.frequency_hz, d.H, d.std, used=d.used,
+                               model=model.model, forward_model=fm, method="local",
+                               start=start, bounds=model.default_bounds(box),
+                               local=inputs.local)
+        except Exception as exc:  # noqa: BLE001 - the larger model stays
+            log.info("loop: %s could not be refitted without %s: %s", stage.added,
+                     term.name, exc)
+            continue
+        lr = (smaller.chi2_reduced_reported * smaller.dof - res.chi2_reduced_reported * res.dof)
+        limit = chi2_dist.ppf(KEEP_QUANTILE, len(term.parameters)) * max(
+            1.0, res.chi2_reduced_reported)
+        if not (smaller.converged and lr < limit):
+            continue
+        stage = Stage.of(stage.added, smaller)
+        gone.append(Score(term.name, math.nan, len(term.parameters), math.nan, math.nan,
+                          delta_chi2=-float(lr), verdict=Verdict.WITHDRAWN,
+                          detail=(("by", stage.added), ("z", z))))
+    return stage, gone
+
+
+def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
+    """Names of ``result``'s parameters outside (or on a face of) their prior box."""
+    bounds = result.plate_model.default_bounds(box)
+    space = ParameterSpace.from_bounds(result.parameter_names, bounds,
+                                       {q.name: q.kind for q in result.plate_model.parameters})
+    return space.out_of_bounds(result.values)
+
+
+# -- choose ---------------------------------------------------------------------------------
+def choose(scores, judged: dict, res, plainness: dict) -> tuple[list[Score], Stage | None]:
+    """The candidate the round adds, and every score with its final verdict.
+
+    One that brings the estimate back inside its prior box goes first (an effect that
+    leaves it outside is kept back). Among the rest, the ones whose chi2 the data cannot
+    tell from the best's compete, and the plainest explanation wins: one whose feature the
+    diagnosis found before one without, an effect before a new material, then the larger
+    likelihood ratio."""
+    passing = {n: j for n, j in judged.items() if j[0].passes}
+    if any(not left for _, _, _, left in passing.values()):
+        for n, (v, d, fit, left) in list(passing.items()):
+            if left:
+                judged[n] = (Verdict.KEPT_BACK, d + (("left", ", ".join(left)),), fit, left)
+                del passing[n]
+    by_name = {s.name: s for s in scores}
+    chosen = None
+    if passing:
+        # gains are all under the current fit's weights: comparable
+        best = max(fit.gain for _, _, fit, _ in passing.values())
+        tie = indistinct_chi2(1, max(1.0, float(res.chi2_reduced)))
+        rivals = [n for n, (_, _, fit, _) in passing.items() if fit.gain >= best - tie]
+        chosen = min(rivals, key=lambda n: (not by_name[n].asked, plainness[n],
+                                            -passing[n][2].gain))
+        for n in passing:
+            v, d, fit, left = judged[n]
+            if n == chosen:
+                v = v if v is Verdict.EXPLAINS_EXCURSION else Verdict.CHOSEN
+            else:
+                v, d = Verdict.OUTRANKED, d + (("by", chosen),)
+            judged[n] = (v, d, fit, left)
+    out = []
+    for s in scores:
+        if s.name in judged:
+            v, d, fit, _ = judged[s.name]
+            s = replace(s, verdict=v, detail=tuple(d),
+                        delta_chi2=fit.gain if fit is not None else math.nan)
+        out.append(s)
+    stage = Stage.of(chosen, judged[chosen][2].result) if chosen else None
+    return out, stage
+
+
+def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:
+    """``result`` with its covariance scaled by its reduced chi2 when that exceeds 1 (the
+    standard deviations by the Birge ratio ``√chi2_red``), the warning saying so in place of
+    the one that they understate the error."""
+    k = float(result.chi2_reduced)
+    if not (result.noise_known and np.isfinite(k) and k > 1.0):
+        return result
+    note = (f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(k):.3g}: "
+            "the residual holds more than the noise, and the misfit measures the error")
+    kept = tuple(w for w in result.warnings if "understate the error" not in w)
+    std = result.std * math.sqrt(k)
+    poor = tuple(
+        f"{n} is poorly determined by these data (scaled std {sd:.2g} = "
+        f"{100 * sd / abs(v):.0f} % of its value)"
+        for n, v, sd, s0 in zip(result.parameter_names, result.values, std, result.std)
+        if abs(v) > 0 and np.isfinite(sd) and sd > 0.3 * abs(v) and not s0 > 0.3 * abs(v))
+    return replace(result, std=std, covariance=result.covariance * k,
+                   warnings=kept + (note,) + poor)

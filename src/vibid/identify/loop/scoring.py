@@ -1,0 +1,75 @@
+"""The score (Lagrange-multiplier) test of a candidate at the current fit.
+
+With ``r`` the weighted residual and ``J`` the Jacobian of the model extended by the
+candidate, both at the current estimate and the candidate's null value,
+``LM = rᵀ (P_ext − P) r``, ``P`` the projector onto the current parameters' sensitivities:
+chi-square with as many degrees of freedom as the candidate adds, under the null. Its
+collinearity is how much of its sensitivity the current parameters already explain. A
+candidate without parameters of its own (``transverse_shear`` on an isotropic plate) is
+scored along the secant from the current model to the extended one (one dof).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.profile import timed
+
+
+def extended_problem(setup, data, res, cand, box, diagnosis):
+    """(the least-squares problem of the model extended by ``cand`` under ``res``'s weights,
+    its start at the null, its prior box)."""
+    from vibid.identify.model.forward import build_forward_model
+
+    values = res.parameters
+    model = cand.extend(res.plate_model)
+    start = cand.at_null(values, box, setup.specimen.thickness_m, diagnosis)
+    ext_box = model.default_bounds(box | cand.bounds(box, values))
+    fm = build_forward_model(setup, data.frequency_hz[data.used], model=model, theta0=start,
+                             bounds=ext_box)
+    space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
+                                       {q.name: q.kind for q in model.parameters})
+    return LeastSquaresProblem(fm, data, space, res.weights), start, ext_box
+
+
+@timed("loop scoring")
+def score(setup, data, res, cand, box, diagnosis) -> tuple[float, int, float]:
+    """(LM statistic, its degrees of freedom, collinearity) of ``cand`` at ``res``."""
+    problem, start, _ = extended_problem(setup, data, res, cand, box, diagnosis)
+    names = problem.space.names
+    theta = np.array([start[n] for n in names])
+    J = problem.jacobian_theta(theta)
+    r = problem.residuals_theta(theta)
+    J_small, new = cand.directions(J, names, res.parameters, res.parameter_names)
+    if not new:
+        # no parameter of its own: the extended model at the current values differs from
+        # the current one by d; score along that secant, one dof
+        u = res.used
+        rc = (res.model_afc[u] - res.H[u]) / res.weights
+        r0 = np.concatenate([rc.real, rc.imag])
+        d = r - r0
+        lm = max(projected(np.column_stack([J, d]), r0) - projected(J, r0), 0.0)
+        return float(lm), 1, collinearity(J, d[:, None])
+    lm = max(projected(J, r) - projected(J_small, r), 0.0)
+    return float(lm), len(names) - len(res.parameter_names), collinearity(J_small, J[:, new])
+
+
+def projected(J, r) -> float:
+    """``rᵀ P r``, P the projector onto the columns of J (scale-invariant, rank-safe)."""
+    scale = np.linalg.norm(J, axis=0)
+    Jn = J / np.where(scale > 0, scale, 1.0)
+    Q, s, _ = np.linalg.svd(Jn, full_matrices=False)
+    Q = Q[:, s > 1e-10 * s.max()]
+    return float(np.sum((Q.T @ r) ** 2))
+
+
+def collinearity(J_old, J_new) -> float:
+    """How much of the extension the current parameters can mimic: the cosine between a
+    new direction and the span of the current ones (the smallest over the new directions:
+    the data see the extension through its least mimicked direction)."""
+    Q, s, _ = np.linalg.svd(J_old / np.linalg.norm(J_old, axis=0), full_matrices=False)
+    Q = Q[:, s > 1e-10 * s.max()]
+    cos = [np.linalg.norm(Q.T @ v) / np.linalg.norm(v) for v in J_new.T if np.linalg.norm(v) > 0]
+    return float(min(cos)) if cos else float("nan")

@@ -1,0 +1,155 @@
+"""What the loop reports: each candidate's verdict, each stage, the whole loop.
+
+Every outcome of a candidate is a :class:`Verdict` that maps to the sentence the report
+prints (the shape of :class:`vibid.identify.fit.result.Status`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+from vibid.identify.fit.noise import explains, whiteness_p
+from vibid.identify.fit.result import IdentificationResult
+
+
+class Verdict(enum.Enum):
+    """What became of a candidate in a round."""
+
+    CHOSEN = "chosen"
+    EXPLAINS_EXCURSION = "explains_excursion"
+    KEPT_BACK = "kept_back"
+    OUTRANKED = "outranked"
+    NOT_SCORED = "not_scored"
+    BELOW_SCORE = "below_score"
+    TOO_FEW_POINTS = "too_few_points"
+    NOT_REFITTED = "not_refitted"
+    REFIT_FAILED = "refit_failed"
+    NOT_CONVERGED = "not_converged"
+    AT_NULL = "at_null"
+    SMALL_SHARE = "small_share"
+    NOT_SIGNIFICANT = "not_significant"
+    WITHDRAWN = "withdrawn"
+
+    @property
+    def passes(self) -> bool:
+        """Whether the refit passed the judge (chosen or not)."""
+        return self in (Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
+                        Verdict.OUTRANKED)
+
+    def sentence(self, **d) -> str:
+        """The report's note; ``d`` holds the numbers it quotes."""
+        return {
+            Verdict.CHOSEN: "added: it explains the residual best",
+            Verdict.EXPLAINS_EXCURSION: (
+                f"added: it brings {d.get('outside', 'the estimate')} back inside the prior "
+                "box at a chi2 the data cannot tell from the current one (the excursion was "
+                "this effect)"),
+            Verdict.KEPT_BACK: (
+                f"kept back: it leaves {d.get('left', 'a parameter')} outside the prior box, "
+                "and an effect that brings the estimate back inside it goes first"),
+            Verdict.OUTRANKED: f"it passes, but {d.get('by', 'another')} explains the "
+                               "residual better or more plainly (a candidate next round)",
+            Verdict.NOT_SCORED: f"could not be scored: {d.get('error', '')}",
+            Verdict.BELOW_SCORE: "its score test does not ask for it (p "
+                                 f"{d.get('p', math.nan):.2g})",
+            Verdict.TOO_FEW_POINTS: (
+                f"not refitted: too few points for its {d.get('n', '?')} parameters "
+                f"({d.get('residuals', '?')} real residuals)"),
+            Verdict.NOT_REFITTED: (
+                f"not refitted: {d.get('by', 'another candidate')} already fits the residual "
+                "to the noise level" if d.get("by") else
+                "not refitted: lower scores than the ones refitted"),
+            Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
+            Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
+            Verdict.AT_NULL: f"the refit leaves it at its null value ({d.get('z', math.nan):.2g} "
+                             "std from it)",
+            Verdict.SMALL_SHARE: (
+                f"it explains only {d.get('share', math.nan):.2g} % of the chi2 above the "
+                f"noise (an effect must explain {d.get('need', math.nan):.0f} %)"),
+            Verdict.NOT_SIGNIFICANT: "the refit does not improve chi2 significantly",
+            Verdict.WITHDRAWN: (
+                f"withdrawn: added in an earlier round, it lies at its null value once "
+                f"{d.get('by', 'the new effect')} is in the model ({d.get('z', math.nan):.2g} "
+                "std from it), and the data cannot tell the model without it from the one "
+                "with it"),
+        }[self] + (" (global search)" if d.get("searched") else "")
+
+
+@dataclass(frozen=True)
+class Score:
+    """A candidate scored at the current fit, refitted if it scored high enough, and its
+    verdict."""
+
+    name: str
+    score: float  # LM statistic
+    dof: int
+    p_value: float
+    collinearity: float  # 0: orthogonal to the current parameters, 1: indistinguishable
+    delta_chi2: float = math.nan  # the refit's likelihood ratio (same weights), if refitted
+    verdict: Verdict = Verdict.BELOW_SCORE
+    detail: tuple = ()  # (key, value) pairs the verdict's sentence quotes
+    asked: bool = False  # whether the diagnosis found a feature it explains
+
+    @property
+    def kept(self) -> bool:
+        """Whether the loop added it this round."""
+        return self.verdict in (Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION)
+
+    @property
+    def note(self) -> str:
+        return self.verdict.sentence(**dict(self.detail))
+
+
+@dataclass(frozen=True)
+class Stage:
+    """The model after one step of the loop (``added`` None for the declared model), and
+    what its residual shows."""
+
+    added: str | None
+    result: IdentificationResult
+    ljung_box_p: float = math.nan
+    diagnosis: object = None
+
+    @classmethod
+    def of(cls, added, result: IdentificationResult) -> "Stage":
+        return cls(added, result, whiteness_p(result))
+
+    @property
+    def fits_noise(self) -> bool:
+        return bool(explains(self.result))
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    stages: tuple[Stage, ...]
+    rounds: tuple[tuple[Score, ...], ...]
+    unexplained_residual: bool
+    warnings: tuple[str, ...] = field(default=())
+    seconds: float = math.nan
+
+    @property
+    def final(self) -> IdentificationResult:
+        return self.stages[-1].result
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        return tuple(s.added for s in self.stages[1:])
+
+    def summary(self) -> str:
+        """The error before and after, stage by stage, then the final model's summary."""
+        lines = ["closed loop:"]
+        for st in self.stages:
+            r = st.result
+            what = "declared model" if st.added is None else f"+ {st.added}"
+            lines.append(f"  {what:<28} chi2_reduced {r.chi2_reduced_reported:10.4g}  "
+                         f"rel_rms_residual {r.rel_rms_residual:.3g}  whiteness p "
+                         f"{st.ljung_box_p:.2g}")
+            for f in getattr(st.diagnosis, "features", ()):
+                lines.append(f"      residual: {f.note}")
+        lines.append("  the residual " + ("still holds an effect no candidate explains "
+                                          "(unexplained_residual)" if self.unexplained_residual
+                                          else "is at the noise level"))
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines) + "\n" + self.final.summary()
