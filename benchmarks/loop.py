@@ -120,7 +120,9 @@ def analyse(case: Case, source: dict, seed: int) -> dict:
     truth = case.truth_material
 
     def err(res):
-        return {n: res.parameters[n] / v - 1 for n, v in truth.items() if n in res.parameters}
+        # relative; absolute for a truth of 0 (the beam's nu)
+        return {n: res.parameters[n] / v - 1 if v else res.parameters[n]
+                for n, v in truth.items() if n in res.parameters}
 
     def z(res):
         return {n: (res.parameters[n] - v) / res.parameter_std[n] if res.parameter_std[n]
