@@ -54,7 +54,9 @@ def test_every_figure_names_the_unit_of_every_axis(tmp_path):
                                 flagged=[plots.Flagged(12.0, 1.0 + 0j, "few_cycles")],
                                 values_text="D = 1 ± 0.1 N·m"),
         "residuals": plots.residual_figure([
-            plots.StageResidual("declared model", f, 300 * np.sin(f), np.cos(f), 1e4),
+            plots.StageResidual("declared model", f, 300 * np.sin(f), np.cos(f), 1e4,
+                                features=((100.0, "extra_pole 100 Hz"),),
+                                trend="phase falls linearly by 11° across the band"),
             plots.StageResidual("+ channel_delay", f, np.sin(f), np.cos(f), 1.0)]),
         "convergence": plots.convergence_figure([("declared model", [[1e3, 10, 1], [1e3, 5]]),
                                                  ("+ channel_delay", [[1e2, 1]])]),
@@ -66,8 +68,13 @@ def test_every_figure_names_the_unit_of_every_axis(tmp_path):
         path = plots.save_png(fig, tmp_path / f"{name}.png")
         data = open(path, "rb").read()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
-    # one panel per loop stage, side by side
+    # one panel per loop stage, side by side; the first marks its diagnosed features
     assert len(figs["residuals"].axes) == 2
+    first = figs["residuals"].axes[0]
+    texts = [t.get_text() for t in first.texts]
+    assert "extra_pole 100 Hz" in texts and any(t.startswith("trend: phase") for t in texts)
+    assert any(list(line.get_xdata()) == [100.0, 100.0] for line in first.lines)
+    assert not figs["residuals"].axes[1].texts
     # the AFC figure: |H| and phase against frequency
     ax_mag, ax_ph = figs["afc"].axes[:2]
     assert ax_ph.get_xlabel() == "frequency (Hz)"

@@ -143,8 +143,9 @@ def _stage_residual(label, result, diagnosis=None):
     r = (np.asarray(result.H)[u] - np.asarray(result.model_afc)[u]) / np.asarray(w, float)
     features = tuple((float(f.f_hz), f"{f.kind} {f.f_hz:.4g} Hz")
                      for f in getattr(diagnosis, "features", ()) if np.isfinite(f.f_hz))
+    trend = "; ".join(f.note for f in getattr(diagnosis, "features", ()) if f.kind == "trend")
     return StageResidual(label, np.asarray(result.frequency_hz, float)[u], r.real, r.imag,
-                         float(result.chi2_reduced_reported), features)
+                         float(result.chi2_reduced_reported), features, trend)
 
 
 def _stages(identified) -> list[tuple[str, Any, Any]]:

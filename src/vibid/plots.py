@@ -39,6 +39,8 @@ class StageResidual:
     chi2_reduced: float
     #: what the residual's diagnosis found: (frequency_hz, short label) per feature
     features: tuple[tuple[float, str], ...] = ()
+    #: a diagnosed smooth trend across the band (no frequency of its own), in words
+    trend: str = ""
 
 
 def _figure(figsize):
@@ -133,6 +135,9 @@ def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
                        label="diagnosed feature" if k == 0 else None)
             ax.annotate(text, (f_hz, 1.0), xycoords=("data", "axes fraction"),
                         rotation=90, va="top", ha="right", fontsize=7, color="C3")
+        if st.trend:
+            ax.text(0.02, 0.02, "trend: " + st.trend, transform=ax.transAxes, fontsize=7,
+                    color="C3", va="bottom", wrap=True)
         if np.nanmax(np.abs(np.concatenate([st.re, st.im])), initial=0.0) > 20:
             # linear within the band, logarithmic beyond: a misfit of thousands of std and
             # the ±2 band show on one axis
