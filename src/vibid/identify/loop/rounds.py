@@ -89,8 +89,8 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
     state = State((diagnosed(setup, Stage.of(None, declared)),),
                   dict(setup.identification.bounds))
     while len(state.rounds) < max_rounds and not state.current.fits_noise:
-        todo = [c for c in pool if c.applies(state.current.result.plate_model,
-                                             state.current.diagnosis)]
+        todo = [c for c in inputs.pool if c.applies(state.current.result.plate_model,
+                                                    state.current.diagnosis)]
         if not todo:
             break
         state, added = play_round(inputs, state, todo)
