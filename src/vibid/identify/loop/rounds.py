@@ -116,8 +116,11 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     current = state.current
     scores = [scored(inputs, current, c, state.box) for c in todo]
     judged = refit_and_judge(inputs, state, todo, scores)
+    kinds = {c.name: c.explains for c in todo}
+    removes = {n: removed_feature(inputs.setup, current.diagnosis, j[2].result, kinds[n])
+               for n, j in judged.items() if j[0].passes}
     scores, chosen = choose(scores, judged, current.result,
-                            {c.name: c.plainness for c in todo})
+                            {c.name: c.plainness for c in todo}, removes)
     rounds = state.rounds + (tuple(scores),)
     if chosen is None:
         return replace(state, rounds=rounds), False
@@ -330,14 +333,37 @@ def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
 
 
 # -- choose ---------------------------------------------------------------------------------
-def choose(scores, judged: dict, res, plainness: dict) -> tuple[list[Score], Stage | None]:
+def removed_feature(setup, before, result, kinds):
+    """The most significant feature of the diagnosis ``before`` of a kind in ``kinds`` that
+    the refit ``result`` no longer shows (none of its kind near it at half its
+    significance or more), or None."""
+    if before is None or not before.features:
+        return None
+    after = diagnosed(setup, Stage.of(None, result)).diagnosis
+    if after is None:
+        return None
+
+    def remains(f) -> bool:
+        return any(g.kind == f.kind and g.significance >= 0.5 * f.significance
+                   and (f.kind == "trend" or abs(g.f_hz - f.f_hz) <= 0.03 * f.f_hz)
+                   for g in after.features)
+
+    gone = [f for f in before.features if f.kind in kinds and not remains(f)]
+    return max(gone, key=lambda f: f.significance, default=None)
+
+
+def choose(scores, judged: dict, res, plainness: dict,
+           removes: dict | None = None) -> tuple[list[Score], Stage | None]:
     """The candidate the round adds, and every score with its final verdict.
 
     One that brings the estimate back inside its prior box goes first (an effect that
-    leaves it outside is kept back). Among the rest, the ones whose chi2 the data cannot
-    tell from the best's compete, and the plainest explanation wins: one whose feature the
-    diagnosis found before one without, an effect before a new material, then the larger
-    likelihood ratio."""
+    leaves it outside is kept back). Among the rest, an effect is chosen for the structure
+    it explains: the ones whose refit removes the most significant diagnosed feature
+    (``removes``: name -> the feature it removed) compete, or all where none removes one;
+    of those whose chi2 the data cannot tell from the best's, the plainest explanation
+    wins: one whose feature the diagnosis found before one without, an effect before a
+    new material, then the larger likelihood ratio."""
+    removes = removes or {}
     passing = {n: j for n, j in judged.items() if j[0].passes}
     if any(not left for _, _, _, left in passing.values()):
         for n, (v, d, fit, left) in list(passing.items()):
@@ -347,16 +373,22 @@ def choose(scores, judged: dict, res, plainness: dict) -> tuple[list[Score], Sta
     by_name = {s.name: s for s in scores}
     chosen = None
     if passing:
+        top = max((f.significance for n, f in removes.items() if n in passing and f),
+                  default=None)
+        pool = [n for n in passing if top is None or (removes.get(n) and
+                                                      removes[n].significance == top)]
         # gains are all under the current fit's weights: comparable
-        best = max(fit.gain for _, _, fit, _ in passing.values())
+        best = max(passing[n][2].gain for n in pool)
         tie = indistinct_chi2(1, max(1.0, float(res.chi2_reduced)))
-        rivals = [n for n, (_, _, fit, _) in passing.items() if fit.gain >= best - tie]
+        rivals = [n for n in pool if passing[n][2].gain >= best - tie]
         chosen = min(rivals, key=lambda n: (not by_name[n].asked, plainness[n],
                                             -passing[n][2].gain))
         for n in passing:
             v, d, fit, left = judged[n]
             if n == chosen:
                 v = v if v is Verdict.EXPLAINS_EXCURSION else Verdict.CHOSEN
+                if removes.get(n):
+                    d = d + (("feature", removes[n].note),)
             else:
                 v, d = Verdict.OUTRANKED, d + (("by", chosen),)
             judged[n] = (v, d, fit, left)

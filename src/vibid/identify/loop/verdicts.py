@@ -41,7 +41,8 @@ class Verdict(enum.Enum):
     def sentence(self, **d) -> str:
         """The report's note; ``d`` holds the numbers it quotes."""
         return {
-            Verdict.CHOSEN: "added: it explains the residual best",
+            Verdict.CHOSEN: (f"added: it explains what the residual showed ({d['feature']})"
+                             if d.get("feature") else "added: it explains the residual best"),
             Verdict.EXPLAINS_EXCURSION: (
                 f"added: it brings {d.get('outside', 'the estimate')} back inside the prior "
                 "box at a chi2 the data cannot tell from the current one (the excursion was "
