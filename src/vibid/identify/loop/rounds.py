@@ -117,8 +117,9 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     scores = [scored(inputs, current, c, state.box) for c in todo]
     judged = refit_and_judge(inputs, state, todo, scores)
     kinds = {c.name: c.explains for c in todo}
-    removes = {n: removed_feature(inputs.setup, current.diagnosis, j[2].result, kinds[n])
-               for n, j in judged.items() if j[0].passes}
+    after = {n: diagnosis_of(inputs.setup, j[2].result) for n, j in judged.items()
+             if j[0].passes}  # each passing refit's residual, read once
+    removes = {n: removed_feature(current.diagnosis, d, kinds[n]) for n, d in after.items()}
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
     rounds = state.rounds + (tuple(scores),)
@@ -127,11 +128,14 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     cand = next(c for c in todo if c.name == chosen.added)
     box = state.box | cand.bounds(state.box, current.result.parameters)
     chosen, gone = withdraw(inputs, chosen, box, [s.added for s in state.stages[1:]])
-    if gone:
+    if gone:  # a new fit: its residual read again
         rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
+        chosen = diagnosed(inputs.setup, chosen)
+    else:
+        chosen = replace(chosen, diagnosis=after[chosen.added])
     dropped = {s.name for s in gone}
     stages = tuple(s for s in state.stages if s.added not in dropped)
-    return State(stages + (diagnosed(inputs.setup, chosen),), box, rounds), True
+    return State(stages + (chosen,), box, rounds), True
 
 
 def finish(state: State, seconds: float) -> LoopResult:
@@ -153,19 +157,22 @@ def finish(state: State, seconds: float) -> LoopResult:
 # -- diagnose -------------------------------------------------------------------------------
 def diagnosed(setup, stage: Stage) -> Stage:
     """``stage`` with its residual's diagnosis (None where it cannot be made)."""
+    return replace(stage, diagnosis=diagnosis_of(setup, stage.result))
+
+
+def diagnosis_of(setup, r: IdentificationResult):
+    """The diagnosis of a fit's residual (:mod:`vibid.identify.diagnosis`), or None."""
     from vibid.identify.diagnosis import diagnose
 
-    r = stage.result
     try:
         modes_hz, q = model_resonances(setup, r)
         u = np.asarray(r.used)
-        found = diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
-                         None if r.H_std is None else np.asarray(r.H_std)[u],
-                         plate_modes_hz=modes_hz, plate_q=q)
+        return diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
+                        None if r.H_std is None else np.asarray(r.H_std)[u],
+                        plate_modes_hz=modes_hz, plate_q=q)
     except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
         log.warning("loop: the residual could not be diagnosed: %s", exc)
-        return stage
-    return replace(stage, diagnosis=found)
+        return None
 
 
 def model_resonances(setup, result, n: int = 12) -> tuple[np.ndarray, np.ndarray]:
@@ -176,7 +183,8 @@ def model_resonances(setup, result, n: int = 12) -> tuple[np.ndarray, np.ndarray
     params = result.parameters
     f_hz, decay = natural_frequencies(setup, params, n)
     q = np.pi * np.asarray(f_hz) / np.maximum(np.asarray(decay), 1e-30)
-    stand = [(params[k], params["q" + k[4:]]) for k in params if k.startswith("f_hz_")]
+    stand = [(params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
+             for t in result.plate_model.effects if t.rotates_base]
     if stand:
         f_hz = np.concatenate([f_hz, [s[0] for s in stand]])
         q = np.concatenate([q, [s[1] for s in stand]])
@@ -333,14 +341,11 @@ def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
 
 
 # -- choose ---------------------------------------------------------------------------------
-def removed_feature(setup, before, result, kinds):
+def removed_feature(before, after, kinds):
     """The most significant feature of the diagnosis ``before`` of a kind in ``kinds`` that
-    the refit ``result`` no longer shows (none of its kind near it at half its
+    the refit's diagnosis ``after`` no longer shows (none of its kind near it at half its
     significance or more), or None."""
-    if before is None or not before.features:
-        return None
-    after = diagnosed(setup, Stage.of(None, result)).diagnosis
-    if after is None:
+    if before is None or after is None or not before.features:
         return None
 
     def remains(f) -> bool:
