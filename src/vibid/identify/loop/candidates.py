@@ -71,13 +71,13 @@ class EffectCandidate:
         term = self.term
         if term.requires and term.requires not in model.effect_names:
             return False  # a clamp's own loss needs the clamp's spring first
-        if term.needs_feature and not self.feature(model.names, diagnosis):
+        if term.needs_feature and not self.feature(diagnosis):
             return False  # a stand resonance needs a pole where the plate has none
         if term.instance is not None:
             return model.effect_names.count(self.name) < MAX_INSTANCES
         return self.name not in model.effect_names
 
-    def feature(self, names, diagnosis):
+    def feature(self, diagnosis):
         """The diagnosed feature that places its new parameters (the strongest pole the
         model has no resonance for), or None."""
         if diagnosis is None or not self.term.needs_feature:
@@ -113,7 +113,7 @@ class EffectCandidate:
         term = self.term_after(values)
         own = self.bounds(box, values)
         nulls = term.null_values(values)
-        feature = self.feature(values, diagnosis)
+        feature = self.feature(diagnosis)
         for q in term.parameters:
             if q.name in nulls:
                 null = nulls[q.name]
