@@ -45,9 +45,10 @@ def test_the_projection_keeps_chi2_of_every_interpolant():
     assert kappa >= 0
 
 
-def titanium_problem():
+def titanium_problem(magnitude: bool = False):
     """The real titanium AFC (shared/data/real-titanium, all 11 960 bins) and the declared
-    isotropic problem on it, with the declared fit's start (also benchmarks/compress.py's)."""
+    isotropic problem on it (on |H| alone with ``magnitude``), with the declared fit's start
+    (also benchmarks/compress.py's)."""
     from vibid.cli.modes import load_setup
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
@@ -63,17 +64,18 @@ def titanium_problem():
     space = ParameterSpace.from_bounds(model.names, box,
                                        {q.name: q.kind for q in model.parameters})
     fm = build_forward_model(setup, f, model=model, theta0=start)
-    problem = LeastSquaresProblem(fm, fit_data(f, re + 1j * im, std), space)
+    problem = LeastSquaresProblem(fm, fit_data(f, re + 1j * im, std, magnitude=magnitude), space)
     return problem, space.to_u(np.array([start[n] for n in model.names]))
 
 
-@pytest.fixture(scope="module")
-def titanium():
-    return titanium_problem()
+@pytest.fixture(scope="module", params=[False, True], ids=["complex", "magnitude"])
+def titanium(request):
+    return titanium_problem(magnitude=request.param)
 
 
 @pytest.mark.slow
 def test_the_titanium_strip_fitted_on_its_compressed_problem(titanium):
+    """The complex AFC, and |H| alone (whose bands interpolate |H|)."""
     from vibid.identify.fit.local import _METHODS, LOCAL_METHODS
 
     problem, u0 = titanium

@@ -18,9 +18,12 @@ def test_chi2_limit_is_the_analytic_quantile():
 
 
 def test_without_noise_the_strategy_judges_the_relative_residual():
-    # unknown noise: every weight is RMS |H|, so chi2 / 2n is the relative mean square
-    assert fits(2 * 100 * 0.009**2, 197, 100, noise_known=False)
-    assert not fits(2 * 100 * 0.011**2, 197, 100, noise_known=False)
+    # unknown noise: every weight is RMS |H|, so chi2 over the real numbers fitted (2 per
+    # point, 1 for |H| alone) is the relative mean square
+    assert fits(2 * 100 * 0.009**2, 197, 200, noise_known=False)
+    assert not fits(2 * 100 * 0.011**2, 197, 200, noise_known=False)
+    assert fits(100 * 0.009**2, 97, 100, noise_known=False)
+    assert not fits(100 * 0.011**2, 97, 100, noise_known=False)
 
 
 def test_white_residuals_pass_at_the_nominal_rate():

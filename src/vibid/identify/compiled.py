@@ -44,10 +44,10 @@ def kernel_functions(kernel) -> KernelFunctions:
 
 
 @functools.lru_cache(maxsize=MAX_PROBLEMS)
-def problem_functions(kernel):
+def problem_functions(kernel, magnitude: bool = False):
     """The least-squares functions of a kernel, whatever the points fitted, the data, the
     weights and the parameter space (arguments of each function:
-    :func:`vibid.identify.fit.problem.compile_problem`)."""
+    :func:`vibid.identify.fit.problem.compile_problem`); ``magnitude``: on |H| alone."""
     from vibid.identify.fit.problem import compile_problem
 
-    return compile_problem(kernel)
+    return compile_problem(kernel, magnitude)

@@ -20,6 +20,7 @@ class ChannelDelay(Term):
 
     name = "channel_delay"
     explains = ("trend",)
+    phase_only = True  # |H exp(-iωτ)| = |H|
     meaning = "a time skew between the two measurement channels"
     parameters = (TAU,)
 

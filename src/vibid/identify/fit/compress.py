@@ -110,12 +110,18 @@ def _values_and_sensitivities(problem: LeastSquaresProblem, theta, f_hz):
         padded = np.concatenate([f, np.full(CHUNK - f.size, f[-1])])
         probe = LeastSquaresProblem(problem.model.on_frequencies(padded),
                                     FitData(padded, np.zeros(CHUNK, complex), None,
-                                            np.ones(CHUNK, bool)),
+                                            np.ones(CHUNK, bool), magnitude=problem.magnitude),
                                     problem.space, np.ones(CHUNK))
         Jr, r = probe.jacobian_and_residuals_theta(theta)
-        H.append((r[:CHUNK] + 1j * r[CHUNK:])[:f.size])
-        J.append((Jr[:CHUNK] + 1j * Jr[CHUNK:])[:f.size])
+        H.append(_values(r, CHUNK, problem.magnitude)[:f.size])
+        J.append(_values(Jr, CHUNK, problem.magnitude)[:f.size])
     return np.concatenate(H), np.concatenate(J)
+
+
+def _values(r: np.ndarray, n: int, magnitude: bool) -> np.ndarray:
+    """The complex values (or, for a fit of |H| alone, the real ones) of stacked residuals
+    or Jacobian rows ``r`` of ``n`` points: real parts, then imaginary parts."""
+    return r[:n].astype(complex) if magnitude else r[:n] + 1j * r[n:]
 
 
 def bands(problem: LeastSquaresProblem, theta, f_hz, sigma, scale, H, J,
@@ -151,7 +157,7 @@ def bands(problem: LeastSquaresProblem, theta, f_hz, sigma, scale, H, J,
 def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
     """``problem`` on a few nodes per band, built around ``u`` (module docstring), or
     ``problem`` itself when it is short, not a shared-structure plate model, or would not
-    shrink by half."""
+    shrink by half. A fit of |H| alone is compressed alike: its bands interpolate |H|."""
     if problem.n_points < MIN_POINTS or not isinstance(problem.model, SharedStructure):
         return problem
     theta = problem.space.theta(np.asarray(u, float))
@@ -165,8 +171,8 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
         return problem  # repeated frequencies: no interpolation
     n = f.size
     Jr, r = problem.jacobian_and_residuals_theta(theta)
-    J = (Jr[:n] + 1j * Jr[n:])[order] * sigma[:, None]
-    H = (r[:n] + 1j * r[n:])[order] * sigma + data
+    J = _values(Jr, n, problem.magnitude)[order] * sigma[:, None]
+    H = _values(r, n, problem.magnitude)[order] * sigma + data
     F = Jr.T @ Jr
     scale = SCALE_STD * np.sqrt(np.abs(np.diag(np.linalg.pinv(F, rcond=1e-13, hermitian=True))))
     found = bands(problem, theta, f, sigma, scale, H, J)
@@ -186,7 +192,7 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
     extra = padded_size(nodes.size) - nodes.size
     nodes = np.append(nodes, np.full(extra, nodes[-1]))
     c, s = np.append(c, np.zeros(extra)), np.append(s, np.full(extra, np.inf))
-    short = FitData(nodes, c, s, np.ones(nodes.size, bool))
+    short = FitData(nodes, c, s, np.ones(nodes.size, bool), magnitude=d.magnitude)
     return LeastSquaresProblem(problem.model.on_frequencies(nodes), short, problem.space, s,
                                chi2_offset=kappa)
 

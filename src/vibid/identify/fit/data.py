@@ -20,6 +20,10 @@ class FitData:
     std: (n,) standard uncertainty of Re H and Im H, or None when not known.
     used: (n,) bool, points that enter the fit (finite, and not excluded by the caller).
     warnings: sentences about points dropped or uncertainties repaired.
+    magnitude: the fit sees |H| alone (phase not trusted): ``H`` then holds |H| (real, in
+        a complex array) and ``std`` the standard uncertainty of |H|, which for a point
+        well above its noise equals that of Re H and of Im H (first order: circular noise
+        of std s per part has std s along any direction, the radial one included).
     """
 
     frequency_hz: np.ndarray
@@ -27,18 +31,26 @@ class FitData:
     std: np.ndarray | None
     used: np.ndarray
     warnings: tuple[str, ...] = field(default=())
+    magnitude: bool = False
 
     @property
     def n_used(self) -> int:
         return int(self.used.sum())
 
     @property
+    def n_residuals(self) -> int:
+        """Real numbers the fit sees: |H| per point, or Re H and Im H per point."""
+        return self.n_used * (1 if self.magnitude else 2)
+
+    @property
     def noise_known(self) -> bool:
         return self.std is not None
 
 
-def fit_data(frequency_hz, H, std=None, used=None) -> FitData:
-    """Check and clean a measured AFC; raise :class:`VibidError` when nothing usable is left."""
+def fit_data(frequency_hz, H, std=None, used=None, *, magnitude: bool = False) -> FitData:
+    """Check and clean a measured AFC; raise :class:`VibidError` when nothing usable is left.
+    With ``magnitude`` the fit sees |H| alone (:class:`FitData`); |H| of |H| is |H|, so data
+    that are already magnitudes may be passed again."""
     f = np.asarray(frequency_hz, dtype=float).ravel()
     H = np.asarray(H).astype(complex).ravel()
     if f.shape != H.shape:
@@ -79,4 +91,10 @@ def fit_data(frequency_hz, H, std=None, used=None) -> FitData:
             s = np.where(s > 0, s, floor)
     if mask.sum() == 0:
         raise VibidError("no usable AFC point: every point is NaN or excluded")
-    return FitData(f, H, s, mask, tuple(warnings))
+    if magnitude:
+        if s is not None and (low := int(np.count_nonzero(np.abs(H[mask]) < 3 * s[mask]))):
+            warnings.append(
+                f"{low} AFC points have |H| below 3 std: a magnitude that close to the noise "
+                "reads high (by about std²/(2|H|)), which a fit of |H| alone does not correct")
+        H = np.abs(H).astype(complex)
+    return FitData(f, H, s, mask, tuple(warnings), magnitude)

@@ -90,17 +90,18 @@ def whiteness_p(result) -> float:
         quiet = (np.asarray(result.H_std)[u] >= DATA_SHARE * np.asarray(result.weights))[order]
         if np.count_nonzero(quiet) >= WHITENESS_MIN_POINTS:
             r = r[quiet]
-    return ljung_box_p(np.concatenate([r.real, r.imag]))
+    return ljung_box_p(r.real if result.magnitude else np.concatenate([r.real, r.imag]))
 
 
-def fits(chi2: float, dof: int, n_points: int, noise_known: bool) -> bool:
+def fits(chi2: float, dof: int, n_residuals: int, noise_known: bool) -> bool:
     """The strategy's verdict on a polished minimum: :func:`fits_noise` with a known noise;
-    without one (every weight the RMS |H|, so chi2 / 2n is the relative mean square
-    residual), a relative RMS residual up to :data:`MAX_REL_RMS_UNKNOWN_NOISE`."""
+    without one (every weight the RMS |H|, so chi2 / m, m the real numbers fitted, is about
+    the relative mean square residual), a relative RMS residual up to
+    :data:`MAX_REL_RMS_UNKNOWN_NOISE`."""
     verdict = fits_noise(chi2, dof, noise_known)
     if verdict is not None:
         return verdict
-    return bool(math.isfinite(chi2) and chi2 / (2 * max(n_points, 1)) <= MAX_REL_RMS_UNKNOWN_NOISE**2)
+    return bool(math.isfinite(chi2) and chi2 / max(n_residuals, 1) <= MAX_REL_RMS_UNKNOWN_NOISE**2)
 
 
 def ljung_box_p(residual, lags: int | None = None) -> float:

@@ -9,7 +9,9 @@ parameter change explains, :mod:`vibid.identify.model.model_error`),
     chi2(theta) = sum_k |r_k|^2 = sum_k (Re r_k)^2 + (Im r_k)^2,
 
 so that for a correct model chi2 / (2 n - p) (the reduced chi-square, n points, p
-parameters) is near 1. When the measurement uncertainty is not known, every sigma_k is
+parameters) is near 1. A magnitude-only fit (:attr:`FitData.magnitude`, for stands whose
+phase is not trusted) sees ``r_k = (|H(theta)_k| - |H_k|) / sigma_k`` instead: one real
+number per point, chi2 / (n - p). When the measurement uncertainty is not known, every sigma_k is
 the RMS of |H| (the paper's plain mean square error, eq. (5.1), made dimensionless): the
 minimiser is the same, and the uncertainty module then estimates the noise from the
 residual instead.
@@ -23,6 +25,7 @@ other data make a new problem (:meth:`~LeastSquaresProblem.with_sigma`,
 from __future__ import annotations
 
 import logging
+import weakref
 from dataclasses import dataclass
 from typing import Callable, Protocol, runtime_checkable
 
@@ -73,7 +76,7 @@ def padded_count(p: int) -> int:
     return -(-p // PARAMETER_SIZES[-1]) * PARAMETER_SIZES[-1]
 
 
-def compile_problem(afc):
+def compile_problem(afc, magnitude: bool = False):
     """The problem's compiled functions, each of ``(u or theta, arrays, H, sig, idx, place[,
     space])`` with ``afc(arrays, theta_s) -> H`` on the model's frequencies at its
     structure's parameter vector ``theta_s``, ``idx`` the fitted points among the
@@ -91,6 +94,9 @@ def compile_problem(afc):
       numpy;
     * ``hessian(u, ...)``: the exact Hessian of chi2 in ``u`` (trust-region Newton);
     * ``chi2_batch(U, ...)``: chi2 of a population (global search).
+
+    With ``magnitude`` the residuals are ``(|model| - H) / sig``, ``H`` the measured |H|
+    (module doc), one per point.
     """
     import jax
     import jax.numpy as jnp
@@ -102,7 +108,10 @@ def compile_problem(afc):
         return place["base"].at[place["index"]].set(theta)[:-1]
 
     def residuals_theta(theta, arrays, H, sig, idx, place):
-        r = (afc(arrays, placed(place, theta))[idx] - H) / sig
+        A = afc(arrays, placed(place, theta))[idx]
+        if magnitude:
+            return (jnp.abs(A) - H.real) / sig
+        r = (A - H) / sig
         return jnp.concatenate([r.real, r.imag])
 
     def with_residuals(theta, arrays, H, sig, idx, place):
@@ -116,7 +125,7 @@ def compile_problem(afc):
     def chi2_batch(U, arrays, H, sig, idx, place, space):
         thetas = jax.vmap(placed, in_axes=(None, 0))(place, from_u_coefficients(space, U))
         A = over_population(afc)(arrays, thetas)[:, idx]  # a loop: see over_population
-        r = (A - H[None, :]) / sig[None, :]
+        r = ((jnp.abs(A) if magnitude else A) - H[None, :]) / sig[None, :]
         c = jnp.sum(r.real**2 + r.imag**2, axis=1)
         return jnp.where(jnp.isfinite(c), c, jnp.inf)
 
@@ -176,7 +185,7 @@ class SharedStructure(Protocol):
     embedding: tuple
 
 
-def _functions(model):
+def _functions(model, magnitude: bool = False):
     """``(compiled functions, arrays, (base, index))`` for any ForwardModel: shared through
     :mod:`vibid.identify.compiled` by every model of one structure (the functions then take
     the structure's whole parameter vector: one compilation serves every model of the
@@ -184,10 +193,25 @@ def _functions(model):
     from vibid.identify.compiled import problem_functions
 
     if isinstance(model, SharedStructure):
-        return problem_functions(model.kernel), model.arrays, model.embedding
+        return problem_functions(model.kernel, magnitude), model.arrays, model.embedding
     p = len(model.parameter_names)
-    return (compile_problem(lambda _arrays, theta: model.afc(theta)), {},
-            (np.zeros(p), np.arange(p)))
+    return _own_functions(model, magnitude), {}, (np.zeros(p), np.arange(p))
+
+
+#: The compiled functions of models that share no structure, kept while the model lives
+#: (every problem on the same model, other data or weights, reuses them).
+_OWN = weakref.WeakKeyDictionary()
+
+
+def _own_functions(model, magnitude: bool) -> "ProblemFunctions":
+    try:
+        ref = weakref.ref(model)  # the compiled code must not keep its model alive
+        kept = _OWN.setdefault(model, {})
+    except TypeError:  # a model that cannot be weakly referenced or hashed: no cache
+        return compile_problem(lambda _arrays, theta: model.afc(theta), magnitude)
+    if magnitude not in kept:
+        kept[magnitude] = compile_problem(lambda _arrays, theta: ref().afc(theta), magnitude)
+    return kept[magnitude]
 
 
 def _model_points(model, data: FitData) -> np.ndarray:
@@ -237,11 +261,13 @@ class LeastSquaresProblem:
         self._model_idx = _model_points(model, data)
         self.model, self.data, self.space = model, data, space
         self.n_points = int(data.used.sum())
+        self.n_residuals = data.n_residuals
+        self.magnitude = data.magnitude
         self.n_params = space.size
         self.sigma = data_sigma(data) if sigma is None else np.asarray(sigma, float).copy()
         self.sigma.setflags(write=False)
         self.chi2_offset = float(chi2_offset)
-        self._fn, self._arrays, (base, index) = _functions(model)
+        self._fn, self._arrays, (base, index) = _functions(model, data.magnitude)
         self._H = np.asarray(data.H[data.used], complex)
         self._idx = np.asarray(self._model_idx, np.int64)
         self._p_pad = padded_count(self.n_params)
@@ -269,14 +295,26 @@ class LeastSquaresProblem:
     def with_data(self, H, std=None) -> "LeastSquaresProblem":
         """The same problem (same compiled functions) on other measured values, same points."""
         d = self.data
+        H = np.abs(H) if d.magnitude else H
         data = FitData(d.frequency_hz, np.asarray(H, complex), None if std is None else
-                       np.asarray(std, float), d.used, d.warnings)
+                       np.asarray(std, float), d.used, d.warnings, d.magnitude)
         return LeastSquaresProblem(self.model, data, self.space)
+
+    def as_complex(self) -> "LeastSquaresProblem":
+        """The complex fit of the same points, model and weights (for a magnitude-only
+        problem, the Fisher information it gives up; the measured values there are |H|,
+        which the Jacobian does not depend on)."""
+        if not self.magnitude:
+            return self
+        d = self.data
+        data = FitData(d.frequency_hz, d.H, d.std, d.used, d.warnings, False)
+        return LeastSquaresProblem(self.model, data, self.space, self.sigma, self.chi2_offset)
 
     @property
     def dof(self) -> int:
-        """Degrees of freedom: 2 real numbers per point minus the parameters."""
-        return 2 * self.n_points - self.n_params
+        """Degrees of freedom: the real numbers fitted (2 per point, 1 for |H| alone) minus
+        the parameters."""
+        return self.n_residuals - self.n_params
 
     # -- public evaluations (numpy in, numpy out) ---------------------------------------
     def _args(self):
@@ -304,8 +342,8 @@ class LeastSquaresProblem:
     def residuals_theta(self, theta) -> np.ndarray:
         """The weighted residuals (real parts, then imaginary) at physical ``theta`` (also
         where ``u`` is not finite: a null value on a log parameter's edge)."""
-        r = (self.on_points(self.model_afc(theta)) - self._H) / self.sigma
-        return np.concatenate([r.real, r.imag])
+        r = (self.observed(self.on_points(self.model_afc(theta))) - self._H) / self.sigma
+        return r.real if self.magnitude else np.concatenate([r.real, r.imag])
 
     def jacobian(self, u) -> np.ndarray:
         """d residuals / d u."""
@@ -337,6 +375,12 @@ class LeastSquaresProblem:
     def on_points(self, model_values) -> np.ndarray:
         """The fitted points' entries of an array over the model's frequencies."""
         return np.asarray(model_values)[self._model_idx]
+
+    def observed(self, model_values) -> np.ndarray:
+        """What the fit compares with the data: the model AFC, or its magnitude (complex
+        dtype either way)."""
+        v = np.asarray(model_values)
+        return np.abs(v).astype(complex) if self.magnitude else v
 
     def model_afc(self, theta) -> np.ndarray:
         return np.asarray(self.model.afc(np.asarray(theta, float)))

@@ -125,6 +125,10 @@ class IdentificationResult:
         (the data's, with the model's unexplained error).
     plate_model: the :class:`~vibid.identify.model.terms.PlateModel` fitted (None for a
         forward model that has none).
+    magnitude: the fit saw |H| alone: ``H`` and ``model_afc`` then hold magnitudes (real,
+        in complex arrays) and ``dof`` is n - p.
+    magnitude_only_std_ratio: for a magnitude-only fit, each parameter's standard deviation
+        over the complex fit's of the same points (both Fisher informations); else None.
     """
 
     model: str
@@ -153,6 +157,16 @@ class IdentificationResult:
     chi2_reduced_data_weights: float = float("nan")
     weights: np.ndarray | None = None
     plate_model: object = None
+    magnitude: bool = False
+    magnitude_only_std_ratio: dict[str, float] | None = None
+
+    @property
+    def weighted_residuals(self) -> np.ndarray:
+        """(model - data) / weights on the used points, as the fit saw them: real parts,
+        then imaginary parts; the magnitudes' alone for a magnitude-only fit."""
+        u = np.asarray(self.used)
+        r = (self.model_afc[u] - self.H[u]) / self.weights
+        return r.real if self.magnitude else np.concatenate([r.real, r.imag])
 
     @property
     def converged(self) -> bool:
@@ -188,6 +202,9 @@ class IdentificationResult:
             f"  chi2_reduced = {self.chi2_reduced:.4g}, rel_rms_residual = "
             f"{self.rel_rms_residual:.3g}"
         )
+        if self.magnitude_only_std_ratio is not None:
+            lines.append("  fitted on |H| alone: each std against the complex fit's, " + ", ".join(
+                f"{n} x{r:.2g}" for n, r in self.magnitude_only_std_ratio.items()))
         if self.model_error_bias is not None:
             lines.append("  model's discretisation bias (in the std): " + ", ".join(
                 f"{n} {abs(b):.2g}" for n, b in zip(self.parameter_names, self.model_error_bias)))

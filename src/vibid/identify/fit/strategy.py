@@ -140,7 +140,7 @@ def search_problem(problem: LeastSquaresProblem) -> LeastSquaresProblem:
     keep |= mag >= np.sort(mag)[n - SEARCH_POINTS // 2]
     used = np.zeros_like(d.used)
     used[idx[keep]] = True
-    thin = FitData(d.frequency_hz, d.H, d.std, used, d.warnings)
+    thin = FitData(d.frequency_hz, d.H, d.std, used, d.warnings, d.magnitude)
     return LeastSquaresProblem(problem.model.on_frequencies(d.frequency_hz[used]), thin,
                                problem.space, problem.sigma[keep])
 
@@ -153,7 +153,7 @@ def search(problem: LeastSquaresProblem, opts: Options):
                                            rng=opts.rng, progress=opts.progress)
     found = _by_loss(polish(problem, distinct(global_result.u), opts))
     best = found[0]
-    if fits(best.loss, best.problem.dof, best.problem.n_points, problem.data.noise_known):
+    if fits(best.loss, best.problem.dof, best.problem.n_residuals, problem.data.noise_known):
         return global_result, found
     # the chi2 search may have missed the basin (its minima are needles when beta is small
     # and there are several stiffnesses): search on the resonance peaks too, unless the
@@ -319,6 +319,9 @@ def weigh_model_error(found: list[Fit], opts: Options) -> tuple[list[Fit], Model
         return (again(problem.with_weights(me)) if np.any(me > 0) else found), None
     d, red = model.model_error_parts(best.run.theta)
     d, red = problem.on_points(d), problem.on_points(red)
+    if problem.magnitude:  # the error of |H|: the signed error's radial part
+        A = problem.on_points(problem.model_afc(best.run.theta))
+        d = (np.real(np.conj(A) * d) / np.maximum(np.abs(A), 1e-300)).astype(complex)
     if not (np.any(d != 0) or np.any(red > 0)):
         return found, None
     plain = problem.with_weights()
@@ -363,6 +366,7 @@ def identify(
     refresh: bool = True,
     throw: bool = False,
     peaks_only: dict | None = None,
+    magnitude: bool = False,
 ) -> IdentificationResult:
     """Identify the parameters of a material model from a measured AFC.
 
@@ -401,6 +405,10 @@ def identify(
         basins apart on a coarse grid: judge the result, and search chi2 (the default)
         when it does not fit. Falls back on chi2's search when the model gives no modes
         or the AFC no peak.
+    magnitude: fit |H| alone (the phase is not trusted): chi2 on the magnitudes, n - p
+        degrees of freedom (:class:`~vibid.identify.fit.data.FitData`); the result carries
+        ``magnitude_only_std_ratio``, how much each standard deviation grows against the
+        complex fit of the same points.
     """
     t0 = time.perf_counter()
     model = model or setup.identification.model
@@ -408,7 +416,7 @@ def identify(
         raise VibidError(f"unknown identification method {method!r}: use 'global' or 'local'")
     if local not in LOCAL_METHODS:
         raise VibidError(f"unknown local method {local!r}: use one of {', '.join(LOCAL_METHODS)}")
-    data = fit_data(frequency_hz, H, std, used)
+    data = fit_data(frequency_hz, H, std, used, magnitude=magnitude)
     box = dict(setup.identification.bounds if bounds is None else bounds)
     if forward_model is None:
         from vibid.identify.model.forward import build_forward_model
@@ -449,9 +457,9 @@ def identify(
 
 
 def _check_point_count(data: FitData, p: int, model: str) -> None:
-    if 2 * data.n_used <= p:
+    if data.n_residuals <= p:
         raise VibidError(
-            f"too few AFC points: {data.n_used} usable point(s) give {2 * data.n_used} real "
+            f"too few AFC points: {data.n_used} usable point(s) give {data.n_residuals} real "
             f"numbers, fewer than needed to fit the {p} parameters of model {model!r} and "
             "estimate their uncertainty"
         )

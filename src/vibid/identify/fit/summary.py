@@ -48,6 +48,7 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
     Hm_used = problem.model_afc(theta)
     if Hm_used.size != data.n_used:
         Hm_used = problem.on_points(Hm_used)
+    Hm_used = problem.observed(Hm_used)
     H_used = data.H[data.used]
     rel_rms = float(np.sqrt(np.mean(np.abs(Hm_used - H_used) ** 2) / np.mean(np.abs(H_used) ** 2)))
     chi2_red_data = math.nan
@@ -92,4 +93,22 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
         seconds=time.perf_counter() - t0, weights=np.asarray(problem.sigma, float).copy(),
         plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel)
                      else None),
+        magnitude=data.magnitude,
+        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta),
     )
+
+
+def magnitude_only_std_ratio(problem, theta) -> dict[str, float] | None:
+    """How much each parameter's standard deviation grows when the fit sees |H| alone
+    instead of the complex AFC of the same points, model and weights: the square root of
+    the ratio of the diagonals of the two inverse Fisher informations (unscaled; each fit's
+    own). At least 1: |H|'s Jacobian rows are the complex rows projected on the radial
+    direction. None for a complex fit."""
+    if not problem.magnitude:
+        return None
+    names = problem.space.names
+    std = [fisher_uncertainty(p.jacobian_theta(theta), names, chi2_reduced=math.nan,
+                              noise_known=True).std for p in (problem, problem.as_complex())]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = std[0] / std[1]
+    return {n: float(r) for n, r in zip(names, ratio)}

@@ -33,6 +33,8 @@ class Candidate(Protocol):
     explains: tuple[str, ...]
     #: whether its global search matches the resonance peaks first
     peaks_first: bool
+    #: whether it changes H's phase alone (a fit of |H| cannot see it)
+    phase_only: bool
 
     def applies(self, model: PlateModel, diagnosis) -> bool: ...
 
@@ -66,6 +68,10 @@ class EffectCandidate:
     @property
     def explains(self) -> tuple[str, ...]:
         return self.term.explains
+
+    @property
+    def phase_only(self) -> bool:
+        return self.term.phase_only
 
     def applies(self, model: PlateModel, diagnosis) -> bool:
         term = self.term
@@ -179,6 +185,7 @@ class MaterialCandidate:
     #: the anisotropic material moves every resonance its own way, and the isotropic fit
     #: lies far from the orthotropic basin, where chi2's minima are needles
     peaks_first = True
+    phase_only = False
 
     def applies(self, model: PlateModel, diagnosis) -> bool:
         return model.material.model == "isotropic"

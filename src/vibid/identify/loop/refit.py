@@ -85,7 +85,8 @@ def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = Fal
     fm = problem.model.refresh(best.theta)
     result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                       model=fm.param.model, forward_model=fm, method="local",
-                      start=dict(zip(names, best.theta)), bounds=ext_box, local=local)
+                      start=dict(zip(names, best.theta)), bounds=ext_box, local=local,
+                      magnitude=data.magnitude)
     loss = best.loss
     if search and not _fits(result):
         result, loss = _search(setup, data, cand, problem, fm, start, ext_box, local,
@@ -113,7 +114,8 @@ def _search(setup, data, cand, problem, fm, start, ext_box, local, result, loss)
     for peaks_only in ([start] if peaks else []) + [None]:
         found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                          model=fm.param.model, forward_model=wide, bounds=ext_box,
-                         restarts=3, seed=0, local=local, peaks_only=peaks_only)
+                         restarts=3, seed=0, local=local, peaks_only=peaks_only,
+                         magnitude=data.magnitude)
         found_loss = problem.with_model(problem.model.refresh(found.values)).chi2(
             space.to_u(found.values))
         log.info("loop: %s searched globally%s, chi2 %.6g (local refit %.6g)", cand.name,

@@ -69,23 +69,26 @@ class State:
 # -- the loop -----------------------------------------------------------------------------
 def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_rounds: int = 4,
                restarts: int = 5, seed=0, progress=None, local: str = "newton",
-               declared: IdentificationResult | None = None) -> LoopResult:
+               declared: IdentificationResult | None = None,
+               magnitude: bool = False) -> LoopResult:
     """Fit the declared model, then add the effects its residual asks for
     (:mod:`vibid.identify.loop`).
 
     ``candidates``: names to consider (default :func:`default_candidates`);
-    ``declared``: the declared model's result when already computed.
+    ``declared``: the declared model's result when already computed;
+    ``magnitude``: fit |H| alone, with the candidates |H| can see (not a channel delay).
     """
     t0 = time.perf_counter()
-    pool = _pool(candidates)
+    pool = tuple(c for c in _pool(candidates) if not (magnitude and c.phase_only))
     if declared is None:
         declared = identify(setup, frequency_hz, H, std, used=used, restarts=restarts,
-                            seed=seed, progress=progress, local=local)
+                            seed=seed, progress=progress, local=local, magnitude=magnitude)
     if not declared.noise_known:
         return LoopResult((Stage.of(None, declared),), (), False, (
             "the AFC's uncertainty is unknown: the loop cannot test the residual against the "
             "noise, so no effect was looked for",), time.perf_counter() - t0)
-    inputs = Inputs(setup, fit_data(frequency_hz, H, std, used), pool, local)
+    inputs = Inputs(setup, fit_data(frequency_hz, H, std, used, magnitude=magnitude), pool,
+                    local)
     state = State((diagnosed(setup, Stage.of(None, declared)),),
                   dict(setup.identification.bounds))
     while len(state.rounds) < max_rounds and not state.current.fits_noise:
@@ -315,7 +318,7 @@ def withdraw(inputs: Inputs, stage: Stage, box: dict, added: list) -> tuple[Stag
             smaller = identify(inputs.setup, d.frequency_hz, d.H, d.std, used=d.used,
                                model=model.model, forward_model=fm, method="local",
                                start=start, bounds=model.default_bounds(box),
-                               local=inputs.local)
+                               local=inputs.local, magnitude=d.magnitude)
         except Exception as exc:  # noqa: BLE001 - the larger model stays
             log.info("loop: %s could not be refitted without %s: %s", stage.added,
                      term.name, exc)

@@ -46,9 +46,7 @@ def score(setup, data, res, cand, box, diagnosis) -> tuple[float, int, float]:
     if not new:
         # no parameter of its own: the extended model at the current values differs from
         # the current one by d; score along that secant, one dof
-        u = res.used
-        rc = (res.model_afc[u] - res.H[u]) / res.weights
-        r0 = np.concatenate([rc.real, rc.imag])
+        r0 = res.weighted_residuals
         d = r - r0
         lm = max(projected(np.column_stack([J, d]), r0) - projected(J, r0), 0.0)
         return float(lm), 1, collinearity(J, d[:, None])

@@ -50,7 +50,8 @@ def split_model_error(J_theta: np.ndarray, d: np.ndarray, reduction,
     Parameters
     ----------
     J_theta: (2n, p) Jacobian of the weighted residuals (real parts, then imaginary) with
-        respect to the physical parameters, weights ``sigma``.
+        respect to the physical parameters, weights ``sigma``; (n, p) for a fit of |H|
+        alone, whose ``d`` is then the error of |H| (real).
     d: (n,) complex signed discretisation error of the model AFC at the fitted points.
     reduction: (n,) standard uncertainty of the reduction error per Re/Im part at the
         fitted points (unknown sign, so never projected), or a scalar for all.
@@ -60,7 +61,8 @@ def split_model_error(J_theta: np.ndarray, d: np.ndarray, reduction,
     sigma = np.asarray(sigma, float)
     J = np.asarray(J_theta, float)
     n = d.size
-    delta = np.concatenate([d.real, d.imag]) / np.concatenate([sigma, sigma])
+    parts = 1 if J.shape[0] == n else 2  # |H| alone, or Re H and Im H
+    delta = np.concatenate([d.real, d.imag][:parts]) / np.tile(sigma, parts)
     finite = np.all(np.isfinite(J), axis=1) & np.isfinite(delta)
     bias = np.zeros(J.shape[1])
     if finite.any() and np.any(delta[finite] != 0):
@@ -69,7 +71,7 @@ def split_model_error(J_theta: np.ndarray, d: np.ndarray, reduction,
         scale = np.where(scale > 0, scale, 1.0)
         b, *_ = np.linalg.lstsq(Jf / scale, delta[finite], rcond=1e-12)
         bias = b / scale
-    rest = np.where(finite, delta - J @ bias, 0.0) * np.concatenate([sigma, sigma])
-    per_point = np.sqrt((rest[:n] ** 2 + rest[n:] ** 2) / 2.0)
+    rest = np.where(finite, delta - J @ bias, 0.0) * np.tile(sigma, parts)
+    per_point = np.sqrt(np.sum(rest.reshape(parts, n) ** 2, axis=0) / parts)
     point_std = np.sqrt(per_point**2 + np.asarray(reduction, float) ** 2)
     return ModelErrorSplit(point_std=point_std, bias=bias)

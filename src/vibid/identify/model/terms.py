@@ -78,6 +78,9 @@ class Term:
     #: True for an effect the loop tries only where the diagnosis found its feature (a
     #: stand resonance: a pole where the plate has none, which also places its start)
     needs_feature = False
+    #: True for an effect that changes only H's phase (a delay between the channels): a fit
+    #: of |H| alone cannot see it, and its loop does not try it
+    phase_only = False
 
     @property
     def names(self) -> tuple[str, ...]:
