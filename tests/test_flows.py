@@ -273,3 +273,28 @@ def test_batch_summary_table(batch):
         assert float(row["chi2_reduced_after"]) == report["loop"]["stages"][-1]["chi2_reduced"]
     md = (folder / "summary.md").read_text()
     assert md.count("| session-") == 3 and "D (N·m)" in md
+
+
+# -- UFF58 and |H| alone through the replay flow --------------------------------------------------
+def test_replay_flow_writes_and_reads_uff58_and_fits_the_magnitude(sessions, tmp_path):
+    """The replay flow writes the AFC it identifies as UFF58, and identifies that file (an
+    AFC from elsewhere, with the session's setup) to the same parameters; both fits on
+    |H| alone. Session A's undeclared delay is in the phase, so |H| needs no effect."""
+    from vibid.flows import replay_flow
+
+    uff = tmp_path / "A.uff"
+    first = replay_flow(sessions["A"], uff_path=uff, magnitude_only=True, restarts=1,
+                        candidates="sensor_gain")
+    again = replay_flow(afc_path=uff, setup_path=sessions["A"], magnitude_only=True,
+                        restarts=1, candidates="sensor_gain")
+    for report in (first, again):
+        check_report_format(report)
+        assert report["identification"]["data"] == "magnitude"
+        assert report["effects"] == [] and report["loop"]["unexplained_residual"] is False
+    n = len(first["afc"]["frequency_hz"])
+    assert first["identification"]["dof"] == n - 3 == again["identification"]["dof"]
+    for p, block in first["parameters"].items():
+        assert _rel(again["parameters"][p]["value"], block["value"]) <= 1e-6, p
+        assert abs(block["value"] - TRUTH[p]) < 3 * block["std"], p
+    with pytest.raises(Exception, match="session file, or an AFC file"):
+        replay_flow(afc_path=uff, restarts=1)

@@ -269,6 +269,11 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
     model = report["model"] + ("" if report["model"] == report["declared_model"]
                                else f" (declared {report['declared_model']})")
     lines.append(f"- model: {model}")
+    if ident.get("data") == "magnitude":
+        ratio = ident.get("magnitude_only_std_ratio") or {}
+        lines.append("- data: **|H| alone** (the phase was not used); each standard deviation "
+                     "against the complex fit of the same points: " + ", ".join(
+                         f"{n} ×{r:.2g}" for n, r in ratio.items() if r is not None))
     if ident and not ident.get("converged", True):
         lines.append(f"- **the identification did not converge**: {ident.get('message', '')}")
     lines += ["", "## Identified values (value ± standard deviation)", "",

@@ -14,6 +14,8 @@ import threading
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from vibid.errors import VibidError
 
 #: One JAX computation at a time per process: two identifications running in two threads
@@ -86,9 +88,35 @@ def session_afc(session_path: str | os.PathLike) -> SessionAfc:
     return SessionAfc(setup, session_id, afc)
 
 
+def afc_file(afc_path: str | os.PathLike, setup_path: str | os.PathLike) -> SessionAfc:
+    """An AFC measured elsewhere (CSV or UFF58, told apart by content:
+    :func:`vibid.signal.imported.read_afc`) with its declared setup (a setup JSON file, or
+    a session file whose setup it is)."""
+    from vibid.cli.modes import load_setup
+    from vibid.signal.imported import read_afc
+
+    afc = read_afc(os.fspath(afc_path))
+    return SessionAfc(load_setup(os.fspath(setup_path)), afc.session_id, afc)
+
+
+def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
+    """Write the AFC the identification uses (the used points, at their frequencies: for a
+    session, the refined ones on the DAQ clock) as UFF58, its std as a second record
+    (:mod:`vibid.signal.uff`). Returns the number of points written."""
+    from vibid.signal.uff import write_afc_uff as write
+
+    afc = data.afc
+    if afc.std is None:
+        raise VibidError(f"{os.fspath(path)}: this AFC has no std to write beside it")
+    used = np.asarray(afc.used, bool)
+    write(os.fspath(path), np.asarray(afc.frequency_hz)[used], np.asarray(afc.H)[used],
+          np.asarray(afc.std)[used], session_id=data.session_id)
+    return int(used.sum())
+
+
 def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
                  method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                 seed: int = SEED, progress=None) -> Identified:
+                 seed: int = SEED, progress=None, magnitude_only: bool = False) -> Identified:
     """Identify the declared model from ``data.afc`` (global search, then the local polish),
     then, with ``loop``, close the loop (:func:`vibid.identify.loop.close_loop`): the
     effects the residual asks for, among ``candidates`` (names; default all).
@@ -96,6 +124,8 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     The loop needs the AFC's uncertainty (to test the residual against the noise): without
     it, or when the declared fit did not converge, the declared model's result is final.
     ``progress`` is the search's ``progress(label, done, total, best)`` callback.
+    ``magnitude_only``: fit |H| alone (stands whose channels are not synchronised or whose
+    phase is not trusted); the loop then tries the candidates |H| can see.
     """
     from vibid.identify import configure
     from vibid.identify.fit import identify
@@ -107,7 +137,8 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     setup, afc = data.setup, data.afc
     with COMPUTE_LOCK:
         result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, method=method,
-                          local=local, restarts=restarts, seed=seed, progress=progress)
+                          local=local, restarts=restarts, seed=seed, progress=progress,
+                          magnitude=magnitude_only)
         if loop and result.converged and afc.std is None:
             return Identified(result, None, "no loop: the AFC has no std column, so the "
                               "residual cannot be tested against the noise\n" + result.summary())
@@ -115,7 +146,8 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
             from vibid.identify.loop import close_loop
 
             closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                                candidates=names, local=local, declared=result)
+                                candidates=names, local=local, declared=result,
+                                magnitude=magnitude_only)
             return Identified(closed.final, closed, closed.summary())
     return Identified(result, None, result.summary())
 

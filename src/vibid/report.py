@@ -3,7 +3,8 @@
 :func:`build_report` turns an :class:`~vibid.identify.fit.result.IdentificationResult` (one
 loop stage: the declared model alone) into the report's dict; :func:`write_report` writes
 it. Extra keys the format allows: ``identification`` (status sentence, warnings,
-covariance, correlation, timings) and the signal stage's ``afc.diagnostics`` when given.
+covariance, correlation, timings, ``data``: ``"complex"`` or ``"magnitude"`` and, for a
+magnitude-only fit, ``magnitude_only_std_ratio``) and the signal stage's ``afc.diagnostics`` when given.
 Non-finite numbers are written as null (JSON has no NaN).
 """
 
@@ -193,6 +194,8 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
             "message": result.message,
             "warnings": warnings,
             "noise_known": result.noise_known,
+            # what the fit saw: the complex AFC, or |H| alone (--magnitude-only)
+            "data": "magnitude" if result.magnitude else "complex",
             "chi2": _num(result.chi2),
             "chi2_reduced_data_weights": _num(result.chi2_reduced_data_weights),
             "model_error_std": None if result.model_error_bias is None else {
@@ -210,7 +213,10 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
                             "chi2": _num(r.loss), "iterations": r.n_iterations}
                            for r in result.local_results[:10]],
             "seconds": _num(result.seconds),
-        },
+        } | ({} if result.magnitude_only_std_ratio is None else {
+            # each std over the complex fit's of the same points (both Fisher informations)
+            "magnitude_only_std_ratio": {n: _num(v) for n, v in
+                                         result.magnitude_only_std_ratio.items()}}),
     }
 
 

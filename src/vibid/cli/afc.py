@@ -1,4 +1,6 @@
-"""`vibid afc SESSION.h5 [--json AFC.json]`: the measured AFC of a session, step by step."""
+"""`vibid afc SESSION.h5 [--json AFC.json] [--uff AFC.uff]`: the measured AFC of a session,
+step by step; ``--uff`` exchanges the AFC the identification uses as UFF58
+(:mod:`vibid.signal.uff`)."""
 
 from __future__ import annotations
 
@@ -17,6 +19,9 @@ def add_parser(sub) -> None:
     )
     p.add_argument("session", metavar="SESSION.h5", help="session file")
     p.add_argument("--json", metavar="AFC.json", help="also write the report's 'afc' block with per-step diagnostics")
+    p.add_argument("--uff", metavar="AFC.uff",
+                   help="also write the AFC the identification uses (used steps only, refined "
+                   "frequencies) as UFF58: the AFC, then its std as a second record")
     p.set_defaults(run=run)
 
 
@@ -28,8 +33,9 @@ def run(args) -> int:
     from vibid.session import read_session
     from vibid.signal import afc_from_session
 
-    if args.json:
-        check_output_file(args.json, overwrite=True)  # before every step is fitted
+    for out in (args.json, args.uff):
+        if out:
+            check_output_file(out, overwrite=True)  # before every step is fitted
     with read_session(args.session) as session:
         table = afc_from_session(session)
         session_id = session.session_id
@@ -42,7 +48,18 @@ def run(args) -> int:
                 fh.write("\n")
         except OSError as exc:
             raise VibidError(f"{args.json}: cannot write ({exc.strerror})") from None
+    if args.uff:
+        _write_uff(args.uff, table, session_id)
     return 0
+
+
+def _write_uff(path, table, session_id: str) -> None:
+    """The used steps, at their refined frequencies (Hz, DAQ clock), with H and the single
+    std per point: the arrays the identification fits (:func:`vibid.pipeline.write_afc_uff`)."""
+    from vibid.pipeline import SessionAfc, write_afc_uff
+
+    n = write_afc_uff(SessionAfc(None, session_id, table), path)
+    print(f"{n} used steps written to {path} (UFF58: the AFC, then its std)")
 
 
 def format_table(table) -> str:

@@ -136,7 +136,8 @@ def run_flow(args, report_dir: str, candidates) -> int:
                               realtime=args.realtime, loop=not args.no_loop, candidates=candidates,
                               operator=args.operator, notes=args.notes,
                               temperature_c=args.temperature_c, restarts=args.restarts,
-                              seed=args.seed, return_state=True)
+                              seed=args.seed, magnitude_only=args.magnitude_only,
+                              return_state=True)
     if not state.is_completed():
         error = state.result(raise_on_failure=False)
         message = str(error) if isinstance(error, BaseException) else (state.message or state.name)

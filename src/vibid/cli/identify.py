@@ -1,9 +1,10 @@
-"""`vibid identify SESSION.h5 --json REPORT.json [--no-loop] [--candidates A,B]`: signal
-stage, identification of the declared model, then the closed loop (effects the residual asks
-for, :mod:`vibid.identify.loop`); writes the report of shared/spec/report-format.md.
+"""`vibid identify SESSION.h5 --json REPORT.json [--no-loop] [--candidates A,B]
+[--magnitude-only]`: signal stage, identification of the declared model, then the closed
+loop (effects the residual asks for, :mod:`vibid.identify.loop`); writes the report of
+shared/spec/report-format.md.
 
-`vibid identify --afc AFC.csv --setup SETUP.json [...]` does the same on an AFC measured by
-another system (:mod:`vibid.signal.imported`)."""
+`vibid identify --afc AFC.csv|AFC.uff --setup SETUP.json [...]` does the same on an AFC
+measured by another system, CSV or UFF58 (:mod:`vibid.signal.imported`)."""
 
 from __future__ import annotations
 
@@ -19,9 +20,10 @@ def add_parser(sub):
         "with their standard deviations.",
     )
     p.add_argument("session", metavar="SESSION.h5", nargs="?", help="the session file")
-    p.add_argument("--afc", metavar="AFC.csv",
-                   help="an AFC measured elsewhere (columns frequency_hz, re, im[, std]) "
-                   "instead of a session; needs --setup")
+    p.add_argument("--afc", metavar="AFC.csv|AFC.uff",
+                   help="an AFC measured elsewhere instead of a session: AFC.csv (columns "
+                   "frequency_hz, re, im[, std]) or AFC.uff (UFF58; detected by content); "
+                   "needs --setup")
     p.add_argument("--setup", metavar="SETUP.json", help="the declared setup of --afc")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
     add_identification_options(p)
@@ -48,7 +50,7 @@ def run(args) -> int:
             identified = identify_afc(data, loop=not args.no_loop, candidates=candidates,
                                       method=args.method, local=args.local,
                                       restarts=args.restarts, seed=args.seed,
-                                      progress=progress)
+                                      progress=progress, magnitude_only=args.magnitude_only)
         print(identified.summary)
     if args.json:
         write_report(build_session_report(data, identified), args.json)
@@ -65,7 +67,7 @@ def _source(args):
 
     if args.afc is None:
         if args.session is None:
-            raise VibidError("give a session file, or --afc AFC.csv with --setup SETUP.json")
+            raise VibidError("give a session file, or --afc AFC.csv|AFC.uff with --setup SETUP.json")
         if args.setup is not None:
             raise VibidError("--setup goes with --afc; a session file holds its own setup")
         return session_afc(args.session)
@@ -73,8 +75,6 @@ def _source(args):
         raise VibidError("give either a session file or --afc, not both")
     if args.setup is None:
         raise VibidError("--afc needs --setup SETUP.json (the declared specimen and sensor)")
-    from vibid.cli.modes import load_setup
-    from vibid.signal.imported import read_afc_csv
+    from vibid.pipeline import afc_file
 
-    afc = read_afc_csv(args.afc)
-    return SessionAfc(load_setup(args.setup), afc.session_id, afc)
+    return afc_file(args.afc, args.setup)

@@ -12,6 +12,11 @@ def add_identification_options(p, *, methods: bool = True) -> None:
                    help="fit the declared model only (no search for missing effects)")
     p.add_argument("--candidates", metavar="A,B",
                    help="limit the closed loop's candidates (effect names, anisotropy)")
+    p.add_argument("--magnitude-only", action="store_true",
+                   help="identify from |H| alone (channels not synchronised, or a phase not "
+                   "trusted): weights from each point's std, chi2 on n - p degrees of "
+                   "freedom; the loop tries only what |H| can see (no channel delay) and the "
+                   "report gives how much each std grows against the complex fit")
     if methods:
         p.add_argument("--method", choices=("global", "local"), default="global",
                        help="global search then polish (default), or a local run from the box "

@@ -1,4 +1,5 @@
-"""`vibid replay SESSION.h5 [--json REPORT.json] [--report DIR] [--no-loop] [--candidates A,B]`:
+"""`vibid replay SESSION.h5 [--json REPORT.json] [--report DIR] [--uff AFC.uff] [--no-loop]
+[--candidates A,B] [--magnitude-only]`:
 ``vibid identify`` run as a Prefect flow (:func:`vibid.flows.replay_flow`): the same options
 and the same JSON report, plus in ``--report DIR`` a readable ``report.md`` with PNG figures,
 and the summary as Prefect artifacts.
@@ -22,6 +23,9 @@ def add_parser(sub):
     p.add_argument("--json", metavar="REPORT.json", help="write the JSON report here")
     p.add_argument("--report", metavar="DIR",
                    help="write report.md, report.json and the PNG figures into this folder")
+    p.add_argument("--uff", metavar="AFC.uff",
+                   help="also write the AFC the identification uses as UFF58 (as vibid afc "
+                   "--uff)")
     add_identification_options(p)
     p.set_defaults(run=run)
 
@@ -35,6 +39,10 @@ def run(args) -> int:
     if args.restarts < 1:
         raise VibidError("--restarts must be at least 1")
     candidates = parse_candidates(args.candidates)
+    if args.uff:
+        from vibid.cli.paths import check_output_file
+
+        check_output_file(args.uff, overwrite=True)
     if not os.path.isfile(args.session):
         raise VibidError(f"{args.session}: no such file")
     from vibid.session import read_session
@@ -44,11 +52,11 @@ def run(args) -> int:
     from vibid.flows import replay_flow
 
     with profiled(args.profile):
-        replay_flow(args.session, json_path=args.json, report_dir=args.report,
+        replay_flow(args.session, json_path=args.json, report_dir=args.report, uff_path=args.uff,
                     loop=not args.no_loop,
                     candidates=None if candidates is None else list(candidates),
                     method=args.method, local=args.local, restarts=args.restarts,
-                    seed=args.seed)
+                    seed=args.seed, magnitude_only=args.magnitude_only)
     if args.json:
         print(f"report written to {args.json}")
     if args.report:

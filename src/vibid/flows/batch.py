@@ -57,7 +57,7 @@ def _one_line(exc: BaseException) -> str:
 @flow(name="batch-replay", task_runner=ThreadPoolTaskRunner())
 def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
                  candidates: list[str] | str | None = None, restarts: int = RESTARTS,
-                 seed: int = SEED) -> BatchResult:
+                 seed: int = SEED, magnitude_only: bool = False) -> BatchResult:
     """Replay every session (one task each, on the flow's task runner), then write the
     summary table. A session that fails is a row saying why; the others go on."""
     from prefect.artifacts import create_markdown_artifact, create_table_artifact
@@ -70,7 +70,8 @@ def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
     os.makedirs(report_dir, exist_ok=True)
     futures = [replay_task.with_options(task_run_name=f"replay-{name}").submit(
         path, report_dir=os.path.join(report_dir, name), loop=loop, candidates=candidates,
-        restarts=restarts, seed=seed) for path, name in zip(paths, names)]
+        restarts=restarts, seed=seed, magnitude_only=magnitude_only)
+        for path, name in zip(paths, names)]
     reports, errors = [], []
     for name, fut in zip(names, futures):
         try:
@@ -97,7 +98,8 @@ def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
 
 
 def batch_replay_flow(session_paths, *, report_dir, task_runner=None, loop: bool = True,
-                      candidates=None, restarts: int = RESTARTS, seed: int = SEED) -> BatchResult:
+                      candidates=None, restarts: int = RESTARTS, seed: int = SEED,
+                      magnitude_only: bool = False) -> BatchResult:
     """Run :data:`batch_replay` on the task runner ``task_runner``: None or ``"threads"``
     (this machine's threads), ``"dask"`` (a temporary local Dask cluster), a Dask scheduler
     address (``"tcp://host:8786"``), or a ready Prefect task runner (e.g.
@@ -107,4 +109,4 @@ def batch_replay_flow(session_paths, *, report_dir, task_runner=None, loop: bool
     runner = make_task_runner(task_runner)
     return batch_replay.with_options(task_runner=runner)(
         [Path(p) for p in session_paths], Path(report_dir), loop=loop, candidates=candidates,
-        restarts=restarts, seed=seed)
+        restarts=restarts, seed=seed, magnitude_only=magnitude_only)

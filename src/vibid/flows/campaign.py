@@ -82,13 +82,14 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
                   candidates: list[str] | str | None = None, retries: int = 2,
                   operator: str | None = None, notes: str | None = None,
                   temperature_c: float | None = None, restarts: int = RESTARTS,
-                  seed: int = SEED):
+                  seed: int = SEED, magnitude_only: bool = False):
     """Record a session of the setup at ``setup_path`` on ``stand`` (``"simulated"`` or
     ``"ni"``, configured by the STAND.json ``stand_config``) into ``out``, then identify it
     and write the report into ``report_dir`` (default: ``<out stem>-report`` beside ``out``).
 
     ``restarts`` and ``seed`` are the identification's (as ``vibid replay``), so a replay
-    of the session with the same values gives the same report.
+    of the session with the same values gives the same report; ``magnitude_only`` fits
+    |H| alone (``vibid campaign --magnitude-only``).
 
     Returns the report (a dict). A campaign that did not complete (interrupted, aborted)
     ends the flow run ``Failed`` with its reason (a returned state: no traceback in the
@@ -113,7 +114,7 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
     report_dir = default_report_dir(out) if report_dir is None else report_dir
     data = afc_task(os.fspath(out))
     identified = identify_task(data, loop=loop, candidates=candidates, restarts=restarts,
-                               seed=seed)
+                               seed=seed, magnitude_only=magnitude_only)
     # the folder gets report.json beside report.md
     report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)

@@ -15,8 +15,8 @@ from contextlib import contextmanager
 from prefect import task
 from prefect.cache_policies import NO_CACHE
 
-from vibid.pipeline import (RESTARTS, SEED, Identified, SessionAfc, identify_afc, session_afc,
-                            write_outputs)
+from vibid.pipeline import (RESTARTS, SEED, Identified, SessionAfc, afc_file, identify_afc,
+                            session_afc, write_afc_uff, write_outputs)
 
 
 def run_logger():
@@ -92,16 +92,33 @@ def afc_task(session_path: str) -> SessionAfc:
     return data
 
 
+@task(name="afc-file", cache_policy=NO_CACHE)
+def afc_file_task(afc_path: str, setup_path: str) -> SessionAfc:
+    """An AFC measured elsewhere (CSV or UFF58, by content) with its declared setup."""
+    data = afc_file(afc_path, setup_path)
+    run_logger().info("%s: %d points", afc_path, len(data.afc.frequency_hz))
+    return data
+
+
+@task(name="afc-uff", cache_policy=NO_CACHE)
+def uff_task(data: SessionAfc, uff_path: str) -> str:
+    """Write the AFC the identification uses as UFF58 (its std as a second record)."""
+    n = write_afc_uff(data, uff_path)
+    run_logger().info("wrote %s (%d points, UFF58)", uff_path, n)
+    return uff_path
+
+
 @task(name="identify", cache_policy=NO_CACHE)
 def identify_task(data: SessionAfc, *, loop: bool = True, candidates=None,
                   method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                  seed: int = SEED) -> Identified:
+                  seed: int = SEED, magnitude_only: bool = False) -> Identified:
     """Identification stage: the declared model, then the closed loop (with ``loop``)."""
     logger = run_logger()
     with forwarded_logs(logger):
         identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
                                   local=local, restarts=restarts, seed=seed,
-                                  progress=progress_logger(logger))
+                                  progress=progress_logger(logger),
+                                  magnitude_only=magnitude_only)
     logger.info("%s", identified.summary)
     return identified
 

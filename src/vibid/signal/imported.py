@@ -1,9 +1,12 @@
-"""An AFC measured by another system, read from CSV: ``frequency_hz, re, im[, std]``.
+"""An AFC measured by another system, read from CSV (``frequency_hz, re, im[, std]``) or
+from a Universal File, dataset 58 (:mod:`vibid.signal.uff`); :func:`read_afc` tells the two
+apart by content, not by extension.
 
 The identification and the closed loop take it as they take a session's AFC. Without a
-``std`` column the fit falls back on the paper's plain mean-square weighting (and the loop,
-which tests the residual against the noise, cannot run). The report's ``session_id`` of an
-imported AFC is derived from the file's bytes, so the same file gives the same id.
+``std`` column (a UFF file: without vibid's std record) the fit falls back on the paper's
+plain mean-square weighting (and the loop, which tests the residual against the noise,
+cannot run). The report's ``session_id`` of an imported AFC is derived from the file's
+bytes, so the same file gives the same id.
 """
 
 from __future__ import annotations
@@ -42,6 +45,20 @@ class ImportedAfc:
         return {"frequency_hz": self.frequency_hz.tolist(), "re": self.H.real.tolist(),
                 "im": self.H.imag.tolist(),
                 "std": [None] * self.H.size if self.std is None else self.std.tolist()}
+
+
+def read_afc(path) -> ImportedAfc:
+    """Read an AFC file, UFF58 or CSV as its content says (a UFF file starts with a ``-1``
+    line, :func:`vibid.signal.uff.is_uff`); a one-line :class:`VibidError` for anything
+    wrong."""
+    from vibid.signal.uff import is_uff, read_afc_uff
+
+    return read_afc_uff(path) if is_uff(path) else read_afc_csv(path)
+
+
+def content_session_id(raw: bytes) -> str:
+    """The session id of an imported AFC: a UUID made of the SHA-256 of the file's bytes."""
+    return str(uuid.UUID(hashlib.sha256(raw).hexdigest()[:32]))
 
 
 def read_afc_csv(path) -> ImportedAfc:
@@ -84,6 +101,5 @@ def read_afc_csv(path) -> ImportedAfc:
     std = np.array(values["std"]) if "std" in values else None
     if std is not None and np.any(std < 0):
         raise VibidError(f"{path}: std must not be negative")
-    digest = hashlib.sha256(raw).hexdigest()
     return ImportedAfc(f, np.array(values["re"]) + 1j * np.array(values["im"]), std,
-                       str(uuid.UUID(digest[:32])))
+                       content_session_id(raw))
