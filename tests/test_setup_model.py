@@ -64,3 +64,20 @@ def test_bounds_may_name_effect_parameters_as_priors():
     doc["identification"]["bounds"]["E"] = [1.0, 2.0]
     with pytest.raises(SetupError, match="E is not a parameter of model 'isotropic'"):
         parse_setup(doc)
+
+
+def test_specimen_material_is_optional_free_text():
+    """issue #26: ``specimen.material`` names the material's class; absent, it is None and
+    not written back."""
+    s = example_setup()
+    assert s.specimen.material is None
+    assert "material" not in json.loads(s.to_json())["specimen"]
+    doc = s.to_dict()
+    doc["specimen"]["material"] = "Ti-6Al-4V"
+    with_material = parse_setup(doc)
+    assert with_material.specimen.material == "Ti-6Al-4V"
+    assert parse_setup(with_material.to_json()) == with_material
+    doc["specimen"]["material"] = 4
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    assert err.value.problems == ["setup.specimen.material: expected a string, got a number"]

@@ -111,7 +111,7 @@ def _values_text(report: dict) -> str:
     rows = [(n, p["value"], p["std"]) for n, p in report["parameters"].items()]
     rows += [(flat_name(e, n), p["value"], p["std"])
              for e in report["effects"] for n, p in e["parameters"].items()]
-    rows += [(n, p["value"], p["std"]) for n, p in report.get("engineering", {}).items()
+    rows += [(n, p["value"], p["std"]) for n, p in engineering_of(report).items()
              if n.endswith("_Pa")]
     return "\n".join(f"{n:>7} = {with_std(v, s)}{_unit_text(unit_of(n))}" for n, v, s in rows)
 
@@ -185,6 +185,39 @@ def figures(data, identified, report: dict) -> dict[str, Any]:
 
 
 # -- the text ----------------------------------------------------------------------------------
+def engineering_of(report: dict) -> dict:
+    """The report's engineering constants (``engineering`` without its ``budget``)."""
+    return {n: p for n, p in report.get("engineering", {}).items() if n != "budget"}
+
+
+def _budget_text(budget: dict | None, notes) -> list[str]:
+    """The uncertainty budget as a table (one column per source, standard uncertainties in
+    the constant's unit) and each constant's largest part in words."""
+    if not budget:
+        return []
+    sources = list(dict.fromkeys(s for parts in budget.values() for s in parts))
+    lines = ["", "Uncertainty budget (standard uncertainties; they add in quadrature):", "",
+             "| constant | " + " | ".join(sources) + " |", "|---|" + "---|" * len(sources)]
+    for k, parts in budget.items():
+        lines.append(f"| {k} | " + " | ".join(
+            "–" if parts.get(s) is None else f"{parts[s]:.3g}" for s in sources) + " |")
+    return lines + [""] + [f"- {n}" for n in notes]
+
+
+def _plausibility_text(pl: dict | None) -> list[str]:
+    if not pl:
+        return []
+    cls = pl.get("material_class")
+    lines = ["", "Plausibility" + (f" (the specimen is {cls}):" if cls else
+                                   " (no material class named: only what physics allows):"), ""]
+    lines += [f"- **not physical**: {v}" for v in pl["violations"]]
+    lines += [f"- **outside the handbook range**: {v}" for v in pl["outside_handbook"]]
+    lines += [f"- {v}" for v in pl["inside_handbook"]]
+    if len(lines) == 3:
+        lines.append("- every constant is physically possible")
+    return lines
+
+
 def _param_rows(params: dict) -> list[str]:
     return [f"| {n} | {describe(n)} | {with_std(p['value'], p['std'])} | "
             f"{unit_of(n).replace(' ', '·')} |" for n, p in params.items()]
@@ -282,7 +315,10 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
     if "engineering" in report:
         lines += ["", "Engineering constants (from the stiffnesses and the declared thickness):", "",
                   "| constant | meaning | value | unit |", "|---|---|---|---|"]
-        lines += _param_rows(report["engineering"])
+        lines += _param_rows(engineering_of(report))
+        lines += _budget_text(report["engineering"].get("budget"),
+                              ident.get("uncertainty_notes", []))
+    lines += _plausibility_text(report.get("plausibility"))
     lines += ["", "## Effects the loop found", ""] + _effect_text(report)
     lines += ["", "## Fit quality, stage by stage", "",
               "| stage | χ²/dof (the data's std) | χ²/dof (with the model's own error) | "
@@ -357,7 +393,16 @@ def console_summary(report: dict) -> str:
         lines.append("effects found: none needed (the declared model fits to the noise level)")
     lines.append(f"chi2/dof: {_chi2(stages[0]['chi2_reduced'])} (declared model) -> "
                  f"{_chi2(stages[-1]['chi2_reduced'])} (final)")
+    lines += plausibility_lines(report)
     return "\n".join(lines)
+
+
+def plausibility_lines(report: dict) -> list[str]:
+    """The report's plausibility findings for the console: never silent about a constant
+    no material allows or one outside its material's handbook range."""
+    pl = report.get("plausibility") or {}
+    return ([f"NOT PHYSICAL: {v}" for v in pl.get("violations", [])]
+            + [f"implausible: {v}" for v in pl.get("outside_handbook", [])])
 
 
 def write_lab_report(report_dir: str | os.PathLike, data, identified, report: dict, *,
@@ -393,7 +438,7 @@ def parameter_table(report: dict) -> list[dict[str, Any]]:
               "unit": unit_of(n), "source": e["name"]}
              for e in report["effects"] for n, p in e["parameters"].items()]
     rows += [{"quantity": n, "value": p["value"], "std": p["std"], "unit": unit_of(n),
-              "source": "engineering"} for n, p in report.get("engineering", {}).items()]
+              "source": "engineering"} for n, p in engineering_of(report).items()]
     return rows
 
 

@@ -2,7 +2,8 @@
 
 :func:`build_report` turns an :class:`~vibid.identify.fit.result.IdentificationResult` (one
 loop stage: the declared model alone) into the report's dict; :func:`write_report` writes
-it. Extra keys the format allows: ``identification`` (status sentence, warnings,
+it. Extra keys the format allows: ``plausibility`` (constants no material allows, and the
+comparison with the specimen's material class), ``identification`` (status sentence, warnings,
 covariance, correlation, timings, ``data``: ``"complex"`` or ``"magnitude"`` and, for a
 magnitude-only fit, ``magnitude_only_std_ratio``) and the signal stage's ``afc.diagnostics`` when given.
 Non-finite numbers are written as null (JSON has no NaN).
@@ -68,6 +69,29 @@ def free_length_share(result) -> str | None:
     return (f"free_length: dL carries {100 * share:.0f} % of the variance of {stiff} (and so "
             f"of E): with dL known, {stiff}'s std would be {known:.3g} instead of "
             f"{math.sqrt(C[i, i]):.3g} N m")
+
+
+def plausibility_block(model: str, result, constants: dict, setup, loop) -> tuple[dict, list]:
+    """(the report's ``plausibility`` block, its warnings): constants no material allows,
+    with what the loop tried, and the comparison with the handbook range of the specimen's
+    material class (:mod:`vibid.identify.plausibility`)."""
+    from vibid.identify.plausibility import plausibility
+
+    sp = setup.specimen
+    found = plausibility(model, result.parameters, result.parameter_std,
+                         {k: v for k, v in constants.items() if k != "budget"},
+                         specimen_name=sp.name, material=sp.material)
+    if loop is None:
+        tried = " (the closed loop did not run)"
+    else:
+        names = sorted({s.name for rnd in loop.rounds for s in rnd})
+        tried = (f" (the closed loop tried {', '.join(names) or 'no candidate'}"
+                 f" and added {', '.join(loop.effects) or 'none'})")
+    block = {"material_class": found.material_class,
+             "violations": [v + tried for v in found.violations],
+             "outside_handbook": list(found.outside_handbook),
+             "inside_handbook": list(found.inside_handbook)}
+    return block, block["violations"] + block["outside_handbook"]
 
 
 def _stage_block(added, result) -> dict[str, Any]:
@@ -141,7 +165,8 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     afc: the signal stage's report block (``AfcTable.to_report_block()``); default built
         from the points in ``result``.
     setup: the declared setup; with it the report gains the ``engineering`` block (E, nu,
-        G from the stiffnesses and the declared thickness and its uncertainty).
+        G from the stiffnesses and the declared thickness) with its uncertainty budget
+        (:mod:`vibid.identify.budget`).
     """
     if loop is not None:
         result = loop.final
@@ -166,18 +191,20 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
         effects, loop_block = _loop_block(loop)
     model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
     g = result.global_result
-    extra = {}
+    extra, notes = {}, []
     if setup is not None:
-        from vibid.identify.engineering import engineering_constants
+        from vibid.identify.budget import engineering_budget
 
-        sp = setup.specimen
-        block = engineering_constants(model, result.parameter_names, result.values,
-                                      result.covariance, sp.thickness_m,
-                                      sp.thickness_std_m or 0.0)
+        block = engineering_budget(setup, result, loop)
         if block:
+            budget, notes = block.pop("budget"), block.pop("notes")
             extra["engineering"] = {k: {"value": _num(v["value"]),
                                         "std": None if v["std"] is None else _num(v["std"])}
                                     for k, v in block.items()}
+            extra["engineering"]["budget"] = {
+                k: {part: _num(u) for part, u in parts.items()} for k, parts in budget.items()}
+        extra["plausibility"], said = plausibility_block(model, result, block, setup, loop)
+        warnings.extend(said)
     return extra | {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -213,6 +240,8 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
                             "chi2": _num(r.loss), "iterations": r.n_iterations}
                            for r in result.local_results[:10]],
             "seconds": _num(result.seconds),
+            # the engineering constants' budget in words: each one's largest part
+            "uncertainty_notes": list(notes),
         } | ({} if result.magnitude_only_std_ratio is None else {
             # each std over the complex fit's of the same points (both Fisher informations)
             "magnitude_only_std_ratio": {n: _num(v) for n, v in

@@ -49,6 +49,19 @@ class Specimen:
     thickness_m: float
     density_kg_m3: float
     thickness_std_m: float | None = None  # optional: the thickness's standard uncertainty
+    material: str | None = None  # optional free text ("Ti-6Al-4V", "steel"): the handbook class
+    # optional standard uncertainties of the declared geometry (the uncertainty budget)
+    length_std_m: float | None = None
+    width_std_m: float | None = None
+    density_std_kg_m3: float | None = None
+
+
+#: The optional fields (written only when given): standard uncertainties of the declared
+#: values (shared/spec/session-format.md; the uncertainty budget, vibid.identify.budget).
+SPECIMEN_STD = ("thickness_std_m", "length_std_m", "width_std_m", "density_std_kg_m3")
+SPECIMEN_OPTIONAL = SPECIMEN_STD + ("material",)
+RESPONSE_STD = ("x_std_m", "y_std_m", "mass_std_kg")
+RESPONSE_OPTIONAL = RESPONSE_STD
 
 
 @dataclass(frozen=True)
@@ -68,6 +81,10 @@ class ResponseSensor:
     y_m: float
     mass_kg: float
     radius_m: float
+    # optional standard uncertainties of the declared position and mass (uncertainty budget)
+    x_std_m: float | None = None
+    y_std_m: float | None = None
+    mass_std_kg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -130,8 +147,11 @@ class Setup:
 
     def to_dict(self) -> dict[str, Any]:
         doc = asdict(self)
-        if self.specimen.thickness_std_m is None:
-            del doc["specimen"]["thickness_std_m"]
+        for block, names in (("specimen", SPECIMEN_OPTIONAL), ("response", RESPONSE_OPTIONAL)):
+            part = doc["specimen"] if block == "specimen" else doc["sensors"]["response"]
+            for name in names:
+                if part[name] is None:
+                    del part[name]
         if self.excitation is None:
             del doc["excitation"]
         else:
@@ -170,10 +190,12 @@ def setup_problems(s: Setup) -> list[str]:
     sp = s.specimen
     for name in ("length_m", "width_m", "thickness_m", "density_kg_m3"):
         positive(f"specimen.{name}", getattr(sp, name))
-    if sp.thickness_std_m is not None and not (math.isfinite(sp.thickness_std_m)
-                                               and sp.thickness_std_m >= 0):
-        out.append(f"setup.specimen.thickness_std_m: must be zero or positive, got "
-                   f"{sp.thickness_std_m!r}")
+    for path, block, names in (("specimen", sp, SPECIMEN_STD),
+                               ("sensors.response", s.sensors.response, RESPONSE_STD)):
+        for name in names:
+            v = getattr(block, name)
+            if v is not None and not (math.isfinite(v) and v >= 0):
+                out.append(f"setup.{path}.{name}: must be zero or positive, got {v!r}")
 
     positive("sensors.base.sensitivity_mV_per_g", s.sensors.base.sensitivity_mV_per_g)
     r = s.sensors.response
@@ -301,15 +323,16 @@ class _Reader:
             width_m=self._num(sp, "width_m", p) if sp else math.nan,
             thickness_m=self._num(sp, "thickness_m", p) if sp else math.nan,
             density_kg_m3=self._num(sp, "density_kg_m3", p) if sp else math.nan,
-            thickness_std_m=(self._num(sp, "thickness_std_m", p)
-                             if sp and "thickness_std_m" in sp else None),
+            material=self._str(sp, "material", p) if sp and "material" in sp else None,
+            **{k: self._num(sp, k, p) for k in SPECIMEN_STD if sp and k in sp},
         )
         p = "setup.sensors.response"
         sensors = Sensors(
             base=BaseSensor(self._num(base, "sensitivity_mV_per_g", "setup.sensors.base") if base else math.nan),
             response=ResponseSensor(
                 *(self._num(resp, k, p) if resp else math.nan
-                  for k in ("sensitivity_mV_per_g", "x_m", "y_m", "mass_kg", "radius_m"))
+                  for k in ("sensitivity_mV_per_g", "x_m", "y_m", "mass_kg", "radius_m")),
+                **{k: self._num(resp, k, p) for k in RESPONSE_STD if resp and k in resp},
             ),
         )
         daq_ = Daq(self._num(daq, "sample_rate_hz", "setup.daq") if daq else math.nan)

@@ -52,8 +52,13 @@ def run(args) -> int:
                                       restarts=args.restarts, seed=args.seed,
                                       progress=progress, magnitude_only=args.magnitude_only)
         print(identified.summary)
+    from vibid.lab_report import plausibility_lines
+
+    report = build_session_report(data, identified)
+    for line in plausibility_lines(report):  # never silent
+        print(line)
     if args.json:
-        write_report(build_session_report(data, identified), args.json)
+        write_report(report, args.json)
         print(f"report written to {args.json}")
     # the report is written (it says why); the job itself failed
     require_converged(identified)

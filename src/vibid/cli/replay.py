@@ -52,11 +52,15 @@ def run(args) -> int:
     from vibid.flows import replay_flow
 
     with profiled(args.profile):
-        replay_flow(args.session, json_path=args.json, report_dir=args.report, uff_path=args.uff,
-                    loop=not args.no_loop,
-                    candidates=None if candidates is None else list(candidates),
-                    method=args.method, local=args.local, restarts=args.restarts,
-                    seed=args.seed, magnitude_only=args.magnitude_only)
+        report = replay_flow(args.session, json_path=args.json, report_dir=args.report,
+                             uff_path=args.uff, loop=not args.no_loop,
+                             candidates=None if candidates is None else list(candidates),
+                             method=args.method, local=args.local, restarts=args.restarts,
+                             seed=args.seed, magnitude_only=args.magnitude_only)
+    from vibid.lab_report import plausibility_lines
+
+    for line in plausibility_lines(report):  # never silent
+        print(line)
     if args.json:
         print(f"report written to {args.json}")
     if args.report:

@@ -60,6 +60,8 @@ class State:
     stages: tuple[Stage, ...]
     box: dict
     rounds: tuple[tuple[Score, ...], ...] = ()
+    #: the refits that passed the judge but were not chosen (the models the loop compared)
+    alternatives: tuple[IdentificationResult, ...] = ()
 
     @property
     def current(self) -> Stage:
@@ -126,6 +128,10 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
     rounds = state.rounds + (tuple(scores),)
+    alternatives = state.alternatives + tuple(
+        j[2].result for n, j in judged.items()
+        if j[0].passes and (chosen is None or n != chosen.added))
+    state = replace(state, alternatives=alternatives)
     if chosen is None:
         return replace(state, rounds=rounds), False
     cand = next(c for c in todo if c.name == chosen.added)
@@ -138,7 +144,7 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
         chosen = replace(chosen, diagnosis=after[chosen.added])
     dropped = {s.name for s in gone}
     stages = tuple(s for s in state.stages if s.added not in dropped)
-    return State(stages + (chosen,), box, rounds), True
+    return State(stages + (chosen,), box, rounds, alternatives), True
 
 
 def finish(state: State, seconds: float) -> LoopResult:
@@ -154,7 +160,8 @@ def finish(state: State, seconds: float) -> LoopResult:
         f"{100 * math.sqrt(max(1 - s.collinearity**2, 0)):.2g} % of its sensitivity the "
         "others cannot mimic; its std and theirs include that"
         for s in (state.rounds[-1] if state.rounds else ()) if s.kept and s.collinearity > 0.9]
-    return LoopResult(tuple(stages), state.rounds, unexplained, tuple(warnings), seconds)
+    return LoopResult(tuple(stages), state.rounds, unexplained, tuple(warnings), seconds,
+                      state.alternatives)
 
 
 # -- diagnose -------------------------------------------------------------------------------
@@ -223,7 +230,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     res = state.current.result
     by_name = {c.name: c for c in todo}
     judged = {}
-    n_residuals = 2 * int(np.count_nonzero(inputs.data.used))
+    n_residuals = inputs.data.n_residuals
     for s in scores:
         n = len(by_name[s.name].extend(res.plate_model).names)
         if s.verdict is Verdict.BELOW_SCORE and n >= n_residuals:

@@ -129,6 +129,9 @@ class LoopResult:
     unexplained_residual: bool
     warnings: tuple[str, ...] = field(default=())
     seconds: float = math.nan
+    #: the refits that passed the judge but were not chosen: with the stages, the models
+    #: the loop compared (the uncertainty budget's model part, :mod:`vibid.identify.budget`)
+    alternatives: tuple = ()
 
     @property
     def final(self) -> IdentificationResult:

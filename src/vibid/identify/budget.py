@@ -1,0 +1,218 @@
+"""The uncertainty budget of the engineering constants, as metrology writes one (the GUM).
+
+The combined standard uncertainty of each constant c (E, ν, G or E1, E2, G12, ν12) is the
+root sum of squares of independent parts:
+
+* ``fit``: the estimate's covariance C (Fisher information, widened by rival minima and the
+  model's discretisation error, scaled by the misfit where a residual remains), through
+  the conversion: u² = gᵀ C g, g = ∂c/∂θ;
+* one part per declared quantity with a standard uncertainty in the setup (the optional
+  ``*_std`` fields: thickness, length, width, density, the sensor's position and mass):
+  a declared value off by one standard uncertainty s moves the estimate too, since the
+  model then predicts another AFC for the same parameters. To first order the estimate
+  moves by ``Δθ = −J⁺ Δr``, J the weighted residuals' Jacobian and Δr their change when the
+  quantity moves by s (central differences on a small step, each a model built for that
+  setup, scaled to s: :data:`STEP`);
+  the part is ``|gᵀ Δθ + ∂c/∂q s|``, the last term for the thickness alone (the
+  conversion's h⁻³). A thicker plate is heavier: D grows with h and E goes as h⁻², which
+  the conversion alone (h⁻³) would overstate;
+* ``model``, where a residual remains (the loop's ``unexplained_residual``): the spread of
+  the constant across the models the loop compared (its stages and the refits that passed
+  its judge), weighted as Burnham & Anderson average models, by exp(−ΔQAIC/2), QAIC =
+  χ²/ĉ + 2p with ĉ the final model's reduced χ² (the data's weights).
+
+The parts are independent by construction (different sources), so they add in quadrature.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from vibid.identify.engineering import constants, sensitivities
+
+#: The declared quantities a setup may give a standard uncertainty:
+#: budget name -> (setup block, value field, std field).
+DECLARED = {
+    "thickness_m": ("specimen", "thickness_m", "thickness_std_m"),
+    "length_m": ("specimen", "length_m", "length_std_m"),
+    "width_m": ("specimen", "width_m", "width_std_m"),
+    "density_kg_m3": ("specimen", "density_kg_m3", "density_std_kg_m3"),
+    "sensor_x_m": ("response", "x_m", "x_std_m"),
+    "sensor_y_m": ("response", "y_m", "y_std_m"),
+    "sensor_mass_kg": ("response", "mass_kg", "mass_std_kg"),
+}
+
+
+#: How the report's sentences name the declared quantities.
+WORDS = {"thickness_m": "thickness", "length_m": "length", "width_m": "width",
+         "density_kg_m3": "density", "sensor_x_m": "sensor position (x)",
+         "sensor_y_m": "sensor position (y)", "sensor_mass_kg": "sensor mass"}
+
+
+#: The relative step of the central differences in a declared quantity: a step of a whole
+#: standard uncertainty (1 % of the thickness) moves a resonance by more than its
+#: half-power width, where the residual is far from linear in it; the derivative is taken
+#: on a small step and scaled to the standard uncertainty (the GUM's first order).
+STEP = 1e-4
+
+
+def _block(setup, where: str):
+    return setup.specimen if where == "specimen" else setup.sensors.response
+
+
+def declared_uncertainties(setup) -> dict[str, float]:
+    """The setup's declared quantities with a positive standard uncertainty: name -> std."""
+    out = {}
+    for name, (where, _, std_field) in DECLARED.items():
+        s = getattr(_block(setup, where), std_field, None)
+        if s is not None and math.isfinite(s) and s > 0:
+            out[name] = float(s)
+    return out
+
+
+def with_declared(setup, name: str, value: float):
+    """``setup`` with the declared quantity ``name`` set to ``value``."""
+    where, field, _ = DECLARED[name]
+    block = dataclasses.replace(_block(setup, where), **{field: value})
+    if where == "specimen":
+        return dataclasses.replace(setup, specimen=block)
+    return dataclasses.replace(setup, sensors=dataclasses.replace(setup.sensors, response=block))
+
+
+def estimate_shifts(setup, result, names) -> dict[str, np.ndarray]:
+    """name -> (p,) the shift of the estimate when the declared quantity ``name`` is one
+    standard uncertainty larger (module doc), for ``names`` among
+    :func:`declared_uncertainties`."""
+    from vibid.identify.fit.data import fit_data
+    from vibid.identify.fit.problem import LeastSquaresProblem
+    from vibid.identify.fit.space import ParameterSpace
+    from vibid.identify.model.forward import build_forward_model
+
+    if not names or result.plate_model is None:
+        return {}
+    model, theta = result.plate_model, np.asarray(result.values, float)
+    data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
+                    magnitude=result.magnitude)
+    f_used = data.frequency_hz[data.used]
+    box = model.default_bounds(dict(setup.identification.bounds))
+    box = {n: box.get(n, (v - 1.0, v + 1.0)) for n, v in zip(model.names, theta)}
+    space = ParameterSpace.from_bounds(model.names, box, {q.name: q.kind for q in model.parameters})
+
+    def problem(s):
+        fm = build_forward_model(s, f_used, model=model, theta0=result.parameters)
+        return LeastSquaresProblem(fm, data, space, result.weights)
+
+    J = problem(setup).jacobian_theta(theta)
+    std = declared_uncertainties(setup)
+    out = {}
+    for name in names:
+        value = getattr(_block(setup, DECLARED[name][0]), DECLARED[name][1])
+        step = min(std[name], STEP * abs(value)) or std[name]
+        up = problem(with_declared(setup, name, value + step)).residuals_theta(theta)
+        down = problem(with_declared(setup, name, value - step)).residuals_theta(theta)
+        out[name] = -np.linalg.lstsq(J, (up - down) / 2.0, rcond=1e-12)[0] * (std[name] / step)
+    return out
+
+
+def model_spread(loop, model: str, thickness_m: float) -> dict[str, float]:
+    """constant -> the between-model standard deviation across the loop's models of the
+    final material (module doc); empty without a loop or where the final model explains
+    the data."""
+    if loop is None or not loop.unexplained_residual:
+        return {}
+    final = loop.final
+    fits = [st.result for st in loop.stages] + list(getattr(loop, "alternatives", ()))
+    fits = [r for r in fits if getattr(r.plate_model, "model", None) == model
+            and math.isfinite(r.chi2_reduced_reported) and r.dof > 0]
+    c_hat = max(1.0, float(final.chi2_reduced_reported))
+    qaic = np.array([r.chi2_reduced_reported * r.dof / c_hat + 2 * len(r.parameter_names)
+                     for r in fits])
+    w = np.exp(-(qaic - qaic.min()) / 2.0)
+    w /= w.sum()
+    values = [constants(model, r.parameters, thickness_m) for r in fits]
+    out = {}
+    for k in values[0] if values else ():
+        c = np.array([v[k] for v in values])
+        mean = float(w @ c)
+        out[k] = float(math.sqrt(max(float(w @ (c - mean) ** 2), 0.0)))
+    return out
+
+
+def engineering_budget(setup, result, loop=None) -> dict:
+    """The report's ``engineering`` block: ``{constant: {"value", "std"}, ...,
+    "budget": {constant: {"fit": u, <declared quantity>: u, ..., "model": u}},
+    "notes": [each constant's largest part in words]}`` (standard uncertainties in the
+    constant's unit; ``std`` their root sum of squares); empty for a model without closed
+    forms."""
+    model = getattr(result.plate_model, "model", None) or result.model
+    h = setup.specimen.thickness_m
+    names, theta = list(result.parameter_names), np.asarray(result.values, float)
+    keys, g, dh = sensitivities(model, names, theta, h)
+    if not keys:
+        return {}
+    base = constants(model, dict(zip(names, theta)), h)
+    C = np.asarray(result.covariance, float)
+    fit = np.einsum("ij,jk,ik->i", g, np.where(np.isfinite(C), C, np.nan), g)
+    parts = {k: {"fit": float(math.sqrt(v)) if np.isfinite(v) and v >= 0 else math.nan}
+             for k, v in zip(keys, fit)}
+    std = declared_uncertainties(setup)
+    shifts = estimate_shifts(setup, result, list(std))
+    for name in std:
+        if name in shifts:
+            moved = g @ shifts[name] + (dh * std[name] if name == "thickness_m" else 0.0)
+        elif name == "thickness_m":  # no plate model to move: the conversion alone
+            moved = dh * std[name]
+        else:
+            continue
+        for k, v in zip(keys, moved):
+            parts[k][name] = float(abs(v))
+    for k, v in model_spread(loop, model, h).items():
+        parts[k]["model"] = v
+    block = {}
+    for k in keys:
+        total = sum(v**2 for v in parts[k].values())
+        block[k] = {"value": float(base[k]),
+                    "std": float(math.sqrt(total)) if math.isfinite(total) else None}
+    block["budget"] = parts
+    block["notes"] = [n for k in keys if (n := largest_part(k, parts[k], std))]
+    return block
+
+
+def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
+    """The budget's largest part in words, and what halving the combined uncertainty would
+    take (``std_of``: the declared quantities' standard uncertainties)."""
+    finite = {n: v for n, v in parts.items() if v is not None and math.isfinite(v)}
+    total = math.sqrt(sum(v**2 for v in finite.values()))
+    if not finite or total <= 0:
+        return None
+    name, u = max(finite.items(), key=lambda kv: kv[1])
+    share = (u / total) ** 2
+    what = {"fit": "the fit (the data's noise and the model's misfit)",
+            "model": "the choice of model (the loop's competitive models disagree)"}.get(
+                name, f"the declared {WORDS.get(name, name)}")
+    text = f"{constant}'s uncertainty is mostly {what}: {100 * share:.0f} % of its variance"
+    if name in std_of:
+        # halving the total needs u_new² = u² − ¾ total²: possible when this part is most
+        need = u**2 - 0.75 * total**2
+        if need > 0:
+            unit = _unit(name)
+            text += (f"; know it to {_fmt(std_of[name] * math.sqrt(need) / u, unit)} "
+                     f"(now {_fmt(std_of[name], unit)}) to halve it")
+        else:
+            text += "; even knowing it exactly would not halve the total"
+    return text
+
+
+def _unit(name: str) -> str:
+    return "kg/m³" if name.endswith("kg_m3") else "kg" if name.endswith("_kg") else "m"
+
+
+def _fmt(value: float, unit: str) -> str:
+    if unit == "m" and value < 1e-3:
+        return f"{value * 1e6:.2g} µm"
+    if unit == "kg" and value < 1e-3:
+        return f"{value * 1e6:.2g} mg"
+    return f"{value:.2g} {unit}"

@@ -1,0 +1,108 @@
+"""The uncertainty budget of the engineering constants (vibid.identify.budget) and the
+plausibility of the constants in the report.
+
+Analytic references: a Kirchhoff plate with a massless sensor has natural frequencies
+ω ∝ √(D / ρh) whatever the mode, so a fit of its AFC returns D ∝ ρh: E = 12 D (1 − ν²)/h³
+then goes as h⁻² (the conversion's h⁻³ times the fit's h) and as ρ¹, and ν does not move.
+The model part is Burnham & Anderson's weighted spread, checked on two models of known
+QAIC.
+"""
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from vibid.identify.budget import engineering_budget, model_spread
+from vibid.setup_model import example_setup
+
+TRUE = {"D": 17.97, "nu": 0.286, "beta": 0.003}
+H_STD, RHO_STD = 1e-5, 40.0  # 1 % of the 1 mm thickness, 0.5 % of 7920 kg/m³
+
+
+def _setup(**response):
+    s = example_setup()
+    return dataclasses.replace(
+        s, specimen=dataclasses.replace(s.specimen, thickness_std_m=H_STD,
+                                        density_std_kg_m3=RHO_STD, length_std_m=1e-4),
+        sensors=dataclasses.replace(s.sensors, response=dataclasses.replace(
+            s.sensors.response, **response)))
+
+
+@pytest.fixture(scope="module")
+def massless():
+    """The strip with a (nearly) massless sensor, fitted to its own noise-free AFC."""
+    from vibid.identify import build_forward_model, configure
+    from vibid.identify.fit import identify
+
+    configure()
+    s = _setup(mass_kg=1e-7)
+    f = np.linspace(20.0, 1500.0, 60)
+    fm = build_forward_model(s, f, theta0=TRUE)
+    H = np.asarray(fm.afc(np.array(list(TRUE.values()))))
+    result = identify(s, f, H, 0.003 * np.abs(H) + 1e-4, method="local", start=TRUE)
+    return s, result
+
+
+def test_the_thickness_and_density_move_E_as_the_plate_scales(massless):
+    s, result = massless
+    block = engineering_budget(s, result)
+    E = block["E_Pa"]["value"]
+    parts = block["budget"]["E_Pa"]
+    h, rho = s.specimen.thickness_m, s.specimen.density_kg_m3
+    assert parts["thickness_m"] == pytest.approx(2 * E * H_STD / h, rel=0.01)  # not 3
+    assert parts["density_kg_m3"] == pytest.approx(E * RHO_STD / rho, rel=0.01)
+    # nu is fixed by ratios of frequencies, which neither changes
+    nu = block["budget"]["nu"]
+    assert nu["thickness_m"] < 0.1 * nu["fit"] and nu["density_kg_m3"] < 0.1 * nu["fit"]
+    # the parts are independent: the combined std is their root sum of squares
+    for k in ("E_Pa", "nu", "G_Pa"):
+        rss = math.sqrt(sum(v**2 for v in block["budget"][k].values()))
+        assert block[k]["std"] == pytest.approx(rss, rel=1e-12)
+    assert "mostly the declared length" in " ".join(block["notes"])
+
+
+def test_the_model_part_is_the_weighted_spread_of_the_compared_models():
+    """Two isotropic models 2 ln 3 apart in QAIC weigh 3 : 1; their E differ by ΔE, so the
+    spread is √(w₁ w₂) ΔE = √3/4 ΔE."""
+    def fit(D, chi2_red, p):
+        return SimpleNamespace(plate_model=SimpleNamespace(model="isotropic"), dof=100,
+                               chi2_reduced_reported=chi2_red, parameters={"D": D, "nu": 0.3},
+                               parameter_names=("D", "nu", "beta") + ("x",) * (p - 3))
+    final = fit(18.0, 4.0, 4)
+    # QAIC = chi2/c + 2p, c = 4: 100 + 8 for the final, 100 + 8 + 2 ln 3 for the other
+    other = fit(17.0, 4.0 + 4 * 2 * math.log(3) / 100, 4)
+    loop = SimpleNamespace(unexplained_residual=True, final=final,
+                           stages=[SimpleNamespace(result=final)], alternatives=(other,))
+    h = 0.001
+    E = [12 * D * (1 - 0.09) / h**3 for D in (18.0, 17.0)]
+    spread = model_spread(loop, "isotropic", h)
+    assert spread["E_Pa"] == pytest.approx(math.sqrt(3) / 4 * abs(E[0] - E[1]), rel=1e-9)
+    assert spread["nu"] == pytest.approx(0.0, abs=1e-15)
+    # a loop whose final model explains the data has no model part
+    explained = SimpleNamespace(**{**vars(loop), "unexplained_residual": False})
+    assert model_spread(explained, "isotropic", h) == {}
+
+
+def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_value(massless):
+    from vibid.lab_report import console_summary, summary_markdown
+    from vibid.report import build_report
+
+    s, result = massless
+    report = build_report(result, setup=s)
+    eng = report["engineering"]
+    assert set(eng["budget"]["E_Pa"]) == {"fit", "thickness_m", "density_kg_m3", "length_m"}
+    assert report["plausibility"]["material_class"] == "steel"  # "steel strip 100x20x1"
+    assert not report["plausibility"]["violations"]
+    md = summary_markdown(report)
+    assert "| constant | fit | thickness_m |" in md and "Plausibility (the specimen is steel)" in md
+    # the same fit with nu pushed past 0.5: a warning in the report, report.md and console
+    bent = dataclasses.replace(result, values=np.array([17.97, 0.55, 0.003]))
+    report = build_report(bent, setup=s)
+    said = report["plausibility"]["violations"]
+    assert len(said) == 1 and "0.5" in said[0] and "the closed loop did not run" in said[0]
+    assert said[0] in report["identification"]["warnings"]
+    assert "**not physical**" in summary_markdown(report)
+    assert "NOT PHYSICAL" in console_summary(report)

@@ -1,0 +1,152 @@
+"""Plausibility of identified constants (issue #26): impossible values and handbook ranges."""
+
+import pytest
+
+from vibid.identify.plausibility import HANDBOOK, material_class, plausibility
+
+GPa = 1e9
+
+
+def _c(value, std=None):
+    return {"value": value, "std": std}
+
+
+def _iso(E=200 * GPa, nu=0.29, E_std=None, nu_std=None):
+    """The isotropic engineering block (G from E and ν, as the report derives it)."""
+    return {"E_Pa": _c(E, E_std), "nu": _c(nu, nu_std), "G_Pa": _c(E / (2 * (1 + nu)))}
+
+
+def test_isotropic_poisson_ratio_at_or_above_a_half_is_a_violation():
+    r = plausibility("isotropic", {"D": 18.3, "nu": 0.52, "beta": 2e-3},
+                     {"D": 0.2, "nu": 0.004, "beta": 1e-4}, _iso(nu=0.52))
+    assert len(r.violations) == 1
+    assert "ν = 0.52 ± 0.004" in r.violations[0] and "−1 < ν < 0.5" in r.violations[0]
+    assert "5.0 std above 0.5" in r.violations[0]  # (0.52 - 0.5) / 0.004
+    assert r.warnings() == list(r.violations)
+    assert r.material_class is None and not r.inside_handbook
+
+
+def test_isotropic_poisson_ratio_below_minus_one_is_a_violation():
+    r = plausibility("isotropic", {"D": 18.3, "nu": -1.2, "beta": 2e-3}, {}, {})
+    assert len(r.violations) == 1 and "ν = -1.2 " in r.violations[0]
+
+
+def test_orthotropic_stiffness_matrix_not_positive_definite():
+    # D12² = 36 > D11·D22 = 10 × 3 = 30
+    p = {"D11": 10.0, "D12": 6.0, "D22": 3.0, "D66": 2.0, "beta": 1e-3}
+    r = plausibility("orthotropic", p, {}, {})
+    assert len(r.violations) == 1
+    v = r.violations[0]
+    assert "the bending stiffness matrix [[D11, D12, 0], [D12, D22, 0], [0, 0, D66]]" in v
+    assert "not positive definite" in v and "D12² = 36 ≥ D11·D22 = 30" in v
+    r = plausibility("orthotropic", {**p, "D12": 5.0, "D66": -0.1}, {}, {})
+    assert len(r.violations) == 1 and "D66 = -0.1 N·m ≤ 0" in r.violations[0]
+
+
+def test_monoclinic_coupling_terms_enter_the_matrix():
+    # orthotropic part positive definite, but det = 10·(3·2 - 0) - 4·(4·2) + 4·(0 - 3·4) < 0
+    p = {"D11": 10.0, "D12": 4.0, "D22": 3.0, "D66": 2.0, "D16": 4.0, "D26": 0.0}
+    r = plausibility("monoclinic", p, {}, {})
+    assert len(r.violations) == 1 and "determinant" in r.violations[0]
+    assert "[[D11, D12, D16], [D12, D22, D26], [D16, D26, D66]]" in r.violations[0]
+
+
+def test_negative_loss_factor_is_a_violation():
+    r = plausibility("isotropic", {"D": 18.3, "nu": 0.29, "beta": -0.001, "beta_clamp": 0.01},
+                     {"beta": 0.0002}, _iso())
+    assert len(r.violations) == 1
+    assert r.violations[0].startswith("beta = -0.001 ± 0.0002 < 0 (5.0 std below 0)")
+
+
+def test_non_positive_modulus_is_a_violation_unless_already_explained():
+    r = plausibility("orthotropic", {}, {}, {"E1_Pa": _c(-2 * GPa), "E2_Pa": _c(8 * GPa)})
+    assert r.violations == ("E1 = -2.0 GPa ≤ 0: not a possible modulus",)
+    # the matrix violation is the reason: E1 ≤ 0 is not said twice
+    p = {"D11": 10.0, "D12": 6.0, "D22": 3.0, "D66": 2.0}
+    assert len(plausibility("orthotropic", p, {}, {"E1_Pa": _c(-2 * GPa)}).violations) == 1
+
+
+def test_titanium_by_name_below_its_range():
+    # (100 - 90) GPa / 2 GPa = 5.0 std below titanium's 100–125 GPa
+    r = plausibility("isotropic", {"D": 8.0, "nu": 0.32, "beta": 1e-3}, {"D": 0.2},
+                     _iso(E=90 * GPa, nu=0.32, E_std=2 * GPa, nu_std=0.02),
+                     specimen_name="titanium-strip")
+    assert r.material_class == "titanium"
+    assert r.outside_handbook == (
+        "E = 90.0 ± 2.0 GPa lies below titanium's handbook range 100–125 GPa (by 5.0 std)",
+        # G = E / 2(1 + ν) = 34.1 GPa, without a std here
+        "G = 34.1 GPa lies below titanium's handbook range 36–49 GPa")
+    assert "ν = 0.320 ± 0.020 lies in titanium's range 0.28–0.38" in r.inside_handbook
+    assert not r.violations and r.warnings() == list(r.outside_handbook)
+
+
+def test_outside_but_within_two_std_is_said_to_be_consistent():
+    r = plausibility("isotropic", {}, {}, {"E_Pa": _c(97 * GPa, 2 * GPa)},
+                     specimen_name="Ti strip")
+    assert r.outside_handbook == (
+        "E = 97.0 ± 2.0 GPa lies below titanium's handbook range 100–125 GPa "
+        "(by 1.5 std: consistent with the range within its uncertainty)",)
+
+
+def test_titanium_inside_its_range_gives_no_warning():
+    r = plausibility("isotropic", {"D": 10.2, "nu": 0.31, "beta": 1e-3}, {},
+                     _iso(E=118 * GPa, nu=0.31), specimen_name="titanium-strip")
+    assert r.warnings() == []
+    assert [s.split(" =")[0] for s in r.inside_handbook] == ["E", "ν", "G"]  # G = 45.0 GPa
+    assert "E = 118.0 GPa lies in titanium's range 100–125 GPa" in r.inside_handbook
+
+
+def test_material_wins_over_the_name():
+    c = _iso(E=70 * GPa, nu=0.33)
+    r = plausibility("isotropic", {"nu": 0.33}, {}, c, specimen_name="steel strip 100x20x1",
+                     material="Aluminum")
+    assert r.material_class == "aluminium" and r.warnings() == []
+    # an unknown material: no class, and no guess from the name either
+    r = plausibility("isotropic", {"nu": 0.33}, {}, c, specimen_name="steel strip",
+                     material="unobtainium")
+    assert r.material_class is None and not r.inside_handbook and not r.outside_handbook
+
+
+@pytest.mark.parametrize("name, cls", [
+    ("metal panel", None), ("composite plate", None), ("strip 3", None),
+    ("Al 6061 strip", "aluminium"), ("aluminium-strip", "aluminium"),
+    ("steel strip 100x20x1", "steel"), ("INOX 304", "steel"), ("carbon steel strip", "steel"),
+    ("titanium-strip-1", "titanium"), ("Ti-6Al-4V plate", "titanium"), ("ti6al4v", "titanium"),
+    ("CFRP plate", "CFRP"), ("carbon-fibre laminate", "CFRP"), ("carbon/epoxy", "CFRP"),
+    ("steel-aluminium sandwich", None),
+])
+def test_class_from_whole_words_only(name, cls):
+    assert material_class(name) == cls
+
+
+def test_orthotropic_cfrp_inside_its_ranges():
+    c = {"E1_Pa": _c(135 * GPa, 3 * GPa), "E2_Pa": _c(9.5 * GPa, 0.4 * GPa),
+         "G12_Pa": _c(5.2 * GPa, 0.3 * GPa), "nu12": _c(0.30, 0.03)}
+    p = {"D11": 12.6, "D12": 0.27, "D22": 0.89, "D66": 0.43, "beta": 4e-3}
+    r = plausibility("orthotropic", p, {}, c, specimen_name="CFRP plate")
+    assert r.material_class == "CFRP" and r.warnings() == []
+    assert len(r.inside_handbook) == 4
+    assert "E1 = 135.0 ± 3.0 GPa lies in CFRP's range 40–200 GPa" in r.inside_handbook
+
+
+def test_a_metal_identified_orthotropic_is_compared_with_its_isotropic_ranges():
+    c = {"E1_Pa": _c(200 * GPa), "E2_Pa": _c(150 * GPa), "G12_Pa": _c(79 * GPa),
+         "nu12": _c(0.29)}
+    r = plausibility("orthotropic", {}, {}, c, material="stainless")
+    assert r.outside_handbook == ("E2 = 150.0 GPa lies below steel's handbook range 180–215 GPa",)
+    assert len(r.inside_handbook) == 3
+
+
+def test_none_values_are_skipped():
+    c = {"E_Pa": _c(None), "nu": _c(0.30, None), "G_Pa": {"value": None}, "E2_Pa": None}
+    r = plausibility("isotropic", {"D": None, "nu": 0.30, "beta": float("nan")},
+                     {"nu": None}, c, specimen_name="steel strip")
+    assert r.violations == () and r.outside_handbook == ()
+    assert r.inside_handbook == ("ν = 0.300 lies in steel's range 0.25–0.33",)
+
+
+def test_the_table_is_consistent():
+    for cls, ranges in HANDBOOK.items():
+        assert material_class(cls) == cls
+        for lo, hi in ranges.values():
+            assert 0 < lo < hi
