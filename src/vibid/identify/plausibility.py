@@ -173,7 +173,7 @@ def _show(key: str, value: float, sd) -> str:
                                           else (1.0, "", (2, 4, 3)))
     v, s = value / scale, (sd / scale if _finite(sd) and sd > 0 else None)
     d = plain if s is None else max(fewest, min(most, 1 - math.floor(math.log10(s))))
-    pm = "" if s is None else f" ± {s:.{d}f}"
+    pm = "" if s is None else f" ± {s:.{d}f}" if round(s, d) else f" ± {s:.1g}"
     return f"{_SYMBOL.get(key, key)} = {v:.{d}f}{pm}{unit}"
 
 
