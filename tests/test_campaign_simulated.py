@@ -57,7 +57,7 @@ def test_simulated_campaign_afc_equals_the_virtual_specimens_h(tmp_path, capsys,
                  "--out", str(out), "--operator", "T. Est", "--temperature-c", "22.5", "--record-only"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
-    assert captured.out.strip() == f"{out}: complete, 10 of 10 steps"
+    assert captured.out.strip().startswith(f"{out}: complete, 10 of 10 steps; stand time ")
     lines = captured.err.strip().splitlines()
     assert len(lines) == 10 and lines[0].startswith("step 1/10  20 Hz  |H| ") and "\r" not in captured.err
     virtual = lookup_stand(name)
@@ -65,6 +65,15 @@ def test_simulated_campaign_afc_equals_the_virtual_specimens_h(tmp_path, capsys,
     with read_session(out) as s:
         table = afc_from_session(s)
         assert s.operator == "T. Est" and s.step(0).temperature_c == 22.5
+        steps = [(s.step_attributes(i)["settle_s"], s.step(i)) for i in range(len(s))]
+        stand_time_s = s.stand_time_s
+    # stand time: every step's settle and record, summed; the virtual stand's clock, which
+    # runs only while the specimen settles or is recorded, ran exactly that long
+    assert stand_time_s == pytest.approx(sum(t + st.n_samples / st.sample_rate_hz
+                                             for t, st in steps), rel=1e-12)
+    assert all(t >= 0.5 for t, _ in steps)  # the setup's settle_s is a floor
+    assert stand_time_s == pytest.approx(virtual.clock.now_s(), rel=1e-12)
+    assert f"stand time {stand_time_s:.1f} s" in captured.out
     truth = virtual.specimen.h(np.array(FREQS) * (1 + 1e-6 * ppm))  # at the frequency played
     assert table.used.all(), table.flags
     z = np.concatenate([(table.H.real - truth.real) / table.std_re, (table.H.imag - truth.imag) / table.std_im])
@@ -144,7 +153,7 @@ def test_killed_campaign_process_is_continued_by_resume(tmp_path, capsys):
     resumed = _cli(setup, "--stand", "simulated", "--stand-config", stand_json, "--out", out, "--resume")
     stdout, stderr = resumed.communicate(timeout=300)
     assert resumed.returncode == 0, stderr
-    assert stdout.strip() == f"{out}: complete, {n} of {n} steps"
+    assert stdout.strip().startswith(f"{out}: complete, {n} of {n} steps; stand time ")
     assert stderr.strip().splitlines()[0].startswith(f"step {n_killed + 1}/{n}")
     reference = tmp_path / "reference.h5"
     assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),

@@ -99,12 +99,16 @@ class StepProgress:
 @dataclass(frozen=True)
 class CampaignResult:
     """How a campaign ended: the file, ``run_status`` (``complete``, ``interrupted``,
-    ``aborted``), its one-line reason (empty when complete) and the steps the file holds."""
+    ``aborted``), its one-line reason (empty when complete), the steps the file holds and
+    the seconds the specimen was driven over all of them (``stand_time_s`` of the session:
+    every step's settle and record time, re-records and earlier runs of a resumed campaign
+    included; None if no step says how long it settled)."""
 
     path: str
     run_status: str
     reason: str
     n_steps: int
+    stand_time_s: float | None = None
 
 
 class _Stop(KeyboardInterrupt):
@@ -239,7 +243,8 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
         _finish(stand, writer, run_status, reason, flush)
         raise
     _finish(stand, writer, run_status, reason, flush)
-    return CampaignResult(path, run_status, reason, writer.n_steps)
+    return CampaignResult(path, run_status, reason, writer.n_steps,
+                          getattr(writer, "stand_time_s", None))
 
 
 def _finish(stand: Stand, writer: SessionWriter, run_status: str, reason: str, flush) -> None:
@@ -397,7 +402,8 @@ def _write(writer: SessionWriter, cmd: StepCommand, m: _Measured, temperature_c:
     try:
         writer.append(frequency_hz=cmd.frequency_hz, sample_rate_hz=r.sample_rate_hz, base=r.base_m_s2,
                       response=r.response_m_s2, status=m.status, t0_utc=r.t0_utc,
-                      temperature_c=temperature_c, extra_attrs=extra)
+                      temperature_c=temperature_c, settle_s=float(m.settle_s),
+                      extra_attrs=extra)
     except VibidError as exc:
         raise _WriteError(str(exc)) from None
 

@@ -173,6 +173,8 @@ def record_only(args, setup, config) -> int:
     line = f"{result.path}: {result.run_status}, {result.n_steps} of {n} steps"
     if result.reason:
         line += f" ({result.reason})"
+    if result.stand_time_s is not None:
+        line += f"; stand time {result.stand_time_s:.1f} s (the specimen driven: settle and record)"
     print(line)
     if result.run_status == "interrupted":
         print(resume_hint(args, result.path), file=sys.stderr)

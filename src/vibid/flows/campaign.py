@@ -63,8 +63,9 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
         with open_stand(stand, setup, config, realtime=realtime) as st:
             result = run_campaign(setup, st, out, config, resume=resume, progress=step_logged,
                                   **campaign_options)
-        logger.info("campaign %s: %s %s (%d steps)", result.path, result.run_status,
-                    result.reason, result.n_steps)
+        logger.info("campaign %s: %s %s (%d steps, stand time %s s)", result.path,
+                    result.run_status, result.reason, result.n_steps,
+                    "?" if result.stand_time_s is None else f"{result.stand_time_s:.1f}")
         if not is_transient(result) or attempt == retries:
             return result
         logger.warning("%s; resuming (retry %d of %d)", result.reason, attempt + 1, retries)

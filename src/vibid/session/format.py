@@ -26,6 +26,12 @@ RUN_STATUSES = ("complete", "interrupted", "aborted")
 #: (read, never written).
 LEGACY_RUN_STATUS = "vibid_run_status"
 RUN_STATUS_ATTRS = (RUN_STATUS, RUN_STATUS_REASON, LEGACY_RUN_STATUS)
+#: Optional root attribute: seconds the specimen was driven (every step's settle and record
+#: time, re-records included, summed), written when the session is closed.
+STAND_TIME_S = "stand_time_s"
+#: Optional step attribute: seconds the drive ran at the step's frequency before its first
+#: sample (re-records after an unsettled record included).
+SETTLE_S = "settle_s"
 #: Optional free-text root attributes of the spec.
 OPTIONAL_TEXT_ATTRIBUTES = ("operator", "notes")
 

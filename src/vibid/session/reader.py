@@ -58,6 +58,9 @@ class Session:
             self.notes = fmt.text(attrs["notes"]) if "notes" in attrs else None
             #: whether the file says how it ended (else ``run_status`` is inferred from the step count)
             self.run_status_written = fmt.RUN_STATUS in attrs
+            #: seconds the specimen was driven (written when the session was closed), or None
+            self.stand_time_s = (float(attrs[fmt.STAND_TIME_S]) if fmt.STAND_TIME_S in attrs
+                                 else None)
         with reading(path, f"/{fmt.STEPS_GROUP}"):
             self._names = sorted(k for k in f[fmt.STEPS_GROUP] if fmt.is_step_name(k))
         n_freq = len(self.setup.excitation.frequencies_hz) if self.setup.excitation else 0

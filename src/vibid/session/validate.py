@@ -138,7 +138,8 @@ def _root_problems(f: h5py.File) -> Iterator[Problem]:
 
 
 def _optional_root_problems(attrs) -> Iterator[Problem]:
-    """``run_status``, ``run_status_reason``, ``operator``, ``notes``: strings when present."""
+    """``run_status``, ``run_status_reason``, ``operator``, ``notes``: strings when present;
+    ``stand_time_s`` a number >= 0."""
     for name in (fmt.RUN_STATUS, fmt.RUN_STATUS_REASON, *fmt.OPTIONAL_TEXT_ATTRIBUTES):
         if name in attrs and _as_str(attrs[name]) is None:
             yield Problem(f"/@{name}", f"must be a string, got {_describe(attrs[name])}")
@@ -147,6 +148,11 @@ def _optional_root_problems(attrs) -> Iterator[Problem]:
         if value is not None and value not in fmt.RUN_STATUSES:
             yield Problem(f"/@{fmt.RUN_STATUS}",
                           f"unknown run status {value!r}, expected one of {', '.join(fmt.RUN_STATUSES)}")
+    if fmt.STAND_TIME_S in attrs:
+        value = _as_float(attrs[fmt.STAND_TIME_S])
+        if value is None or not (np.isfinite(value) and value >= 0):
+            yield Problem(f"/@{fmt.STAND_TIME_S}",
+                          f"must be a finite number >= 0, got {_describe(attrs[fmt.STAND_TIME_S])}")
 
 
 def _setup_digest_problems(attrs) -> Iterator[Problem]:
@@ -239,6 +245,10 @@ def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -
         value = _as_float(attrs["temperature_c"])
         if value is None or not np.isfinite(value):
             yield Problem(f"{where}@temperature_c", f"must be a finite number, got {_describe(attrs['temperature_c'])}")
+    if fmt.SETTLE_S in attrs:
+        value = _as_float(attrs[fmt.SETTLE_S])
+        if value is None or not (np.isfinite(value) and value >= 0):
+            yield Problem(f"{where}@{fmt.SETTLE_S}", f"must be a finite number >= 0, got {_describe(attrs[fmt.SETTLE_S])}")
 
     lengths = {}
     for name in fmt.STEP_DATASETS:

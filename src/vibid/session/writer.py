@@ -135,11 +135,13 @@ class SessionWriter:
 
     def append(self, *, frequency_hz: float, sample_rate_hz: float, base: np.ndarray,
                response: np.ndarray, status: str = "ok", t0_utc: str | None = None,
-               temperature_c: float | None = None, extra_attrs: dict | None = None) -> int:
+               temperature_c: float | None = None, settle_s: float | None = None,
+               extra_attrs: dict | None = None) -> int:
         """Write one complete step and return its index. Nothing is written if it is invalid.
 
-        ``temperature_c`` (°C) is the format's optional step attribute; ``extra_attrs`` are
-        vibid's own step attributes (names starting with ``vibid_``).
+        ``temperature_c`` (°C) and ``settle_s`` (s the drive ran at this frequency before the
+        first sample) are the format's optional step attributes; ``extra_attrs`` are vibid's
+        own step attributes (names starting with ``vibid_``).
         """
         base = np.asarray(base)
         response = np.asarray(response)
@@ -160,6 +162,8 @@ class SessionWriter:
             g.attrs["status"] = status
             if temperature_c is not None:
                 g.attrs["temperature_c"] = float(temperature_c)
+            if settle_s is not None:
+                g.attrs[fmt.SETTLE_S] = float(settle_s)
             for name, value in extra.items():
                 g.attrs[name] = value
             # one chunk per record, with a checksum (a flipped sample is refused, not
@@ -174,7 +178,8 @@ class SessionWriter:
 
     def close(self, run_status: str = "complete", reason: str | None = None) -> None:
         """Write how the session ended: ``complete``, ``interrupted`` or ``aborted``, with a
-        one-line ``reason`` when it is not complete. The file stays valid either way."""
+        one-line ``reason`` when it is not complete, and its stand time (:func:`stand_time_s`).
+        The file stays valid either way."""
         if run_status not in fmt.RUN_STATUSES:
             raise VibidError(f"run status {run_status!r} is not one of {', '.join(fmt.RUN_STATUSES)}")
 
@@ -186,6 +191,9 @@ class SessionWriter:
                 del f.attrs[fmt.RUN_STATUS_REASON]
             if fmt.LEGACY_RUN_STATUS in f.attrs:
                 del f.attrs[fmt.LEGACY_RUN_STATUS]
+            self.stand_time_s = stand_time_s(f)
+            if self.stand_time_s is not None:
+                f.attrs[fmt.STAND_TIME_S] = self.stand_time_s
 
         self._commit(mark, phase_tag="close")
 
@@ -230,6 +238,19 @@ class SessionWriter:
             _remove(tmp)
             raise
         _kill_point(phase_tag, "after_replace")
+
+
+def stand_time_s(f: h5py.File) -> float | None:
+    """Seconds the specimen was driven, from the step groups (after a crash and a resume
+    they are the truth): each step's ``settle_s`` (re-records included) plus its record's
+    duration. None when no step says how long it settled (a file written before the field)."""
+    total, known = 0.0, False
+    for name, g in f[fmt.STEPS_GROUP].items():
+        if not fmt.is_step_name(name) or fmt.SETTLE_S not in g.attrs:
+            continue
+        known = True
+        total += float(g.attrs[fmt.SETTLE_S]) + g["base"].shape[0] / float(g.attrs["sample_rate_hz"])
+    return total if known else None
 
 
 def _float_samples(a: np.ndarray) -> np.ndarray:
