@@ -12,7 +12,9 @@ report equals a replay of its session (same ``restarts`` and ``seed``).
 
 Progress: one log line per written step (frequency, |H|, phase, time left) and the
 identification's search progress, through Prefect's run logger: on the console, one line
-each (no carriage returns), and in the Prefect UI.
+each (no carriage returns), and in the Prefect UI; and the artifact ``<specimen>-live``
+(:class:`vibid.flows.live.LiveAfc`): the AFC measured so far, updated at most every few
+seconds and on the last step, with the identified model over it once the flow has it.
 """
 
 from __future__ import annotations
@@ -43,10 +45,13 @@ def default_report_dir(out) -> str:
 
 
 def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: bool = False,
-            retries: int = 2, retry_delay_s: float = 1.0, logger=None, **campaign_options):
+            retries: int = 2, retry_delay_s: float = 1.0, logger=None, live=None,
+            **campaign_options):
     """Run the campaign, retrying a transient stand fault up to ``retries`` times as a
     resume (the stand reopened, the session continued from its first missing step).
-    Returns the last :class:`~vibid.acquisition.campaign.CampaignResult`."""
+    ``live``: a :class:`~vibid.flows.live.LiveAfc` each written step goes to (the
+    ``<specimen>-live`` artifact), or None. Returns the last
+    :class:`~vibid.acquisition.campaign.CampaignResult`."""
     from vibid.acquisition.campaign import run_campaign
     from vibid.acquisition.stand import open_stand
 
@@ -56,6 +61,8 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
         logger.info("step %d/%d: %.2f Hz, |H| %.4g, phase %.1f deg, %s (about %.0f s left)",
                     p.index + 1, p.n_steps, p.frequency_hz, p.h_abs, p.phase_deg, p.status,
                     p.eta_s)
+        if live is not None:
+            live.update(p)  # throttled; never raises
 
     for attempt in range(retries + 1):
         logger.info("opening the %s stand%s", stand, " (solving the virtual specimen)"
@@ -101,21 +108,28 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
 
     from vibid.acquisition.stand_config import load_stand_config
 
+    from vibid.flows.live import LiveAfc
+
     logger = run_logger()
     setup = read_setup(setup_path)
     config = load_stand_config(stand_config)
+    live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
     result = acquire(setup, stand=stand, config=config, out=out, resume=resume,
-                     realtime=realtime, retries=retries, logger=logger, operator=operator,
-                     notes=notes, temperature_c=temperature_c)
+                     realtime=realtime, retries=retries, logger=logger, live=live,
+                     operator=operator, notes=notes, temperature_c=temperature_c)
     if result.run_status != "complete":
         message = (f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
                    f"{result.n_steps} steps (resume to continue)")
         logger.error("%s", message)
+        live.close(note=f"campaign {result.run_status}: {result.reason}")
         return Failed(message=message)
     report_dir = default_report_dir(out) if report_dir is None else report_dir
     data = afc_task(os.fspath(out))
     identified = identify_task(data, loop=loop, candidates=candidates, restarts=restarts,
                                seed=seed, magnitude_only=magnitude_only)
+    # a uniform campaign has its fit only now: the live AFC's last version shows it
+    live.set_identified(identified.result)
+    live.close(note="campaign complete; the identified model over the points")
     # the folder gets report.json beside report.md
     report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)

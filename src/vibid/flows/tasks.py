@@ -9,6 +9,7 @@ Outside a flow run the tasks log to ``logging.getLogger("vibid.flows")``.
 from __future__ import annotations
 
 import logging
+import os
 import threading
 from contextlib import contextmanager
 
@@ -134,16 +135,58 @@ def report_task(data: SessionAfc, identified: Identified, *, json_path=None, rep
     return report, paths
 
 
+#: A figure file larger than this is linked by its path, not embedded: the artifact's
+#: markdown is stored in Prefect's database and sent whole to the browser (a PNG grows by a
+#: third as base64).
+MAX_EMBEDDED_PNG_BYTES = 1_500_000
+
+
+def png_data_uri(png: bytes) -> str:
+    """A PNG as a ``data:image/png;base64,...`` URI (Prefect's UI renders it in markdown)."""
+    import base64
+
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+
+
+def figures_markdown(report_dir) -> str:
+    """The lab report's figures in ``report_dir`` (AFC with the model, residual per stage,
+    convergence; in that order, missing ones skipped) as markdown images with their PNG
+    embedded as data URIs, so the Prefect UI shows them without reaching the folder. A file
+    over :data:`MAX_EMBEDDED_PNG_BYTES` is linked by its path instead. Empty if none."""
+    from vibid.lab_report import AFC_PNG, CONVERGENCE_PNG, RESIDUALS_PNG
+
+    captions = {AFC_PNG: "Measured AFC (±2 std) and the identified model",
+                RESIDUALS_PNG: "Normalised residual, loop stage by stage",
+                CONVERGENCE_PNG: "The local optimiser's χ² per iteration"}
+    lines = []
+    for name, caption in captions.items():
+        path = os.path.join(os.fspath(report_dir), name)
+        if not os.path.isfile(path):
+            continue
+        if os.path.getsize(path) > MAX_EMBEDDED_PNG_BYTES:
+            # too large for the artifact's markdown: name the file instead
+            lines += [f"**{caption}**: `{path}` (not embedded: "
+                      f"{os.path.getsize(path) / 1e6:.1f} MB)", ""]
+            continue
+        with open(path, "rb") as f:
+            lines += [f"![{caption}]({png_data_uri(f.read())})", "", f"*{caption}*", ""]
+    if not lines:
+        return ""
+    return "\n".join(["", "## Figures", ""] + lines)
+
+
 def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
-    """The report's summary as Prefect artifacts: a markdown summary and a parameter table,
-    keyed by specimen (``<specimen>-report``, ``<specimen>-parameters``) so one specimen's
-    runs form a history in the Prefect UI. Call inside a flow run."""
+    """The report's summary as Prefect artifacts: a markdown summary (with the report
+    folder's figures embedded, :func:`figures_markdown`) and a parameter table, keyed by
+    specimen (``<specimen>-report``, ``<specimen>-parameters``) so one specimen's runs form
+    a history in the Prefect UI. Call inside a flow run."""
     from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
     from vibid.lab_report import artifact_key, parameter_table, summary_markdown
 
     text = summary_markdown(report, title=f"{specimen or 'specimen'}: identification report")
     if report_dir is not None:
+        text += figures_markdown(report_dir)
         text += f"\nFigures and report.md: `{report_dir}`\n"
     create_markdown_artifact(key=artifact_key(specimen, "report"), markdown=text,
                              description=f"identification report of session {report['session_id']}")
