@@ -329,6 +329,9 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
                      f"{_chi2(st.get('chi2_reduced_with_model_error'))} | "
                      f"{_pct(st['rel_rms_residual'])} |")
     lines += _diagnosis_text(report)
+    if report.get("linearity"):
+        lines += ["", "Are the measured resonances linear? (rational fits of the AFC alone):", ""]
+        lines += [f"- {t['note']}" for t in report["linearity"]]
     captions = {AFC_PNG: "Measured AFC (±2 std) and the identified model on a fine grid; "
                          "natural frequencies dotted, flagged steps crossed",
                 RESIDUALS_PNG: "Normalised residual with its ±2 band, before and after each effect",

@@ -3,7 +3,8 @@
 :func:`build_report` turns an :class:`~vibid.identify.fit.result.IdentificationResult` (one
 loop stage: the declared model alone) into the report's dict; :func:`write_report` writes
 it. Extra keys the format allows: ``plausibility`` (constants no material allows, and the
-comparison with the specimen's material class), ``identification`` (status sentence, warnings,
+comparison with the specimen's material class), ``linearity`` (whether each resolved
+measured resonance is a linear one), ``identification`` (status sentence, warnings,
 covariance, correlation, timings, ``data``: ``"complex"`` or ``"magnitude"`` and, for a
 magnitude-only fit, ``magnitude_only_std_ratio``) and the signal stage's ``afc.diagnostics`` when given.
 Non-finite numbers are written as null (JSON has no NaN).
@@ -92,6 +93,21 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
              "outside_handbook": list(found.outside_handbook),
              "inside_handbook": list(found.inside_handbook)}
     return block, block["violations"] + block["outside_handbook"]
+
+
+def linearity_block(result) -> list[dict]:
+    """The ``linearity`` block: whether each measured resonance the grid resolves is the
+    response of a linear structure (:mod:`vibid.identify.linearity`; the measured AFC alone,
+    complex data only); empty where no resonance is resolved."""
+    from vibid.identify.fit.peaks import measured_peaks
+    from vibid.identify.linearity import resonance_linearity
+
+    if result.magnitude:
+        return []
+    u = np.asarray(result.used, bool)
+    f, H = np.asarray(result.frequency_hz)[u], np.asarray(result.H)[u]
+    peaks = measured_peaks(f, H, None if result.H_std is None else np.asarray(result.H_std)[u])
+    return [t.as_report() for t in resonance_linearity(f, H, peaks.frequency_hz)]
 
 
 def _stage_block(added, result) -> dict[str, Any]:
@@ -192,6 +208,9 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
     g = result.global_result
     extra, notes = {}, []
+    if tested := linearity_block(result):
+        extra["linearity"] = tested
+        warnings.extend(t["note"] for t in tested if not t["linear"])
     if setup is not None:
         from vibid.identify.budget import engineering_budget
 

@@ -1,0 +1,168 @@
+"""Is a measured resonance the response of a linear structure? A test on the AFC alone.
+
+A linear, time-invariant structure's AFC near a resonance is a rational function: a few
+pole pairs (the mode, any close neighbour) plus a smooth background from the modes outside
+the band. Fitted by 1 to :data:`MAX_PAIRS` pole pairs, a constant and a slope, it must come
+down to the data's own point-to-point scatter. When no number of linear modes does, the
+response holds something a linear FRF cannot: most often an amplitude-dependent clamp (the
+friction of a clamped edge grows with the motion, which is largest at a resonance), or
+the way the AFC was estimated. Two linear modes close together pass: two pole pairs fit
+them.
+
+The test needs a dense grid: at least :data:`POINTS_PER_BANDWIDTH` points per half-power
+bandwidth (an FFT analyser's AFC; a stepped sine of a few hundred steps rarely has them).
+It does not use vibid's plate model, so it also says something the model cannot: whether
+any linear model could fit this resonance at all.
+
+Scatter: second differences of H/|H| on the grid, ``√(mean |Δ²|² / 12)`` per real and
+imaginary part for white noise (Δ² of white noise of std e per part has variance 6 e²
+per part); smooth curvature adds to it, so it is an upper estimate of the noise.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Pole pairs tried.
+MAX_PAIRS = 3
+#: A resonance is linear when some linear model leaves a relative RMS residual within this
+#: factor of the scatter (√2 × the per-part scatter, for the complex residual).
+FACTOR = 3.0
+#: Points the grid must have per half-power bandwidth (f / Q) for the test to run.
+POINTS_PER_BANDWIDTH = 10
+#: The band fitted: this fraction of the peak's frequency either side (cut halfway to a
+#: neighbouring peak).
+HALF_BAND = 0.2
+
+
+@dataclass(frozen=True)
+class Linearity:
+    """The test at one resonance: its frequency (Hz), the points fitted, the scatter (per
+    part, relative to |H|), the relative RMS residual of 1..MAX_PAIRS pole pairs, and the
+    verdict with its sentence."""
+
+    f_hz: float
+    n_points: int
+    scatter: float
+    rms: tuple[float, ...]
+    linear: bool
+    note: str
+
+    def as_report(self) -> dict:
+        return {"f_hz": self.f_hz, "n_points": self.n_points, "scatter": self.scatter,
+                "rms_by_pole_pairs": list(self.rms), "linear": self.linear, "note": self.note}
+
+
+def resonance_linearity(frequency_hz, H, peaks_hz) -> list[Linearity]:
+    """The test at each peak of ``peaks_hz`` that the grid resolves (module doc)."""
+    f = np.asarray(frequency_hz, float)
+    order = np.argsort(f)
+    f, H = f[order], np.asarray(H, complex)[order]
+    peaks = _separated(f, np.abs(H), np.asarray(peaks_hz, float))
+    out = []
+    for k, fp in enumerate(peaks):
+        lo = max(fp * (1 - HALF_BAND), 0.5 * (fp + peaks[k - 1]) if k > 0 else 0.0)
+        hi = min(fp * (1 + HALF_BAND), 0.5 * (fp + peaks[k + 1]) if k + 1 < peaks.size else np.inf)
+        band = (f > lo) & (f < hi) & np.isfinite(H)
+        if band.sum() < 8 * (MAX_PAIRS + 1) or _half_power_points(f[band], H[band]) < POINTS_PER_BANDWIDTH:
+            continue  # too few points, or a grid that does not resolve the resonance
+        found = _test(f[band], H[band], fp)
+        if found is not None:
+            out.append(found)
+    return out
+
+
+def _separated(f, mag, peaks_hz) -> np.ndarray:
+    """The peaks, highest first, without those within :data:`HALF_BAND` of a higher one (a
+    noisy top has many local maxima; close modes are tested together), sorted."""
+    height = mag[np.clip(np.searchsorted(f, peaks_hz), 0, f.size - 1)]
+    kept = []
+    for fp in peaks_hz[np.argsort(-height)]:
+        if all(abs(fp - k) > HALF_BAND * k for k in kept):
+            kept.append(fp)
+    return np.sort(np.array(kept, float))
+
+
+def _half_power_points(f, H) -> int:
+    """Grid points in the contiguous run around the band's maximum where |H| stays above
+    the maximum over √2 (the half-power band)."""
+    mag = np.abs(H)
+    k = int(np.argmax(mag))
+    above = mag >= mag[k] / math.sqrt(2)
+    lo, hi = k, k
+    while lo > 0 and above[lo - 1]:
+        lo -= 1
+    while hi + 1 < mag.size and above[hi + 1]:
+        hi += 1
+    return hi - lo + 1
+
+
+def _test(f, H, fp) -> Linearity | None:
+    rms = []
+    for n in range(1, MAX_PAIRS + 1):
+        fitted = _fit(f, H, n)
+        if fitted is None:
+            return None
+        rms.append(fitted)
+    d2 = H[2:] - 2 * H[1:-1] + H[:-2]
+    scatter = float(np.sqrt(np.mean(np.abs(d2 / H[1:-1]) ** 2) / 12.0))
+    best, limit = min(rms), FACTOR * math.sqrt(2) * scatter
+    linear = best <= limit
+    if linear:
+        n = next(k for k, r in enumerate(rms, start=1) if r <= limit)  # the fewest that fit
+        best = rms[n - 1]
+        note = (f"the resonance at {fp:.4g} Hz is a linear one: {n} pole pair"
+                f"{'s fit' if n > 1 else ' fits'} it to {100 * best:.2g} % (scatter "
+                f"{100 * scatter:.2g} %)")
+    else:
+        note = (f"the resonance at {fp:.4g} Hz is no sum of linear modes: {len(rms)} pole pairs "
+                f"still leave {100 * best:.2g} % against a point-to-point scatter of "
+                f"{100 * scatter:.2g} % (1 pair: {100 * rms[0]:.2g} %); the response depends on "
+                "something a linear FRF does not hold, most likely its amplitude (a clamp "
+                "whose friction grows with the motion)")
+    return Linearity(float(fp), int(f.size), scatter, tuple(rms), bool(linear), note)
+
+
+def _fit(f, H, n) -> float | None:
+    """The relative RMS residual of the best rational model with ``n`` pole pairs, a
+    constant and a slope, in relative terms (weights 1/|H|): scikit-rf's VectorFitting
+    places the poles, least squares polishes them."""
+    import skrf
+    from scipy.optimize import least_squares
+    from skrf.vectorFitting import VectorFitting
+
+    s, s0 = 2j * np.pi * f, 2j * np.pi * f.mean()
+    try:
+        nw = skrf.Network(frequency=skrf.Frequency.from_f(f, unit="hz"), s=H.reshape(-1, 1, 1))
+        vf = VectorFitting(nw)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            vf.vector_fit(n_poles_real=0, n_poles_cmplx=n, fit_constant=True,
+                          fit_proportional=True)
+    except Exception:  # noqa: BLE001 - no fit, no verdict
+        return None
+    c0, c1 = complex(vf.constant_coeff[0]), complex(vf.proportional_coeff[0] * s0)
+    x0 = [c0.real, c0.imag, c1.real, c1.imag]
+    for p, r in zip(vf.poles, vf.residues[0]):
+        if p.imag > 0:
+            x0 += [-p.real, p.imag, r.real, r.imag]
+    pairs = (len(x0) - 4) // 4
+
+    def model(x):
+        out = (x[0] + 1j * x[1]) + (x[2] + 1j * x[3]) * s / s0
+        for k in range(pairs):
+            a, b, rr, ri = x[4 + 4 * k:8 + 4 * k]
+            out = out + (rr + 1j * ri) / (s - (-a + 1j * b)) + (rr - 1j * ri) / (s - (-a - 1j * b))
+        return out
+
+    def residual(x):
+        e = (model(x) - H) / np.abs(H)
+        return np.concatenate([e.real, e.imag])
+
+    x = least_squares(residual, x0, x_scale="jac", max_nfev=4000).x
+    e = np.abs(model(x) - H) / np.abs(H)
+    return float(np.sqrt(np.mean(e**2)))

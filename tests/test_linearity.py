@@ -1,0 +1,91 @@
+"""Is a measured resonance linear? (vibid.identify.linearity), on data from models vibid did
+not write: two close linear modes (a rational function), a single-degree-of-freedom
+oscillator on a moving base with Coulomb friction in series with its viscous damper, solved
+by harmonic balance in closed form (its equivalent damping grows as the motion shrinks, so
+its AFC depends on the drive amplitude), and the real titanium strip's AFC."""
+
+import gzip
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vibid.identify.linearity import resonance_linearity
+
+F_HZ = np.arange(150.0, 260.0, 0.122)  # the titanium AFC's FFT grid near its first mode
+S = 2j * np.pi * F_HZ
+
+
+def _noisy(H, seed, rel=0.003):
+    rng = np.random.default_rng(seed)
+    return H + rel * np.abs(H) * (rng.standard_normal(H.size) + 1j * rng.standard_normal(H.size))
+
+
+def _linear_modes(modes):
+    """1 + a pole pair per (f_hz, Q, residue)."""
+    H = np.ones(F_HZ.size, complex)
+    for f, q, r in modes:
+        w = 2 * np.pi * f
+        p = -w / (2 * q) + 1j * w * np.sqrt(1 - 1 / (4 * q * q))
+        H += r / (S - p) + np.conj(r) / (S - np.conj(p))
+    return H
+
+
+def _with_friction(friction, zeta=0.005, f0=197.0):
+    """Base acceleration 1 drives a unit mass on a spring (f0) with viscous damping zeta and
+    Coulomb friction force ``friction`` against the base. First harmonic balance: the
+    friction acts as a damper 4 F / (π ω |z|), so |z| solves a quadratic; H = 1 − ω² z."""
+    w, w0 = 2 * np.pi * F_HZ, 2 * np.pi * f0
+    a = (w0**2 - w**2) ** 2 + (2 * zeta * w0 * w) ** 2
+    b = 16 * zeta * w0 * w * friction / np.pi
+    c = (4 * friction / np.pi) ** 2 - 1.0
+    z = (-b + np.sqrt(b * b - 4 * a * c)) / (2 * a)
+    damping = 2 * zeta * w0 + 4 * friction / (np.pi * w * z)
+    return 1 - w**2 * (-1.0 / (w0**2 - w**2 + 1j * w * damping))
+
+
+def _peak(H):
+    return [F_HZ[np.argmax(np.abs(H))]]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_two_close_linear_modes_are_linear_with_two_pole_pairs(seed):
+    H = _noisy(_linear_modes([(196.0, 60, -2.5e4j), (198.5, 60, -1.5e4j)]), seed)
+    (t,) = resonance_linearity(F_HZ, H, _peak(H))
+    assert t.linear and "2 pole pairs fit it" in t.note
+    assert t.rms[0] > 5 * t.rms[1]  # one mode would not do
+    assert t.scatter == pytest.approx(0.003, rel=0.15)  # the noise per part, 0.3 % of |H|
+
+
+def test_a_linear_oscillator_is_linear_and_friction_is_not():
+    (linear,) = resonance_linearity(F_HZ, _noisy(_with_friction(0.0), 3), [197.0])
+    assert linear.linear and "1 pole pair fits it" in linear.note
+    for friction in (0.1, 0.3):  # a flatter top, a response that depends on the amplitude
+        H = _noisy(_with_friction(friction), 4)
+        (t,) = resonance_linearity(F_HZ, H, _peak(H))
+        assert not t.linear and "no sum of linear modes" in t.note
+        assert min(t.rms) > 3 * np.sqrt(2) * t.scatter
+
+
+def test_a_coarse_grid_is_not_tested():
+    coarse = F_HZ[::40]  # 4.9 Hz steps: no point inside a 2 Hz half-power band
+    H = np.interp(coarse, F_HZ, _with_friction(0.0).real) + 1j * np.interp(
+        coarse, F_HZ, _with_friction(0.0).imag)
+    assert resonance_linearity(coarse, H, [197.0]) == []
+
+
+def test_the_titanium_strips_resonances_are_no_sums_of_linear_modes():
+    """The real AFC (issue #26's clue: 'the first resonance's top is flatter than one
+    mode's'): neither its first bending resonance nor its second is fitted by three pole
+    pairs to within three times its scatter."""
+    from vibid.identify.fit.peaks import measured_peaks
+
+    path = Path(__file__).parent / "data" / "titanium_afc.csv.gz"
+    with gzip.open(path, "rt") as fh:
+        f, re, im, std = np.loadtxt(fh, delimiter=",", skiprows=1, unpack=True)
+    H = re + 1j * im
+    found = resonance_linearity(f, H, measured_peaks(f, H, std).frequency_hz)
+    assert [round(t.f_hz) for t in found] == [197, 1279]
+    for t in found:
+        assert not t.linear
+        assert min(t.rms) > 5 * t.scatter and t.scatter < 0.005
