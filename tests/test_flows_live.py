@@ -1,0 +1,165 @@
+"""Figures in the Prefect UI: the report's PNGs embedded in its markdown artifact, and the
+live AFC a campaign publishes as ``<specimen>-live`` while it runs (issue #29, parts 2, 3)."""
+
+import base64
+import logging
+import re
+
+import pytest
+
+from vibid.acquisition.campaign import StepProgress
+
+pytestmark = pytest.mark.usefixtures("prefect_harness")
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+DATA_URI = re.compile(r"\]\(data:image/png;base64,([A-Za-z0-9+/=]+)\)")
+
+
+def _write_png(path, color):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(1, 1))
+    FigureCanvasAgg(fig)
+    fig.add_subplot().plot([0, 1], [0, 1], color=color)
+    fig.savefig(path, format="png", dpi=40)
+    return path.read_bytes()
+
+
+def _steps(n):
+    return [StepProgress(index=i, n_steps=n, frequency_hz=50.0 + 10 * i, h_abs=1.0 + i,
+                         phase_deg=-20.0 * i, eta_s=float(n - i - 1)) for i in range(n)]
+
+
+class _Clock:
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def _decoded_pngs(markdown):
+    return [base64.b64decode(m) for m in DATA_URI.findall(markdown)]
+
+
+# -- part 2: the report's figures -----------------------------------------------------------
+def test_figures_markdown_embeds_the_report_figures_in_order(tmp_path):
+    from vibid.flows.tasks import figures_markdown
+    from vibid.lab_report import AFC_PNG, CONVERGENCE_PNG, RESIDUALS_PNG
+
+    residuals = _write_png(tmp_path / RESIDUALS_PNG, "C1")
+    afc = _write_png(tmp_path / AFC_PNG, "C0")
+    (tmp_path / "other.png").write_bytes(afc)  # not a report figure: left out
+    text = figures_markdown(tmp_path)
+    assert _decoded_pngs(text) == [afc, residuals]  # AFC first, convergence missing
+    assert CONVERGENCE_PNG not in text
+    assert figures_markdown(tmp_path / "nothing-here") == ""
+
+
+def test_figures_markdown_links_a_too_large_figure(tmp_path, monkeypatch):
+    from vibid.flows import tasks
+    from vibid.lab_report import AFC_PNG
+
+    _write_png(tmp_path / AFC_PNG, "C0")
+    monkeypatch.setattr(tasks, "MAX_EMBEDDED_PNG_BYTES", 10)
+    text = tasks.figures_markdown(tmp_path)
+    assert "data:image" not in text and str(tmp_path / AFC_PNG) in text
+
+
+# -- part 3: the live AFC ---------------------------------------------------------------------
+def test_live_afc_publishes_every_update_without_a_throttle():
+    from vibid.flows.live import LiveAfc
+
+    published = []
+    live = LiveAfc("Steel strip", 5, min_interval_s=0.0, clock=_Clock(),
+                   publish=lambda key, md: published.append((key, md)))
+    for p in _steps(5):
+        live.update(p)
+    assert len(published) == 5
+    key, md = published[-1]
+    assert key == "steel-strip-live"
+    assert "steps done 5 of 5" in md
+    (png,) = _decoded_pngs(md)
+    assert png.startswith(PNG_MAGIC)
+    assert "steps done 2 of 5 (3 to go)" in published[1][1]
+
+
+def test_live_afc_throttle_publishes_the_first_and_the_last_step():
+    from vibid.flows.live import LiveAfc
+
+    clock = _Clock()
+    published = []
+    live = LiveAfc("s", 6, min_interval_s=1e6, clock=clock,
+                   publish=lambda key, md: published.append(md))
+    for p in _steps(6):
+        clock.t += 1.0
+        live.update(p)
+    assert len(published) == 2
+    assert "steps done 1 of 6" in published[0] and "steps done 6 of 6" in published[1]
+    assert not live.close()  # nothing new since
+    # the identified model drawn over the points: one more version
+    live.set_model([50.0, 100.0], [1 + 1j, 2 - 1j], label="identified model")
+    assert live.close(note="campaign complete")
+    assert "identified model" in published[-1] and _decoded_pngs(published[-1])
+
+
+def test_live_afc_waits_by_its_own_cost():
+    """A publication that took c seconds delays the next by c / 2 % at least."""
+    from vibid.flows.live import LiveAfc
+
+    clock = _Clock()
+    published = []
+
+    def slow_publish(key, md):
+        clock.t += 0.1
+        published.append(md)
+
+    live = LiveAfc("s", 30, min_interval_s=0.0, clock=clock, publish=slow_publish)
+    for p in _steps(30):
+        live.update(p)
+        clock.t += 1.0
+    # 0.1 s per publication: the first two (the first does not count), then one per 5 s
+    # at most, and the last step's
+    assert 6 <= len(published) <= 2 + 5 + 1  # (the fake clock sums floats)
+    assert sum(live.costs[1:-1]) / clock.t <= 0.02 + 0.1 / clock.t
+
+
+def test_live_afc_failing_publish_warns_once_and_goes_on(caplog):
+    from vibid.flows.live import LiveAfc
+
+    calls = []
+
+    def broken(key, md):
+        calls.append(key)
+        raise RuntimeError("server gone")
+
+    logger = logging.getLogger("vibid.test-live")
+    live = LiveAfc("s", 4, min_interval_s=0.0, clock=_Clock(), publish=broken, logger=logger)
+    with caplog.at_level(logging.WARNING, logger="vibid.test-live"):
+        for p in _steps(4):
+            assert live.update(p) is False
+        assert live.close(note="end") is False
+    assert len(calls) == 5 and live.failed
+    warnings = [r for r in caplog.records if r.name == "vibid.test-live"]
+    assert len(warnings) == 1 and "server gone" in warnings[0].getMessage()
+
+
+def test_live_afc_in_a_flow_reaches_the_prefect_api():
+    from prefect import flow
+    from prefect.artifacts import Artifact
+
+    from vibid.flows.live import LiveAfc
+
+    @flow(name="live-afc-test")
+    def live_flow():
+        live = LiveAfc("Live test plate", 3, min_interval_s=0.0, max_share=None)
+        for p in _steps(3):
+            live.update(p)
+        return live.published
+
+    assert live_flow() == 3
+    artifact = Artifact.get("live-test-plate-live")
+    assert artifact is not None and artifact.type == "markdown"
+    assert "steps done 3 of 3" in artifact.data
+    assert _decoded_pngs(artifact.data)[0].startswith(PNG_MAGIC)
