@@ -211,3 +211,26 @@ def test_dry_run_prints_the_plan_without_opening_the_stand(tmp_path, capsys):
                          "step 3/3  1000 Hz  settle 0.5 s  record 6400 samples (0.25 s)"]
     assert lines[3].startswith("3 steps: settle 1.5 s + record 1.5 s = at least 3 s")
     assert not out.exists()
+
+
+def test_each_steps_progress_carries_its_uncertainty_and_its_stand_time(tmp_path):
+    """What a live view draws after each step: H's std, and the step's settle and record
+    time, which add up to the session's stand time."""
+    from vibid.acquisition.campaign import run_campaign
+    from vibid.acquisition.stand import open_stand
+    from vibid.acquisition.stand_config import load_stand_config
+    from vibid.identify import configure
+    from vibid.setup_model import parse_setup
+
+    configure()
+    setup = parse_setup(_write_setup(tmp_path, FREQS[:4]).read_text())
+    config = load_stand_config(_write_stand(tmp_path, "progress"))
+    seen = []
+    with open_stand("simulated", setup, config) as stand:
+        result = run_campaign(setup, stand, str(tmp_path / "s.h5"), config, progress=seen.append)
+    assert [p.index for p in seen] == [0, 1, 2, 3]
+    with read_session(tmp_path / "s.h5") as s:
+        table = afc_from_session(s)
+    np.testing.assert_allclose([p.h_std for p in seen], table.std, rtol=1e-9)
+    assert result.stand_time_s == pytest.approx(sum(p.settle_s + p.record_s for p in seen),
+                                                rel=1e-12)

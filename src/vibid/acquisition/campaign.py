@@ -81,7 +81,9 @@ class StepProgress:
     """What the runner reports after each written step.
 
     ``h_abs`` and ``phase_deg`` are the signal stage's |H| and phase of H (degrees, positive
-    when the response leads); ``eta_s`` the estimated wall time left, s.
+    when the response leads), ``h_std`` its standard uncertainty per real and imaginary
+    part; ``eta_s`` the estimated wall time left, s; ``settle_s`` and ``record_s`` the time
+    the specimen was driven for this step (its share of the session's ``stand_time_s``).
     """
 
     index: int
@@ -94,6 +96,9 @@ class StepProgress:
     base_m_s2: float = math.nan
     drive_vpp: float = math.nan
     note: str = ""
+    h_std: float = math.nan
+    settle_s: float = math.nan
+    record_s: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -132,6 +137,7 @@ class _Measured:
     settle_s: float
     note: str = ""
     abort_reason: str = ""
+    h_std: float = math.nan
 
 
 @dataclass
@@ -343,7 +349,7 @@ class _Runner:
         return reading, base, abort
 
     def _measured(self, cmd: StepCommand, reading: Reading, base: float, abort_reason: str = "") -> _Measured:
-        h, settled = _fit(cmd, reading)
+        h, h_std, settled = _fit(cmd, reading)
         note = ""
         d = self.drive
         if not abort_reason and not self._within(base):
@@ -356,7 +362,7 @@ class _Runner:
         else:
             status = "ok"
         return _Measured(reading, status, h, settled, base, self.state.drive_vpp,
-                         self.state.last_settle_s, note, abort_reason)
+                         self.state.last_settle_s, note, abort_reason, h_std)
 
 
 def _short(timing):
@@ -375,13 +381,14 @@ def amplitude_m_s2(x: np.ndarray, frequency_hz: float, sample_rate_hz: float) ->
     return float(math.hypot(coef[0], coef[1]))
 
 
-def _fit(cmd: StepCommand, reading: Reading) -> tuple[complex, bool]:
-    """H of the record and whether it is settled, by the signal stage's harmonic fit."""
+def _fit(cmd: StepCommand, reading: Reading) -> tuple[complex, float, bool]:
+    """H of the record, its std per part and whether it is settled, by the signal stage's
+    harmonic fit."""
     from vibid.signal import StepRecord, afc_from_records
 
     point = afc_from_records([StepRecord(cmd.frequency_hz, reading.sample_rate_hz,
                                          reading.base_m_s2, reading.response_m_s2)]).points[0]
-    return point.h, "unsettled" not in point.flag_names
+    return point.h, point.std, "unsettled" not in point.flag_names
 
 
 def _begin_step(stand: Stand, index: int) -> None:
@@ -423,9 +430,11 @@ def _progress(cmd: StepCommand, m: _Measured, nominal: dict[int, float], elapsed
     left = sum(v for k, v in nominal.items() if k > cmd.index)
     eta = elapsed_s * left / done if done > 0 else math.nan
     h = m.h
+    r = m.reading
     return StepProgress(cmd.index, cmd.n_steps, cmd.frequency_hz, abs(h),
                         math.degrees(math.atan2(h.imag, h.real)), eta, m.status, m.base_m_s2,
-                        m.drive_vpp, m.note)
+                        m.drive_vpp, m.note, m.h_std, m.settle_s,
+                        r.base_m_s2.size / r.sample_rate_hz)
 
 
 # -- resume -------------------------------------------------------------------------------------
