@@ -92,11 +92,16 @@ def afc_file(afc_path: str | os.PathLike, setup_path: str | os.PathLike) -> Sess
     """An AFC measured elsewhere (CSV or UFF58, told apart by content:
     :func:`vibid.signal.imported.read_afc`) with its declared setup (a setup JSON file, or
     a session file whose setup it is)."""
-    from vibid.cli.modes import load_setup
     from vibid.signal.imported import read_afc
 
     afc = read_afc(os.fspath(afc_path))
-    return SessionAfc(load_setup(os.fspath(setup_path)), afc.session_id, afc)
+    path = os.fspath(setup_path)
+    if path.lower().endswith((".h5", ".hdf5")):
+        from vibid.session import read_session
+
+        with read_session(path) as session:
+            return SessionAfc(session.setup, afc.session_id, afc)
+    return SessionAfc(read_setup(path), afc.session_id, afc)
 
 
 def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
