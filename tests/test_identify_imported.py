@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from afc_files import write_afc_csv
 from plate_helpers import PAPER_D
 
 from vibid.cli import main
@@ -19,16 +20,6 @@ def _setup_without_excitation(tmp_path, **specimen):
     doc["specimen"].update(specimen)
     p = tmp_path / "setup.json"
     p.write_text(json.dumps(doc))
-    return p
-
-
-def _csv(tmp_path, f, H, std=None, name="afc.csv"):
-    p = tmp_path / name
-    lines = ["frequency_hz,re,im" + (",std" if std is not None else "")]
-    for k in range(f.size):
-        row = f"{float(f[k])!r},{float(H[k].real)!r},{float(H[k].imag)!r}"
-        lines.append(row + (f",{float(std[k])!r}" if std is not None else ""))
-    p.write_text("\n".join(lines) + "\n")
     return p
 
 
@@ -63,7 +54,7 @@ def test_an_imported_afc_is_identified_and_reported(tmp_path):
     std = 0.003 * np.abs(H) + 1e-3
     rng = np.random.default_rng(4)
     Hn = H + std * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
-    csv = _csv(tmp_path, f, Hn, std)
+    csv = write_afc_csv(tmp_path / "afc.csv", f, Hn, std)
     setup_path = _setup_without_excitation(tmp_path, thickness_std_m=1e-5)
     report = tmp_path / "report.json"
     args = ["identify", "--afc", str(csv), "--setup", str(setup_path), "--json", str(report),

@@ -90,15 +90,14 @@ def test_an_undeclared_delay_needs_no_effect_on_the_magnitude(tmp_path):
     """`vibid identify --afc … --magnitude-only` on a strip whose channels are 20 µs apart:
     the closed loop adds nothing (a delay cannot be seen in |H| and is not tried) and D, ν,
     β come back within 3 std; the complex fit of the same data does not fit them."""
+    from afc_files import write_afc_csv
     from loop_data import F, TRUTH, data, declared_fit, strip_on
 
     from vibid.cli import main
     from vibid.identify.fit.noise import explains
 
     H, sd = data({"tau_s": 2e-5}, 7)
-    csv = tmp_path / "afc.csv"
-    csv.write_text("frequency_hz,re,im,std\n" + "".join(
-        f"{float(f)!r},{float(h.real)!r},{float(h.imag)!r},{float(s)!r}\n" for f, h, s in zip(F, H, sd)))
+    csv = write_afc_csv(tmp_path / "afc.csv", F, H, sd)
     setup = tmp_path / "setup.json"
     setup.write_text(strip_on().to_json())
     out = tmp_path / "report.json"

@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pyuff
 import pytest
+from afc_files import write_afc_csv
 
 from vibid.cli import main
 from vibid.errors import VibidError
@@ -27,15 +28,6 @@ def _write(tmp_path, name="afc.uff", **kw):
     p = tmp_path / name
     write_afc_uff(p, F, H, STD, session_id=kw.pop("session_id", "s-1"), **kw)
     return p
-
-
-def _csv(path, f, h, std=None):
-    lines = ["frequency_hz,re,im" + (",std" if std is not None else "")]
-    for k in range(f.size):
-        row = f"{float(f[k])!r},{float(h[k].real)!r},{float(h[k].imag)!r}"
-        lines.append(row + (f",{float(std[k])!r}" if std is not None else ""))
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 def _pyuff_record(path, x, data, *, spacing, binary=0, id1="other system"):
@@ -86,7 +78,7 @@ def test_pyuff_reads_it_as_promised(tmp_path):
 
 def test_read_afc_goes_by_content_not_by_extension(tmp_path):
     uff_named_csv = _write(tmp_path, "really_uff.csv")
-    csv_named_uff = _csv(tmp_path / "really_csv.uff", F, H, STD)
+    csv_named_uff = write_afc_csv(tmp_path / "really_csv.uff", F, H, STD)
     assert is_uff(uff_named_csv) and not is_uff(csv_named_uff)
     for p in (uff_named_csv, csv_named_uff):
         afc = read_afc(p)
@@ -219,7 +211,7 @@ def test_afc_uff_then_identify_gives_the_session_s_parameters(session, capsys):
     assert np.array_equal(afc.H, np.array(block["re"]) + 1j * np.array(block["im"]))
     assert np.array_equal(afc.std, block["std"])
     # a CSV of the same numbers reads as the same AFC
-    csv = _csv(folder / "afc.csv", afc.frequency_hz, afc.H, afc.std)
+    csv = write_afc_csv(folder / "afc.csv", afc.frequency_hz, afc.H, afc.std)
     same = read_afc(csv)
     assert np.array_equal(same.H, afc.H) and np.array_equal(same.std, afc.std)
 

@@ -40,6 +40,13 @@ REPORT_JSON = "report.json"
 AFC_PNG = "afc.png"
 RESIDUALS_PNG = "residuals.png"
 CONVERGENCE_PNG = "convergence.png"
+#: Each figure's caption, in the order a report shows them (report.md, the Prefect UI).
+FIGURE_CAPTIONS = {
+    AFC_PNG: "Measured AFC (±2 std) and the identified model on a fine grid; natural "
+             "frequencies dotted, flagged steps crossed",
+    RESIDUALS_PNG: "Normalised residual with its ±2 band, before and after each effect",
+    CONVERGENCE_PNG: "The local optimiser's χ² per iteration",
+}
 
 #: What a lab engineer calls each parameter (the catalogue's :data:`vibid.parameters.
 #: DESCRIPTIONS`; an instance's through :func:`vibid.parameters.describe`).
@@ -332,14 +339,11 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
     if report.get("linearity"):
         lines += ["", "Are the measured resonances linear? (rational fits of the AFC alone):", ""]
         lines += [f"- {t['note']}" for t in report["linearity"]]
-    captions = {AFC_PNG: "Measured AFC (±2 std) and the identified model on a fine grid; "
-                         "natural frequencies dotted, flagged steps crossed",
-                RESIDUALS_PNG: "Normalised residual with its ±2 band, before and after each effect",
-                CONVERGENCE_PNG: "The local optimiser's χ² per iteration"}
     if figures:
         lines += ["", "## Figures", ""]
         for name in figures:
-            lines += [f"![{captions.get(name, name)}]({name})", "", f"*{captions.get(name, name)}*", ""]
+            caption = FIGURE_CAPTIONS.get(name, name)
+            lines += [f"![{caption}]({name})", "", f"*{caption}*", ""]
         if CONVERGENCE_PNG not in figures:
             lines.append("(No convergence figure: the optimiser recorded no iteration history.)")
     lines += ["", "## Details", ""]

@@ -191,6 +191,13 @@ def axis_labels(fig) -> list[str]:
     return out
 
 
+def png_data_uri(png: bytes) -> str:
+    """A PNG as a ``data:image/png;base64,...`` URI (Prefect's UI renders it in markdown)."""
+    import base64
+
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+
+
 def save_png(fig, path: str | os.PathLike, *, dpi: int = 110) -> str:
     """Write ``fig`` as a PNG; return its path."""
     fig.savefig(path, dpi=dpi, format="png")

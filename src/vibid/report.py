@@ -80,7 +80,7 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
 
     sp = setup.specimen
     found = plausibility(model, result.parameters, result.parameter_std,
-                         {k: v for k, v in constants.items() if k != "budget"},
+                         constants,
                          specimen_name=sp.name, material=sp.material)
     if loop is None:
         tried = " (the closed loop did not run)"

@@ -18,7 +18,6 @@ logged once as a warning and never raised: the campaign goes on.
 
 from __future__ import annotations
 
-import base64
 import io
 import logging
 import math
@@ -216,8 +215,9 @@ class LiveAfc:
             lines.append(f"- {self.note}")
         lines.append(f"- updated {now}")
         if png is not None:
-            uri = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
-            lines += ["", f"![live AFC of {self.specimen}]({uri})"]
+            from vibid.plots import png_data_uri
+
+            lines += ["", f"![live AFC of {self.specimen}]({png_data_uri(png)})"]
         return "\n".join(lines) + "\n"
 
     def _publish(self) -> bool:

@@ -141,25 +141,16 @@ def report_task(data: SessionAfc, identified: Identified, *, json_path=None, rep
 MAX_EMBEDDED_PNG_BYTES = 1_500_000
 
 
-def png_data_uri(png: bytes) -> str:
-    """A PNG as a ``data:image/png;base64,...`` URI (Prefect's UI renders it in markdown)."""
-    import base64
-
-    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
-
-
 def figures_markdown(report_dir) -> str:
     """The lab report's figures in ``report_dir`` (AFC with the model, residual per stage,
     convergence; in that order, missing ones skipped) as markdown images with their PNG
     embedded as data URIs, so the Prefect UI shows them without reaching the folder. A file
     over :data:`MAX_EMBEDDED_PNG_BYTES` is linked by its path instead. Empty if none."""
-    from vibid.lab_report import AFC_PNG, CONVERGENCE_PNG, RESIDUALS_PNG
+    from vibid.lab_report import FIGURE_CAPTIONS
+    from vibid.plots import png_data_uri
 
-    captions = {AFC_PNG: "Measured AFC (±2 std) and the identified model",
-                RESIDUALS_PNG: "Normalised residual, loop stage by stage",
-                CONVERGENCE_PNG: "The local optimiser's χ² per iteration"}
     lines = []
-    for name, caption in captions.items():
+    for name, caption in FIGURE_CAPTIONS.items():
         path = os.path.join(os.fspath(report_dir), name)
         if not os.path.isfile(path):
             continue

@@ -32,18 +32,15 @@ import math
 import numpy as np
 
 from vibid.identify.engineering import constants, sensitivities
+from vibid.setup_model import RESPONSE_STD, SPECIMEN_STD
 
-#: The declared quantities a setup may give a standard uncertainty:
-#: budget name -> (setup block, value field, std field).
-DECLARED = {
-    "thickness_m": ("specimen", "thickness_m", "thickness_std_m"),
-    "length_m": ("specimen", "length_m", "length_std_m"),
-    "width_m": ("specimen", "width_m", "width_std_m"),
-    "density_kg_m3": ("specimen", "density_kg_m3", "density_std_kg_m3"),
-    "sensor_x_m": ("response", "x_m", "x_std_m"),
-    "sensor_y_m": ("response", "y_m", "y_std_m"),
-    "sensor_mass_kg": ("response", "mass_kg", "mass_std_kg"),
-}
+#: The declared quantities a setup may give a standard uncertainty (the setup's own list of
+#: ``*_std`` fields, each beside the value it qualifies): budget name -> (setup block, value
+#: field, std field); the sensor's are named ``sensor_…``.
+DECLARED = {("sensor_" if block == "response" else "") + std.replace("_std", ""):
+            (block, std.replace("_std", ""), std)
+            for block, fields in (("specimen", SPECIMEN_STD), ("response", RESPONSE_STD))
+            for std in fields}
 
 
 #: How the report's sentences name the declared quantities.
@@ -124,7 +121,7 @@ def model_spread(loop, model: str, thickness_m: float) -> dict[str, float]:
     if loop is None or not loop.unexplained_residual:
         return {}
     final = loop.final
-    fits = [st.result for st in loop.stages] + list(getattr(loop, "alternatives", ()))
+    fits = [st.result for st in loop.stages] + list(loop.alternatives)
     fits = [r for r in fits if getattr(r.plate_model, "model", None) == model
             and math.isfinite(r.chi2_reduced_reported) and r.dof > 0]
     c_hat = max(1.0, float(final.chi2_reduced_reported))
