@@ -61,7 +61,6 @@ class Specimen:
 SPECIMEN_STD = ("thickness_std_m", "length_std_m", "width_std_m", "density_std_kg_m3")
 SPECIMEN_OPTIONAL = SPECIMEN_STD + ("material",)
 RESPONSE_STD = ("x_std_m", "y_std_m", "mass_std_kg")
-RESPONSE_OPTIONAL = RESPONSE_STD
 
 
 @dataclass(frozen=True)
@@ -147,8 +146,8 @@ class Setup:
 
     def to_dict(self) -> dict[str, Any]:
         doc = asdict(self)
-        for block, names in (("specimen", SPECIMEN_OPTIONAL), ("response", RESPONSE_OPTIONAL)):
-            part = doc["specimen"] if block == "specimen" else doc["sensors"]["response"]
+        for part, names in ((doc["specimen"], SPECIMEN_OPTIONAL),
+                            (doc["sensors"]["response"], RESPONSE_STD)):
             for name in names:
                 if part[name] is None:
                     del part[name]

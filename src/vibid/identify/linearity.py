@@ -104,12 +104,11 @@ def _half_power_points(f, H) -> int:
 def _test(f, H, fp) -> Linearity | None:
     rms = []
     for n in range(1, MAX_PAIRS + 1):
-        fitted = _fit(f, H, n)
+        fitted = rational_fit(f, H, n)
         if fitted is None:
             return None
-        rms.append(fitted)
-    d2 = H[2:] - 2 * H[1:-1] + H[:-2]
-    scatter = float(np.sqrt(np.mean(np.abs(d2 / H[1:-1]) ** 2) / 12.0))
+        rms.append(fitted[0])
+    scatter = relative_scatter(H)
     best, limit = min(rms), FACTOR * math.sqrt(2) * scatter
     linear = best <= limit
     if linear:
@@ -127,10 +126,17 @@ def _test(f, H, fp) -> Linearity | None:
     return Linearity(float(fp), int(f.size), scatter, tuple(rms), bool(linear), note)
 
 
-def _fit(f, H, n) -> float | None:
-    """The relative RMS residual of the best rational model with ``n`` pole pairs, a
-    constant and a slope, in relative terms (weights 1/|H|): scikit-rf's VectorFitting
-    places the poles, least squares polishes them."""
+def relative_scatter(H) -> float:
+    """The point-to-point scatter of ``H`` on its grid, per real and imaginary part,
+    relative to |H| (module doc)."""
+    d2 = H[2:] - 2 * H[1:-1] + H[:-2]
+    return float(np.sqrt(np.mean(np.abs(d2 / H[1:-1]) ** 2) / 12.0))
+
+
+def rational_fit(f, H, n) -> tuple[float, list[tuple[float, float]]] | None:
+    """(relative RMS residual, the poles as (Hz, Q)) of the best rational model with ``n``
+    pole pairs, a constant and a slope, in relative terms (weights 1/|H|): scikit-rf's
+    VectorFitting places the poles, least squares polishes them. None where it fails."""
     import skrf
     from scipy.optimize import least_squares
     from skrf.vectorFitting import VectorFitting
@@ -165,4 +171,5 @@ def _fit(f, H, n) -> float | None:
 
     x = least_squares(residual, x0, x_scale="jac", max_nfev=4000).x
     e = np.abs(model(x) - H) / np.abs(H)
-    return float(np.sqrt(np.mean(e**2)))
+    poles = [(x[5 + 4 * k] / (2 * np.pi), x[5 + 4 * k] / (2 * x[4 + 4 * k])) for k in range(pairs)]
+    return float(np.sqrt(np.mean(e**2))), poles

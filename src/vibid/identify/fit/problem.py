@@ -340,8 +340,9 @@ class LeastSquaresProblem:
         return self.residuals_theta(self.space.theta(np.asarray(u, float)))
 
     def residuals_theta(self, theta) -> np.ndarray:
-        """The weighted residuals (real parts, then imaginary) at physical ``theta`` (also
-        where ``u`` is not finite: a null value on a log parameter's edge)."""
+        """The weighted residuals (real parts, then imaginary; |H|'s alone for a magnitude
+        fit) at physical ``theta`` (also where ``u`` is not finite: a null value on a log
+        parameter's edge)."""
         r = (self.observed(self.on_points(self.model_afc(theta))) - self._H) / self.sigma
         return r.real if self.magnitude else np.concatenate([r.real, r.imag])
 
