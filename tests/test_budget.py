@@ -87,8 +87,7 @@ def test_the_model_part_is_the_weighted_spread_of_the_compared_models():
 
 
 def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_value(massless):
-    from vibid.lab_report import console_summary, summary_markdown
-    from vibid.report import build_report
+    from vibid.report import build_report, console_summary, summary_markdown
 
     s, result = massless
     report = build_report(result, setup=s)

@@ -185,11 +185,11 @@ def test_replay_publishes_artifacts_keyed_by_specimen(replayed_cli):
 
 # -- the stages as plain functions ------------------------------------------------------------
 def test_stage_tasks_write_figures_whose_axes_carry_units(stages_b):
-    from vibid import lab_report, plots
+    from vibid.report import draw_figures, plots
 
     data, identified, report, paths = stages_b
     check_report_format(report)
-    figs = lab_report.figures(data, identified, report)
+    figs = draw_figures(data, identified, report)
     assert set(figs) == {"afc.png", "residuals.png", "convergence.png"}
     for name, fig in figs.items():
         labels = plots.axis_labels(fig)
@@ -200,7 +200,7 @@ def test_stage_tasks_write_figures_whose_axes_carry_units(stages_b):
 
 def test_the_model_is_drawn_on_a_fine_grid_through_its_resonances(stages_b):
     from vibid.identify import natural_frequencies
-    from vibid.lab_report import fine_model
+    from vibid.report.figures import fine_model
 
     data, identified, _, _ = stages_b
     result = identified.result

@@ -46,25 +46,21 @@ def _decoded_pngs(markdown):
 # -- part 2: the report's figures -----------------------------------------------------------
 def test_figures_markdown_embeds_the_report_figures_in_order(tmp_path):
     from vibid.flows.tasks import figures_markdown
-    from vibid.lab_report import AFC_PNG, CONVERGENCE_PNG, RESIDUALS_PNG
-
-    residuals = _write_png(tmp_path / RESIDUALS_PNG, "C1")
-    afc = _write_png(tmp_path / AFC_PNG, "C0")
+    residuals = _write_png(tmp_path / "residuals.png", "C1")
+    afc = _write_png(tmp_path / "afc.png", "C0")
     (tmp_path / "other.png").write_bytes(afc)  # not a report figure: left out
     text = figures_markdown(tmp_path)
     assert _decoded_pngs(text) == [afc, residuals]  # AFC first, convergence missing
-    assert CONVERGENCE_PNG not in text
+    assert "convergence.png" not in text
     assert figures_markdown(tmp_path / "nothing-here") == ""
 
 
 def test_figures_markdown_links_a_too_large_figure(tmp_path, monkeypatch):
     from vibid.flows import tasks
-    from vibid.lab_report import AFC_PNG
-
-    _write_png(tmp_path / AFC_PNG, "C0")
+    _write_png(tmp_path / "afc.png", "C0")
     monkeypatch.setattr(tasks, "MAX_EMBEDDED_PNG_BYTES", 10)
     text = tasks.figures_markdown(tmp_path)
-    assert "data:image" not in text and str(tmp_path / AFC_PNG) in text
+    assert "data:image" not in text and str(tmp_path / "afc.png") in text
 
 
 # -- part 3: the live AFC ---------------------------------------------------------------------

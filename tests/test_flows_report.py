@@ -8,23 +8,24 @@ import io
 import numpy as np
 import pytest
 
-from vibid import lab_report, plots
+from vibid import report
+from vibid.report import plots, values
 
 
 def test_values_are_rounded_to_the_second_significant_digit_of_their_std():
-    assert lab_report.with_std(17.969987, 2.0e-5) == "17.969987 ± 0.000020"
-    assert lab_report.with_std(0.2861180, 1.3e-6) == "0.2861180 ± 0.0000013"
-    assert lab_report.with_std(1.9800156e11, 1.2e5) == "(1.9800156 ± 0.0000012)e+11"
-    assert lab_report.with_std(2.0e-5, 1.5e-9) == "(2.00000 ± 0.00015)e-5"
-    assert lab_report.with_std(3.0, None) == "3"
+    assert values.with_std(17.969987, 2.0e-5) == "17.969987 ± 0.000020"
+    assert values.with_std(0.2861180, 1.3e-6) == "0.2861180 ± 0.0000013"
+    assert values.with_std(1.9800156e11, 1.2e5) == "(1.9800156 ± 0.0000012)e+11"
+    assert values.with_std(2.0e-5, 1.5e-9) == "(2.00000 ± 0.00015)e-5"
+    assert values.with_std(3.0, None) == "3"
 
 
 def test_units_come_from_the_model_terms():
-    assert lab_report.unit_of("D") == "N m"
-    assert lab_report.unit_of("D11") == "N m"
-    assert lab_report.unit_of("tau_s") == "s"
-    assert lab_report.unit_of("nu") == "1"
-    assert lab_report.unit_of("E_Pa") == "Pa"
+    assert values.unit_of("D") == "N m"
+    assert values.unit_of("D11") == "N m"
+    assert values.unit_of("tau_s") == "s"
+    assert values.unit_of("nu") == "1"
+    assert values.unit_of("E_Pa") == "Pa"
 
 
 def test_measured_phase_is_drawn_within_half_a_turn_of_the_unwrapped_model():
@@ -100,9 +101,9 @@ def _report(name="s", D=17.97, tau=None):
 
 def test_batch_summary_has_one_row_per_session_and_reads_back_exactly():
     reports = [_report("a", 17.97, 2e-5), _report("b", 18.0123456789), None]
-    rows = [lab_report.summary_row("a", reports[0]), lab_report.summary_row("b", reports[1]),
-            lab_report.summary_row("c", None, error="VibidError: broken file")]
-    back = list(csv.DictReader(io.StringIO(lab_report.summary_csv(rows))))
+    rows = [report.summary_row("a", reports[0]), report.summary_row("b", reports[1]),
+            report.summary_row("c", None, error="VibidError: broken file")]
+    back = list(csv.DictReader(io.StringIO(report.summary_csv(rows))))
     assert [r["session"] for r in back] == ["a", "b", "c"]
     assert float(back[1]["D"]) == 18.0123456789  # repr: exact
     assert float(back[0]["tau_s"]) == 2e-5 and back[1]["tau_s"] == ""
@@ -110,7 +111,7 @@ def test_batch_summary_has_one_row_per_session_and_reads_back_exactly():
     assert float(back[0]["chi2_reduced_before"]) == 812.0
     assert float(back[0]["chi2_reduced_after"]) == 1.04
     assert back[2]["status"] == "failed: VibidError: broken file"
-    md = lab_report.summary_table_markdown(rows)
+    md = report.summary_table_markdown(rows)
     lines = md.strip().splitlines()
     assert len(lines) == 2 + 3
     assert "D (N·m)" in lines[0] and "tau_s (s)" in lines[0]
@@ -118,7 +119,7 @@ def test_batch_summary_has_one_row_per_session_and_reads_back_exactly():
 
 
 def test_summary_markdown_speaks_of_the_effect_and_what_it_changed():
-    text = lab_report.summary_markdown(_report("a", 17.97, 2e-5), figures=["afc.png"])
+    text = report.summary_markdown(_report("a", 17.97, 2e-5), figures=["afc.png"])
     assert "**channel_delay**" in text and "time skew" in text
     assert "from 812 to 1.04" in text
     assert "D +1.01 %" in text  # 17.97 against the declared fit's 17.97 * 0.99
@@ -127,8 +128,8 @@ def test_summary_markdown_speaks_of_the_effect_and_what_it_changed():
 
 
 def test_artifact_keys_are_stable_per_specimen():
-    assert lab_report.artifact_key("steel strip 100x20x1", "report") == "steel-strip-100x20x1-report"
-    assert lab_report.artifact_key("", "parameters") == "specimen-parameters"
+    assert report.artifact_key("steel strip 100x20x1", "report") == "steel-strip-100x20x1-report"
+    assert report.artifact_key("", "parameters") == "specimen-parameters"
 
 
 def test_task_runner_setting():

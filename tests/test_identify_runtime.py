@@ -24,7 +24,7 @@ def test_importing_vibid_changes_nothing_and_a_32_bit_process_fails_loudly(tmp_p
     code = (
         "import jax, matplotlib\n"
         "backend = matplotlib.get_backend()\n"
-        "import vibid.identify, vibid.identify.fit, vibid.identify.model.forward, vibid.plots\n"
+        "import vibid.identify, vibid.identify.fit, vibid.identify.model.forward, vibid.report\n"
         "from vibid.identify import build_forward_model\n"
         "from vibid.setup_model import example_setup\n"
         "print(jax.config.jax_enable_x64, matplotlib.get_backend() == backend)\n"

@@ -186,16 +186,17 @@ def test_new_effects_parameters_and_their_boxes():
 
 
 def test_every_parameter_has_a_description_and_the_report_reads_the_catalogue():
-    from vibid import lab_report
+    from vibid.report import quantities, values
 
     for name in catalogue():
         assert parameters.describe(name), name
     assert parameters.describe("f_hz_2").endswith("(2)")
-    assert lab_report.MEANING["D"] == "bending stiffness"
-    assert lab_report.unit_of("f_hz_2") == "Hz"
-    assert lab_report.unit_of("k_theta_N_per_rad") == "N/rad"
-    assert lab_report.unit_of("G13_Pa") == "Pa"
-    assert lab_report.unit_of("E") == "1"
+    (d,) = quantities({"parameters": {"D": {"value": 17.97, "std": 0.01}}, "effects": []})
+    assert d.meaning == "bending stiffness" and d.unit == "N m"
+    assert values.unit_of("f_hz_2") == "Hz"
+    assert values.unit_of("k_theta_N_per_rad") == "N/rad"
+    assert values.unit_of("G13_Pa") == "Pa"
+    assert values.unit_of("E") == "1"
 
 
 def test_setup_bounds_may_name_an_instance():

@@ -176,7 +176,7 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
                   session_path=None) -> tuple[dict[str, Any], dict[str, str]]:
     """The report stage: build the JSON report, write it to ``json_path`` (if given) and the
     readable report folder (``report.md``, ``report.json``, PNG figures:
-    :func:`vibid.lab_report.write_lab_report`) to ``report_dir`` (if given). Returns the
+    :func:`vibid.report.write_lab_report`) to ``report_dir`` (if given). Returns the
     report and the paths written, by file name (``"json"`` for ``json_path``)."""
     from vibid.report import write_report
 
@@ -187,7 +187,7 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
         write_report(report, json_path)
         paths["json"] = os.fspath(json_path)
     if report_dir is not None:
-        from vibid.lab_report import write_lab_report
+        from vibid.report import write_lab_report
 
         with COMPUTE_LOCK:  # the figures evaluate the model
             paths |= write_lab_report(report_dir, data, identified, report,

@@ -128,7 +128,7 @@ def run_flow(args, report_dir: str, candidates) -> int:
 
     configure()
     from vibid.flows import campaign_flow
-    from vibid.lab_report import console_summary
+    from vibid.report import console_summary
 
     with profiled(args.profile):
         state = campaign_flow(args.setup, stand=args.stand, stand_config=args.stand_config,

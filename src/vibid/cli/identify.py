@@ -52,7 +52,7 @@ def run(args) -> int:
                                       restarts=args.restarts, seed=args.seed,
                                       progress=progress, magnitude_only=args.magnitude_only)
         print(identified.summary)
-    from vibid.lab_report import plausibility_lines
+    from vibid.report import plausibility_lines
 
     report = build_session_report(data, identified)
     for line in plausibility_lines(report):  # never silent

@@ -57,7 +57,7 @@ def run(args) -> int:
                              candidates=None if candidates is None else list(candidates),
                              method=args.method, local=args.local, restarts=args.restarts,
                              seed=args.seed, magnitude_only=args.magnitude_only)
-    from vibid.lab_report import plausibility_lines
+    from vibid.report import plausibility_lines
 
     for line in plausibility_lines(report):  # never silent
         print(line)

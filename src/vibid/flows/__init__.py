@@ -8,7 +8,7 @@
   stages as a replay.
 
 The stages are Prefect tasks (:mod:`vibid.flows.tasks`) that wrap the plain functions of
-:mod:`vibid.pipeline` and :mod:`vibid.lab_report`; the numerical core never imports Prefect.
+:mod:`vibid.pipeline` and :mod:`vibid.report`; the numerical core never imports Prefect.
 With no configuration the flows run on Prefect's embedded temporary server; with
 ``PREFECT_API_URL`` set, against that server. Importing this package loads Prefect only
 when one of the names below is first used, and sets the embedded server's defaults

@@ -62,7 +62,7 @@ def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
     summary table. A session that fails is a row saying why; the others go on."""
     from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
-    from vibid.lab_report import summary_csv, summary_row, summary_table_markdown
+    from vibid.report import summary_csv, summary_row, summary_table_markdown
 
     logger = run_logger()
     paths = [os.fspath(p) for p in session_paths]

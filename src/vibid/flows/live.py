@@ -64,7 +64,7 @@ class LiveAfc:
     def __init__(self, specimen: str, n_steps: int, *, min_interval_s: float = 2.0,
                  publish=None, clock=None, max_share: float | None = MAX_SHARE,
                  logger=None):
-        from vibid.lab_report import artifact_key
+        from vibid.report import artifact_key
 
         self.specimen = specimen or "specimen"
         self.key = artifact_key(specimen, "live")
@@ -215,7 +215,7 @@ class LiveAfc:
             lines.append(f"- {self.note}")
         lines.append(f"- updated {now}")
         if png is not None:
-            from vibid.plots import png_data_uri
+            from vibid.report.plots import png_data_uri
 
             lines += ["", f"![live AFC of {self.specimen}]({png_data_uri(png)})"]
         return "\n".join(lines) + "\n"

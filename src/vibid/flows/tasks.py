@@ -142,16 +142,17 @@ MAX_EMBEDDED_PNG_BYTES = 1_500_000
 
 
 def figures_markdown(report_dir) -> str:
-    """The lab report's figures in ``report_dir`` (AFC with the model, residual per stage,
-    convergence; in that order, missing ones skipped) as markdown images with their PNG
-    embedded as data URIs, so the Prefect UI shows them without reaching the folder. A file
-    over :data:`MAX_EMBEDDED_PNG_BYTES` is linked by its path instead. Empty if none."""
-    from vibid.lab_report import FIGURE_CAPTIONS
-    from vibid.plots import png_data_uri
+    """The lab report's figures in ``report_dir`` (those of
+    :data:`vibid.report.figures.FIGURES`, in its order, missing ones skipped) as markdown
+    images with their PNG embedded as data URIs, so the Prefect UI shows them without
+    reaching the folder. A file over :data:`MAX_EMBEDDED_PNG_BYTES` is linked by its path
+    instead. Empty if none."""
+    from vibid.report import figures
+    from vibid.report.plots import png_data_uri
 
     lines = []
-    for name, caption in FIGURE_CAPTIONS.items():
-        path = os.path.join(os.fspath(report_dir), name)
+    for fig in figures.FIGURES:
+        path, caption = os.path.join(os.fspath(report_dir), fig.file), fig.caption
         if not os.path.isfile(path):
             continue
         if os.path.getsize(path) > MAX_EMBEDDED_PNG_BYTES:
@@ -160,7 +161,7 @@ def figures_markdown(report_dir) -> str:
                       f"{os.path.getsize(path) / 1e6:.1f} MB)", ""]
             continue
         with open(path, "rb") as f:
-            lines += [f"![{caption}]({png_data_uri(f.read())})", "", f"*{caption}*", ""]
+            lines += figures.figure_markdown(caption, png_data_uri(f.read()))
     if not lines:
         return ""
     return "\n".join(["", "## Figures", ""] + lines)
@@ -173,7 +174,7 @@ def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
     a history in the Prefect UI. Call inside a flow run."""
     from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
-    from vibid.lab_report import artifact_key, parameter_table, summary_markdown
+    from vibid.report import artifact_key, parameter_table, summary_markdown
 
     text = summary_markdown(report, title=f"{specimen or 'specimen'}: identification report")
     if report_dir is not None:

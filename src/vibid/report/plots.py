@@ -1,9 +1,10 @@
-"""Figures for people: the measured AFC against the identified model, the normalised
+"""Drawing from plain arrays: the measured AFC against the identified model, the normalised
 residual of every loop stage, the optimiser's convergence.
 
 Every function builds a :class:`matplotlib.figure.Figure` from plain arrays (no pyplot: the
 process's backend is left alone) and returns it; :func:`save_png` writes one. Every axis
 label names its unit in parentheses, so a figure read on its own says what it shows.
+What each report figure draws, from an identification, is :mod:`vibid.report.figures`.
 """
 
 from __future__ import annotations
@@ -203,10 +204,3 @@ def save_png(fig, path: str | os.PathLike, *, dpi: int = 110) -> str:
     fig.savefig(path, dpi=dpi, format="png")
     return os.fspath(path)
 
-
-def plot_afc_fit(path: str | os.PathLike, frequency_hz, H, std, model_afc, *, title: str = "") -> str:
-    """Write a PNG of |H| and phase, measured (with ±2 std) and the model at the same
-    points; return its path. (:func:`afc_figure` draws the model on a fine grid.)"""
-    fig = afc_figure(frequency_hz, H, std, model_frequency_hz=frequency_hz, model_H=model_afc,
-                     title=title)
-    return save_png(fig, path)

@@ -1,0 +1,44 @@
+"""Where a specimen's report is kept: the report folder (``report.md``, ``report.json`` and
+the figures of :data:`vibid.report.figures.FIGURES`, written together) and the keys of its
+Prefect artifacts, stable per specimen."""
+
+from __future__ import annotations
+
+import os
+import re
+
+from vibid.report.document import write_report
+from vibid.report.figures import draw_figures
+from vibid.report.markdown import summary_markdown
+from vibid.report.plots import save_png
+
+#: File names in the report folder (besides the figures').
+REPORT_MD = "report.md"
+REPORT_JSON = "report.json"
+
+
+def write_lab_report(report_dir: str | os.PathLike, data, identified, report: dict, *,
+                     session_path: str | None = None) -> dict[str, str]:
+    """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``
+    (created); return their paths by file name."""
+    os.makedirs(report_dir, exist_ok=True)
+    paths = {}
+    figs = draw_figures(data, identified, report)
+    for name, fig in figs.items():
+        paths[name] = save_png(fig, os.path.join(report_dir, name))
+    name = data.setup.specimen.name or "specimen"
+    text = summary_markdown(report, figures=list(figs), session_path=session_path,
+                            title=f"{name}: identification report")
+    paths[REPORT_MD] = os.path.join(report_dir, REPORT_MD)
+    with open(paths[REPORT_MD], "w", encoding="utf-8") as fh:
+        fh.write(text)
+    paths[REPORT_JSON] = os.path.join(report_dir, REPORT_JSON)
+    write_report(report, paths[REPORT_JSON])
+    return paths
+
+
+def artifact_key(specimen_name: str, suffix: str) -> str:
+    """A Prefect artifact key (lowercase letters, digits, dashes) stable per specimen, so
+    one specimen's reports form a history."""
+    slug = re.sub(r"[^a-z0-9]+", "-", (specimen_name or "specimen").lower()).strip("-")
+    return f"{slug or 'specimen'}-{suffix}"

@@ -1,0 +1,192 @@
+"""report.md: the result of one identification in a lab's language, from the JSON report.
+
+Values with units and standard deviation (:func:`vibid.report.values.quantities`), the
+effect the loop found and what it changed, χ² before and after, the figures of
+:data:`vibid.report.figures.FIGURES`; the optimiser's internals (status sentence, runs,
+evaluations) go to the "Details" section.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+
+from vibid.report import figures as report_figures
+from vibid.report.figures import figure_markdown
+from vibid.report.values import (Quantity, chi2_text, percent_text, quantities, reading,
+                                 stage_label, unit_of)
+
+
+def _budget_text(budget: dict | None, notes) -> list[str]:
+    """The uncertainty budget as a table (one column per source, standard uncertainties in
+    the constant's unit) and each constant's largest part in words."""
+    if not budget:
+        return []
+    sources = list(dict.fromkeys(s for parts in budget.values() for s in parts))
+    lines = ["", "Uncertainty budget (standard uncertainties; they add in quadrature):", "",
+             "| constant | " + " | ".join(sources) + " |", "|---|" + "---|" * len(sources)]
+    for k, parts in budget.items():
+        lines.append(f"| {k} | " + " | ".join(
+            "–" if parts.get(s) is None else f"{parts[s]:.3g}" for s in sources) + " |")
+    return lines + [""] + [f"- {n}" for n in notes]
+
+
+def _plausibility_text(pl: dict | None) -> list[str]:
+    if not pl:
+        return []
+    cls = pl.get("material_class")
+    lines = ["", "Plausibility" + (f" (the specimen is {cls}):" if cls else
+                                   " (no material class named: only what physics allows):"), ""]
+    lines += [f"- **not physical**: {v}" for v in pl["violations"]]
+    lines += [f"- **outside the handbook range**: {v}" for v in pl["outside_handbook"]]
+    lines += [f"- {v}" for v in pl["inside_handbook"]]
+    if len(lines) == 3:
+        lines.append("- every constant is physically possible")
+    return lines
+
+
+def _param_rows(rows: list[Quantity]) -> list[str]:
+    return [f"| {q.name} | {q.meaning} | {q.text} | {q.unit.replace(' ', '·')} |" for q in rows]
+
+
+def _effect_text(report: dict) -> list[str]:
+    from vibid.identify.effects import meaning_of
+
+    stages = report["loop"]["stages"]
+    first, last = stages[0], stages[-1]
+    lines = []
+    if "rounds" not in report["loop"]:
+        fit = ("does **not** fit" if report["loop"]["unexplained_residual"] else "fits")
+        return [f"The closed loop did not run; the declared model {fit} the data to the "
+                "noise level."]
+    if not report["effects"]:
+        if report["loop"]["unexplained_residual"]:
+            lines.append("The declared model does **not** fit the data to the noise level, and "
+                         "no candidate effect explained the residual (`unexplained_residual`): "
+                         "look at the residual figure for what the model lacks.")
+        else:
+            lines.append("No effect needed: the declared model fits the data to the noise level.")
+        return lines
+    for e in report["effects"]:
+        vals = ", ".join(f"{n} = {reading(p['value'], p['std'], unit_of(n))}"
+                         for n, p in e["parameters"].items())
+        lines.append(f"- **{e['name']}**: {meaning_of(e['name'])}"
+                     + (f"; {vals}" if vals else ""))
+    lines.append("")
+    lines.append(f"With it χ²/dof went from {chi2_text(first['chi2_reduced'])} to "
+                 f"{chi2_text(last['chi2_reduced'])}, and the relative RMS residual from "
+                 f"{percent_text(first['rel_rms_residual'])} to "
+                 f"{percent_text(last['rel_rms_residual'])}.")
+    changes = []
+    for n, v1 in last["parameters"].items():
+        v0 = first["parameters"].get(n)
+        if v0 is None or v1 is None or v0 == 0:
+            continue
+        changes.append(f"{n} {100 * (v1 - v0) / abs(v0):+.3g} %")
+    if changes:
+        lines.append("Against the declared model's fit it changed " + ", ".join(changes) + ".")
+    if report["loop"]["unexplained_residual"]:
+        lines.append("The residual is still above the noise (`unexplained_residual`).")
+    return lines
+
+
+def _diagnosis_text(report: dict) -> list[str]:
+    """What each stage's residual showed (``loop.diagnosis``), as a list."""
+    per_stage = report["loop"].get("diagnosis")
+    if not per_stage:
+        return []
+    lines = ["", "What the residual showed (its diagnosis, stage by stage):", ""]
+    for st, features in zip(report["loop"]["stages"], per_stage):
+        said = "; ".join(f["note"] for f in features) or "nothing beyond the noise"
+        lines.append(f"- {stage_label(st['added'])}: {said}")
+    return lines
+
+
+def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = "",
+                     session_path: str | None = None) -> str:
+    """``report.md``: the result in a lab's language, the figures (file names relative to
+    the report folder; those of :data:`vibid.report.figures.FIGURES` among them are shown,
+    in its order), and a Details section with the optimiser's internals."""
+    ident = report.get("identification", {})
+    afc = report["afc"]
+    diag = afc.get("diagnostics")
+    n_used = len(afc["frequency_hz"])
+    lines = [f"# {title or 'Identification report'}", ""]
+    lines.append(f"- session: `{report['session_id']}`"
+                 + (f" (`{os.path.basename(session_path)}`)" if session_path else ""))
+    if diag is not None:
+        left_out = [d for d in diag if not d.get("used")]
+        lines.append(f"- steps used: {n_used} of {len(diag)}"
+                     + (" — left out: " + "; ".join(
+                         f"{d['commanded_hz']:.4g} Hz ({', '.join(f['name'] for f in d['flags']) or d['status']})"
+                         for d in left_out) if left_out else ""))
+    else:
+        lines.append(f"- AFC points used: {n_used}")
+    model = report["model"] + ("" if report["model"] == report["declared_model"]
+                               else f" (declared {report['declared_model']})")
+    lines.append(f"- model: {model}")
+    if ident.get("data") == "magnitude":
+        ratio = ident.get("magnitude_only_std_ratio") or {}
+        lines.append("- data: **|H| alone** (the phase was not used); each standard deviation "
+                     "against the complex fit of the same points: " + ", ".join(
+                         f"{n} ×{r:.2g}" for n, r in ratio.items() if r is not None))
+    if ident and not ident.get("converged", True):
+        lines.append(f"- **the identification did not converge**: {ident.get('message', '')}")
+    lines += ["", "## Identified values (value ± standard deviation)", "",
+              "| parameter | meaning | value | unit |", "|---|---|---|---|"]
+    table = quantities(report)
+    lines += _param_rows([q for q in table if q.source == "model"])
+    if "engineering" in report:
+        lines += ["", "Engineering constants (from the stiffnesses and the declared thickness):", "",
+                  "| constant | meaning | value | unit |", "|---|---|---|---|"]
+        lines += _param_rows([q for q in table if q.source == "engineering"])
+        lines += _budget_text(report["engineering"].get("budget"),
+                              ident.get("uncertainty_notes", []))
+    lines += _plausibility_text(report.get("plausibility"))
+    lines += ["", "## Effects the loop found", ""] + _effect_text(report)
+    lines += ["", "## Fit quality, stage by stage", "",
+              "| stage | χ²/dof (the data's std) | χ²/dof (with the model's own error) | "
+              "relative RMS residual |", "|---|---|---|---|"]
+    for st in report["loop"]["stages"]:
+        lines.append(f"| {stage_label(st['added'])} | "
+                     f"{chi2_text(st['chi2_reduced'])} | "
+                     f"{chi2_text(st.get('chi2_reduced_with_model_error'))} | "
+                     f"{percent_text(st['rel_rms_residual'])} |")
+    lines += _diagnosis_text(report)
+    if report.get("linearity"):
+        lines += ["", "Are the measured resonances linear? (rational fits of the AFC alone):", ""]
+        lines += [f"- {t['note']}" for t in report["linearity"]]
+    if figures:
+        lines += ["", "## Figures", ""]
+        lines += [line for fig in report_figures.FIGURES if fig.file in figures
+                  for line in figure_markdown(fig.caption, fig.file)]
+        lines += [fig.absent for fig in report_figures.FIGURES
+                  if fig.file not in figures and fig.absent]
+    lines += ["", "## Details", ""]
+    if ident:
+        lines.append(f"- optimiser: {ident.get('message', '')}")
+        lines.append(f"- χ² = {chi2_text(ident.get('chi2'))} over {ident.get('dof')} degrees of "
+                     "freedom (weights: the data's std and the model's own error);"
+                     f" χ²/dof with the data's own weights {chi2_text(ident.get('chi2_reduced_data_weights'))}")
+        g = ident.get("global_search")
+        if g:
+            lines.append(f"- global search: {len(g['restart_loss'])} restarts, "
+                         f"{g['evaluations']} model evaluations")
+        for r in ident.get("local_runs", [])[:5]:
+            lines.append(f"- local run {r['method']}: χ² {chi2_text(r['chi2'])}, "
+                         f"{r['iterations']} iterations, {r['status']}")
+        if ident.get("model_error_std"):
+            lines.append("- the model's discretisation bias (included in the std): " + ", ".join(
+                f"{n} {v:.2g}" for n, v in ident["model_error_std"].items() if v is not None))
+        for w in ident.get("warnings", []):
+            lines.append(f"- warning: {w}")
+        if ident.get("seconds") is not None:
+            lines.append(f"- identification time: {ident['seconds']:.1f} s"
+                         + (f", loop {report['loop']['seconds']:.1f} s"
+                            if report["loop"].get("seconds") is not None else ""))
+    for rnd, scores in enumerate(report["loop"].get("rounds", []), start=1):
+        for sc in scores:
+            lines.append(f"- loop round {rnd}: {sc['candidate']} score {chi2_text(sc['score'])}"
+                         f" (p {chi2_text(sc['p_value'])}), Δχ² {chi2_text(sc['delta_chi2'])}"
+                         f"{', kept' if sc['kept'] else ''}{'; ' + sc['note'] if sc['note'] else ''}")
+    return "\n".join(lines) + "\n"
