@@ -8,7 +8,7 @@ import io
 import numpy as np
 import pytest
 
-from vibid import report
+from vibid import parameters, report
 from vibid.report import plots, values
 
 
@@ -125,6 +125,57 @@ def test_summary_markdown_speaks_of_the_effect_and_what_it_changed():
     assert "D +1.01 %" in text  # 17.97 against the declared fit's 17.97 * 0.99
     assert "![" in text and "(afc.png)" in text
     assert text.index("## Details") > text.index("## Identified values")
+
+
+def test_markdown_console_and_ui_table_show_the_json_values_alike():
+    r = _report("a", 17.97, 2e-5)
+    r["engineering"] = {"E_Pa": {"value": 1.9800156e11, "std": 1.2e5},
+                        "nu": {"value": 0.2861180, "std": 1.3e-6}, "budget": {}}
+    md, console = report.summary_markdown(r), report.console_summary(r)
+    table = {(row["quantity"], row["source"]): row for row in report.parameter_table(r)}
+    json_values = ([(n, p, "model") for n, p in r["parameters"].items()]
+                   + [(n, p, "channel_delay") for n, p in r["effects"][0]["parameters"].items()]
+                   + [(n, p, "engineering") for n, p in r["engineering"].items() if n != "budget"])
+    assert len(table) == len(json_values) == 6
+    for name, p, source in json_values:
+        said = values.with_std(p["value"], p["std"])  # from the JSON, not through the rows
+        row = table[name, source]
+        assert (row["value"], row["std"], row["value ± std"]) == (p["value"], p["std"], said)
+        if source != "channel_delay":
+            assert f"| {name} | {parameters.describe(name)} | {said} |" in md, name
+        if source != "engineering":
+            line = next(t for t in console.splitlines() if t.split()[:1] == [name])
+            assert said + values.unit_text(values.unit_of(name)) in line, name
+    assert "(1.9800156 ± 0.0000012)e+11" in md and "(2.00000 ± 0.00010)e-5 s" in console
+
+
+def test_the_figure_list_drives_the_png_files_report_md_and_the_ui(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from matplotlib.figure import Figure
+
+    from vibid.flows.tasks import figures_markdown
+    from vibid.report import figures
+
+    def draw_extra(source):
+        fig = Figure(figsize=(2, 2))
+        fig.subplots().plot([0, 1], [0, source.report["parameters"]["D"]["value"]])
+        return fig
+
+    monkeypatch.setattr(figures, "FIGURES", (
+        figures.ReportFigure("extra.png", "An extra figure", draw_extra),
+        figures.ReportFigure("never.png", "Never drawn", lambda _: None,
+                             absent="(No never figure: nothing to draw.)")))
+    data = SimpleNamespace(setup=SimpleNamespace(specimen=SimpleNamespace(name="strip")))
+    r = _report("a", 17.97, 2e-5)
+    paths = report.write_lab_report(tmp_path, data, None, r)
+    assert set(paths) == {"extra.png", "report.md", "report.json"}
+    md = open(paths["report.md"], encoding="utf-8").read()
+    assert "![An extra figure](extra.png)\n\n*An extra figure*" in md
+    assert "(No never figure: nothing to draw.)" in md and "never.png" not in md
+    ui = figures_markdown(tmp_path)
+    assert "![An extra figure](data:image/png;base64," in ui and "*An extra figure*" in ui
+    assert "Never drawn" not in ui
 
 
 def test_artifact_keys_are_stable_per_specimen():
