@@ -325,3 +325,19 @@ def test_a_file_that_cannot_be_written_aborts_with_output_off(tmp_path, monkeypa
     assert not stand.generator.output_enabled
     with read_session(path) as s:
         assert (len(s), s.run_status) == (2, "aborted")
+
+
+def test_a_planned_setup_settles_and_records_each_step_as_listed():
+    """issue #28: per-step ``settle_s`` and minimum ``record_s`` reach the commands; a record
+    is never shorter than the stand's own minimum."""
+    setup = short_setup(3, 70.0, 90.0)
+    exc = replace(setup.excitation, settle_s=(0.2, 1.5, 0.0), record_s=(0.01, 1.0, 2.0))
+    cfg = fast_config()
+    commands = plan_summary(replace(setup, excitation=exc), cfg).commands
+    assert [c.settle_s for c in commands] == [0.2, 1.5, 0.0]
+    fs = setup.daq.sample_rate_hz
+    assert commands[0].n_samples == record_samples(70.0, fs, cfg.timing)  # the stand's minimum
+    for c, wanted_s in zip(commands[1:], (1.0, 2.0)):
+        cycles = c.n_samples * c.frequency_hz / fs
+        assert c.record_s >= wanted_s - 0.5 / fs and abs(cycles - round(cycles)) < c.frequency_hz / fs
+        assert c.record_s < wanted_s + 1.0 / c.frequency_hz + 1.0 / fs  # the least whole cycles

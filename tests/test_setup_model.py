@@ -81,3 +81,26 @@ def test_specimen_material_is_optional_free_text():
     with pytest.raises(SetupError) as err:
         parse_setup(doc)
     assert err.value.problems == ["setup.specimen.material: expected a string, got a number"]
+
+
+def test_a_planned_setup_lists_settle_and_record_times_per_step():
+    """issue #28: ``excitation.settle_s`` may be a list (one per frequency) and
+    ``excitation.record_s`` a number or such a list (session-format.md)."""
+    doc = example_setup().to_dict()
+    doc["excitation"]["frequencies_hz"] = [10.0, 20.0, 30.0]
+    doc["excitation"]["settle_s"] = [0.1, 2.5, 0.0]
+    doc["excitation"]["record_s"] = [0.5, 1.0, 0.25]
+    planned = parse_setup(doc)
+    assert [planned.excitation.settle_at(i) for i in range(3)] == [0.1, 2.5, 0.0]
+    assert planned.excitation.record_at(1) == 1.0
+    assert json.loads(planned.to_json())["excitation"]["settle_s"] == [0.1, 2.5, 0.0]
+    assert parse_setup(planned.to_json()) == planned
+    assert "record_s" not in json.loads(example_setup().to_json())["excitation"]
+    assert example_setup().excitation.record_at(0) is None
+    doc["excitation"]["settle_s"] = [0.1, -1.0]
+    doc["excitation"]["record_s"] = [0.5, 0.0, 1.0]
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    assert err.value.problems == [
+        "setup.excitation.settle_s: lists 2 values for 3 frequencies (one per step)",
+        "setup.excitation.record_s[1]: must be positive, got 0.0"]

@@ -99,10 +99,25 @@ class Daq:
 
 @dataclass(frozen=True)
 class Excitation:
-    """The stepped sine: frequencies in the order they are played, and the settle time."""
+    """The stepped sine: frequencies in the order they are played, the settle time before
+    each record (one number for every step, or one per step: a planned test) and the
+    minimum record length (``None``: the stand's own rule; a number, or one per step)."""
 
     frequencies_hz: tuple[float, ...]
-    settle_s: float
+    settle_s: float | tuple[float, ...]
+    record_s: float | tuple[float, ...] | None = None
+
+    def settle_at(self, i: int) -> float:
+        """Seconds to settle before step ``i``'s first record."""
+        return _at(self.settle_s, i)
+
+    def record_at(self, i: int) -> float | None:
+        """Minimum record length of step ``i``, s (``None``: the stand's rule)."""
+        return None if self.record_s is None else _at(self.record_s, i)
+
+
+def _at(value, i: int) -> float:
+    return float(value[i]) if isinstance(value, tuple) else float(value)
 
 
 @dataclass(frozen=True)
@@ -154,7 +169,12 @@ class Setup:
         if self.excitation is None:
             del doc["excitation"]
         else:
-            doc["excitation"]["frequencies_hz"] = list(self.excitation.frequencies_hz)
+            exc = doc["excitation"]
+            for key in ("frequencies_hz", "settle_s", "record_s"):
+                if isinstance(exc[key], (tuple, list)):
+                    exc[key] = list(exc[key])
+            if exc["record_s"] is None:
+                del exc["record_s"]
         doc["identification"]["bounds"] = {
             k: [float(lo), float(hi)] for k, (lo, hi) in self.identification.bounds.items()
         }
@@ -235,9 +255,24 @@ def _excitation_problems(s: Setup) -> list[str]:
                 f"setup.excitation.frequencies_hz[{i}]: {f!r} Hz is not below the Nyquist "
                 f"frequency {s.daq.sample_rate_hz / 2!r} Hz"
             )
-    if not (math.isfinite(s.excitation.settle_s) and s.excitation.settle_s >= 0):
-        out.append(f"setup.excitation.settle_s: must be zero or positive, got {s.excitation.settle_s!r}")
+    out += _per_step_problems("settle_s", s.excitation.settle_s, len(freqs), lambda v: v >= 0,
+                              "zero or positive")
+    if s.excitation.record_s is not None:
+        out += _per_step_problems("record_s", s.excitation.record_s, len(freqs),
+                                  lambda v: v > 0, "positive")
     return out
+
+
+def _per_step_problems(name: str, value, n: int, ok, meaning: str) -> list[str]:
+    """Problems of an excitation time given as one number or as one number per step."""
+    path = f"setup.excitation.{name}"
+    if not isinstance(value, tuple):
+        good = math.isfinite(value) and ok(value)
+        return [] if good else [f"{path}: must be {meaning}, got {value!r}"]
+    if len(value) != n:
+        return [f"{path}: lists {len(value)} values for {n} frequencies (one per step)"]
+    return [f"{path}[{i}]: must be {meaning}, got {v!r}"
+            for i, v in enumerate(value) if not (math.isfinite(v) and ok(v))]
 
 
 def _identification_problems(ident: Identification) -> list[str]:
@@ -337,7 +372,8 @@ class _Reader:
         daq_ = Daq(self._num(daq, "sample_rate_hz", "setup.daq") if daq else math.nan)
         excitation = None if exc is None else Excitation(
             frequencies_hz=self._frequencies(exc) if exc else (),
-            settle_s=self._num(exc, "settle_s", "setup.excitation") if exc else math.nan,
+            settle_s=self._per_step(exc, "settle_s") if exc else math.nan,
+            record_s=self._per_step(exc, "record_s") if exc and "record_s" in exc else None,
         )
         identification = Identification(
             model=self._str(ide, "model", "setup.identification") if ide else "",
@@ -363,6 +399,16 @@ class _Reader:
             self.problems.append(f"{path}: expected a list of numbers")
             return ()
         return tuple(float(f) for f in v)
+
+    def _per_step(self, exc: dict, key: str) -> float | tuple[float, ...]:
+        """An excitation time: one number, or a list of numbers (one per step)."""
+        v = exc.get(key)
+        if isinstance(v, list):
+            if any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v):
+                self.problems.append(f"setup.excitation.{key}: expected a number or a list of numbers")
+                return math.nan
+            return tuple(float(x) for x in v)
+        return self._num(exc, key, "setup.excitation")
 
     def _bounds(self, ide: dict) -> dict[str, tuple[float, float]]:
         path = "setup.identification.bounds"

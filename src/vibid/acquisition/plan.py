@@ -13,7 +13,8 @@ that vibration is small and the setup's ``excitation.settle_s`` is enough; near 
 The plan has no model of where the resonances are (the declared bounds are too wide to say),
 so it finds them by measurement, conservatively:
 
-* every step first settles ``excitation.settle_s``;
+* every step first settles ``excitation.settle_s`` (its own value when the setup lists one
+  per step: a planned test, :mod:`vibid.planner`);
 * a record the signal stage finds *unsettled* (its two halves disagree beyond noise,
   :mod:`vibid.signal.flags`) is recorded again after waiting until
   ``settle_time_constants · Q / (π f)`` — the damping settle — has passed since the frequency
@@ -23,8 +24,9 @@ so it finds them by measurement, conservatively:
 * the step after an unsettled one (a resonance spans neighbouring steps) settles
   ``max(excitation.settle_s, damping settle)`` from the start.
 
-Record length: the smallest whole number of cycles that lasts at least ``min_record_s`` and
-holds at least ``min_cycles`` cycles, rounded to whole samples.
+Record length: the smallest whole number of cycles that lasts at least ``min_record_s`` (or
+the step's ``excitation.record_s``, if longer) and holds at least ``min_cycles`` cycles,
+rounded to whole samples.
 """
 
 from __future__ import annotations
@@ -72,9 +74,12 @@ class StepOutcome:
     settled: bool
 
 
-def record_samples(frequency_hz: float, sample_rate_hz: float, timing: TimingConfig) -> int:
-    """Samples of a record of whole cycles: at least ``min_record_s`` and ``min_cycles``."""
-    cycles = max(int(timing.min_cycles), math.ceil(timing.min_record_s * frequency_hz - 1e-9), 1)
+def record_samples(frequency_hz: float, sample_rate_hz: float, timing: TimingConfig,
+                   min_record_s: float | None = None) -> int:
+    """Samples of a record of whole cycles: at least ``min_record_s`` (default the timing's;
+    a planned step's own, never below the timing's) and ``min_cycles``."""
+    shortest_s = max(timing.min_record_s, min_record_s or 0.0)
+    cycles = max(int(timing.min_cycles), math.ceil(shortest_s * frequency_hz - 1e-9), 1)
     return max(1, int(round(cycles * sample_rate_hz / frequency_hz)))
 
 
@@ -118,8 +123,8 @@ def _plan(setup: Setup, t: TimingConfig, start: int, near: bool) -> Generator[St
     for i in range(start, n):
         f = exc.frequencies_hz[i]
         damping = damping_settle_s(f, t)
-        settle = max(exc.settle_s, damping) if near else exc.settle_s
-        samples = record_samples(f, fs, t)
+        settle = max(exc.settle_at(i), damping) if near else exc.settle_at(i)
+        samples = record_samples(f, fs, t, exc.record_at(i))
         outcome = yield StepCommand(i, n, f, settle, samples, fs)
         near = outcome is not None and not outcome.settled
         since_change_s = settle + samples / fs

@@ -79,7 +79,7 @@ def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,
             progress("solving the virtual specimen", int(idx[-1]) + 1, played.size, None)
     n = max(1, int(round(c.record_s * fs)))
     start = datetime.now(timezone.utc)
-    step_s = setup.excitation.settle_s + c.record_s
+    elapsed_s = 0.0  # the stand's clock since the first step began
     rng = np.random.default_rng(seed)
     with SessionWriter(path, setup, software="vibid simulated stand") as writer:
         for k, (f, hk) in enumerate(zip(commanded, h)):
@@ -91,7 +91,9 @@ def simulate_session(path: str | os.PathLike, setup: Setup, params: dict, *,
                 drift_m_s2_per_s=c.drift_m_s2_per_s, harmonics_db=c.harmonics_db,
                 noise_std_m_s2=c.noise_std_m_s2, dtype=np.float32, rng=rng,
             )
-            t0 = start + timedelta(seconds=k * step_s + setup.excitation.settle_s)
+            elapsed_s += setup.excitation.settle_at(k)
+            t0 = start + timedelta(seconds=elapsed_s)
+            elapsed_s += c.record_s
             writer.append(frequency_hz=f, sample_rate_hz=fs, base=base, response=response,
                           t0_utc=t0.isoformat())
     return os.fspath(path)
