@@ -22,7 +22,7 @@ from vibid import __version__
 from vibid.errors import VibidError
 
 #: Sub-command modules, in the order ``vibid --help`` lists them.
-COMMANDS = ("campaign", "simulate", "validate", "afc", "modes", "identify", "replay",
+COMMANDS = ("plan", "campaign", "simulate", "validate", "afc", "modes", "identify", "replay",
             "devices")
 
 

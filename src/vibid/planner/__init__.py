@@ -1,0 +1,129 @@
+"""The test planner: the stepped sine that reaches target uncertainties in the least stand time.
+
+``plan_test`` asks the plate model where the AFC holds information about the named
+parameters over the whole prior (:mod:`.information`: Fisher information per second of
+record, per prior draw), chooses steps greedily by expected information per second of stand
+time (:mod:`.design`), and gives each a settle time from the predicted Q of the modes around
+it (:mod:`.settle`) and a record length. :func:`planned_setup` writes the plan as a setup
+(``excitation.settle_s`` and ``excitation.record_s`` as lists, session-format.md) that
+``vibid campaign`` plays as it is. The prediction is the identification's own estimator
+(the same Jacobian and noise weighting) at each draw; it leaves out model error, the drive
+control's and the unsettled steps' re-records, so the campaign's stand time is a little
+longer than predicted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from vibid.acquisition.plan import plan_summary, record_samples
+from vibid.acquisition.stand_config import StandConfig
+from vibid.errors import VibidError
+from vibid.planner.design import Steps, data_std, greedy, met, sequence_settle
+from vibid.planner.information import information
+from vibid.planner.prior import Target, parse_prior, parse_targets, prior_draws, prior_std
+
+__all__ = ["Plan", "Prediction", "parse_prior", "parse_targets", "plan_test", "planned_setup"]
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """A test's stand time and the standard uncertainty it gives at each prior draw."""
+
+    label: str
+    n_steps: int
+    stand_time_s: float
+    std: np.ndarray          #: (draws, p)
+    draws: np.ndarray        #: (draws, p)
+
+    def relative_std(self, j: int) -> np.ndarray:
+        return self.std[:, j] / np.abs(self.draws[:, j])
+
+
+@dataclass(frozen=True)
+class Plan:
+    names: tuple[str, ...]
+    targets: tuple[Target, ...]
+    frequencies_hz: np.ndarray
+    settle_s: np.ndarray
+    record_s: np.ndarray
+    planned: Prediction
+    sweep: Prediction | None   #: the setup's own stepped sine, for comparison
+    quantile: float
+    reached: bool              #: the targets are met in ``quantile`` of the draws
+
+
+def plan_test(setup, config: StandConfig, targets, *, priors=None, band_hz=None,
+              noise: float | None = None, n_draws: int = 16, seed: int = 0,
+              quantile: float = 0.9, settle_quantile: float = 0.5, max_stand_time_s: float = 3600.0,
+              min_settle_s: float = 0.1, coarse_steps: int = 8,
+              magnitude: bool = False) -> Plan:
+    """Plan the stepped sine of ``setup`` on the stand ``config`` (timing; ``noise``
+    defaults to ``config.simulated.noise``, each channel's noise relative to the base
+    amplitude). ``targets``/``priors``: parsed (:func:`parse_targets`, :func:`parse_prior`).
+    ``band_hz``: (low, high), default the setup's frequency span. The plan starts from
+    ``coarse_steps`` steps spread geometrically over the band (the identification's global
+    search finds the resonances on them), then adds the steps of most information per
+    second until the targets are met in ``quantile`` of ``n_draws`` prior draws. Each step
+settles as long as the ``settle_quantile`` of the draws needs (a step that is still ringing
+is recorded again by the campaign: the unsettled-record rule of
+:mod:`vibid.acquisition.plan`)."""
+    from vibid.identify.model.forward import plate_model
+
+    model = plate_model(setup.identification.model)
+    names = tuple(model.names)
+    box = model.default_bounds(dict(setup.identification.bounds))
+    exc = setup.excitation
+    sweep_f = np.asarray(exc.frequencies_hz if exc is not None else (), float)
+    if band_hz is None:
+        if not sweep_f.size:
+            raise VibidError("the setup has no excitation: give the band (--band LOW:HIGH)")
+        band_hz = (float(sweep_f.min()), float(sweep_f.max()))
+    lo, hi = band_hz
+    fs = setup.daq.sample_rate_hz
+    if not 0 < lo < hi < fs / 2:
+        raise VibidError(f"--band {lo:g}:{hi:g}: needs 0 < low < high < {fs / 2:g} Hz (Nyquist)")
+    noise = config.simulated.noise if noise is None else noise
+    priors = priors or {}
+    draws = prior_draws(names, box, priors, n_draws, seed)
+    info = information(setup, names, draws, band_hz, noise=noise, extra_hz=sweep_f,
+                       magnitude=magnitude)
+    n_cand = info.frequency_hz.size - sweep_f.size
+    targeted = [names.index(t.name) for t in targets]
+    t_std = np.array([[t.std_of(d[j]) for t, j in zip(targets, targeted)] for d in draws])
+    shortest = np.array([record_samples(f, fs, config.timing) / fs
+                         for f in info.frequency_hz[:n_cand]])
+    P = np.diag(1.0 / prior_std(names, box, priors, draws.mean(axis=0)) ** 2)
+    coarse = np.searchsorted(info.frequency_hz[:n_cand], np.geomspace(lo, hi, coarse_steps))
+    steps: Steps = greedy(info, np.arange(n_cand), shortest, t_std, targeted,
+                          np.broadcast_to(P, (len(draws),) + P.shape).copy(),
+                          floor_s=min_settle_s, cap_s=config.timing.max_settle_s,
+                          quantile=quantile, settle_quantile=settle_quantile,
+                          max_stand_time_s=max_stand_time_s,
+                          start=np.minimum(coarse, n_cand - 1))
+    planned_std = data_std(info, steps.index, steps.record_s)
+    planned = Prediction("plan", len(steps.index), steps.stand_time_s, planned_std, draws)
+    sweep = None
+    if sweep_f.size:
+        # the same settle rule as the plan's (the campaign re-records a step that rings)
+        idx = n_cand + np.arange(sweep_f.size)
+        rec = np.array([c.record_s for c in plan_summary(setup, config).commands])
+        ringing = sequence_settle(info, idx, rec, floor_s=0.0, cap_s=config.timing.max_settle_s,
+                                  quantile=settle_quantile)
+        settle = np.maximum([exc.settle_at(i) for i in range(sweep_f.size)], ringing)
+        sweep = Prediction("setup's sweep", sweep_f.size, float(rec.sum() + settle.sum()),
+                           data_std(info, idx, rec), draws)
+    return Plan(names, tuple(targets), info.frequency_hz[steps.index], steps.settle_s,
+                steps.record_s, planned, sweep, quantile,
+                met(planned_std, t_std, targeted, quantile) <= 1.0)
+
+
+def planned_setup(setup, plan: Plan):
+    """``setup`` with the plan's stepped sine: frequencies, per-step settle and record times."""
+    from vibid.setup_model import Excitation
+
+    r = lambda a: tuple(round(float(x), 6) for x in a)  # noqa: E731 - microsecond/µHz: plenty
+    return replace(setup, excitation=Excitation(r(plan.frequencies_hz), r(plan.settle_s),
+                                                r(plan.record_s)))
