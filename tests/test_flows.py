@@ -223,6 +223,40 @@ def test_the_model_is_drawn_on_a_fine_grid_through_its_resonances(stages_b):
     assert np.max(np.abs(on - fitted) / np.abs(fitted)) < 1e-3
 
 
+def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stages_b):
+    """The live AFC's last version: the identified model on fine_model's grid (its
+    resonance peaks at their height, not straight lines between the steps), computed once
+    by set_identified; drawing it adds little to a publication."""
+    import time
+
+    from vibid.flows.live import LiveAfc
+    from vibid.report.figures import fine_model
+
+    data, identified, _, _ = stages_b
+    result = identified.result
+    live = LiveAfc("s", 1, min_interval_s=0.0, publish=lambda key, md: None)
+    u = np.asarray(result.used, bool)
+    for i, (f, H) in enumerate(zip(result.frequency_hz[u], result.H[u])):
+        live.points[i] = (float(f), float(abs(H)), float(np.degrees(np.angle(H))), None)
+    live.render_png()  # (the first pays for fonts and caches)
+    t0 = time.perf_counter()
+    live.render_png()
+    points_only = time.perf_counter() - t0
+    live.set_identified(result, data.setup)
+    assert not live.failed
+    grid, H, natural = fine_model(data.setup, result)
+    f, mag, phase, label = live.model
+    assert np.array_equal(f, grid) and np.allclose(mag, np.abs(H)) and label == "identified model"
+    assert np.abs(np.diff(phase)).max() < 90  # unwrapped along the grid
+    near = np.abs(grid - natural[0]) < 1.0
+    assert mag[near].max() > 20 * np.abs(result.H[u][np.abs(result.frequency_hz[u]
+                                                              - natural[0]) < 30]).max()
+    t0 = time.perf_counter()
+    live.render_png()
+    with_model = time.perf_counter() - t0
+    assert with_model < 3 * points_only + 0.2, (with_model, points_only)
+
+
 # -- batch on Dask -------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def single_replays(sessions, stages_b):

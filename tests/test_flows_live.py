@@ -5,6 +5,7 @@ import base64
 import logging
 import re
 
+import numpy as np
 import pytest
 
 from vibid.acquisition.campaign import StepProgress
@@ -159,3 +160,37 @@ def test_live_afc_in_a_flow_reaches_the_prefect_api():
     assert artifact is not None and artifact.type == "markdown"
     assert "steps done 3 of 3" in artifact.data
     assert _decoded_pngs(artifact.data)[0].startswith(PNG_MAGIC)
+
+
+def test_live_afc_phase_is_unwrapped_as_in_the_report():
+    """The model's phase unwrapped along its grid; each measured phase within half a turn
+    of it (no ±180° jump where nothing happens); without a model, the measured phases
+    unwrapped along frequency. The |H| axis names the report's unit."""
+    from vibid.flows.live import LiveAfc
+    from vibid.report.plots import H_UNIT
+
+    tau = 4e-3  # a pure delay: the phase falls by 1.44 turns over the band
+    steps = [StepProgress(index=i, n_steps=9, frequency_hz=f, h_abs=1.0,
+                          phase_deg=float(np.degrees(np.angle(np.exp(-2j * np.pi * f * tau)))),
+                          eta_s=0.0)
+             for i, f in enumerate(np.linspace(50.0, 410.0, 9))]
+
+    def fed():
+        live = LiveAfc("s", 9, min_interval_s=1e6, clock=_Clock(), publish=lambda k, md: None)
+        for p in steps:
+            live.update(p)
+        return live
+
+    with_model = fed()
+    fine = np.linspace(50.0, 410.0, 400)
+    with_model.set_model(fine, np.exp(-2j * np.pi * fine * tau))
+    model_phase = with_model.model[2]
+    assert np.all(np.diff(model_phase) < 0) and model_phase[-1] < -360.0
+    measured, model = with_model.figure().axes[1].lines
+    f, ph = measured.get_xdata(), measured.get_ydata()
+    assert np.allclose(ph, np.interp(f, model.get_xdata(), model.get_ydata()), atol=1e-6)
+
+    ax_mag, ax_ph = fed().figure().axes
+    assert ax_mag.get_ylabel() == f"|H| ({H_UNIT})"
+    (measured,) = ax_ph.lines
+    assert np.all(np.diff(measured.get_ydata()) < 0)  # falling, never a jump up by 360

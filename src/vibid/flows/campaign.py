@@ -127,8 +127,9 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
     data = afc_task(os.fspath(out))
     identified = identify_task(data, loop=loop, candidates=candidates, restarts=restarts,
                                seed=seed, magnitude_only=magnitude_only)
-    # a uniform campaign has its fit only now: the live AFC's last version shows it
-    live.set_identified(identified.result)
+    # a uniform campaign has its fit only now: the live AFC's last version shows it (on
+    # the report's fine grid, computed once here)
+    live.set_identified(identified.result, data.setup)
     live.close(note="campaign complete; the identified model over the points")
     # the folder gets report.json beside report.md
     report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)

@@ -120,23 +120,33 @@ class LiveAfc:
 
     def set_model(self, frequency_hz, H, *, label: str = "model", magnitude_only: bool = False):
         """A model's AFC to draw over the points from the next publication on (``H``
-        complex; with ``magnitude_only`` its |H| alone, no phase)."""
+        complex; with ``magnitude_only`` its |H| alone, no phase). Its phase is unwrapped
+        along ``frequency_hz`` (as the report's AFC figure draws it)."""
         f = np.asarray(frequency_hz, float)
         H = np.asarray(H)
         ok = np.isfinite(f) & np.isfinite(H)
         order = np.argsort(f[ok])
         f, H = f[ok][order], H[ok][order]
-        phase = None if magnitude_only else np.degrees(np.angle(H))
+        phase = None if magnitude_only else np.degrees(np.unwrap(np.angle(H)))
         self.model = (f, np.abs(H), phase, label)
         self._dirty = True
 
-    def set_identified(self, result, *, label: str = "identified model") -> None:
-        """The identification's model (an ``IdentificationResult``) on its used points."""
+    def set_identified(self, result, setup=None, *, label: str = "identified model") -> None:
+        """The identification's model (an ``IdentificationResult``) on the fine grid of the
+        report's AFC figure (:func:`vibid.report.figures.fine_model`: its resonances drawn
+        at their height) over the measured band; computed here, once, not at each step.
+        Without ``setup`` (the session's :class:`~vibid.setup_model.Setup`), on the used
+        points alone."""
         try:
-            used = np.asarray(result.used, bool)
-            self.set_model(np.asarray(result.frequency_hz)[used],
-                           np.asarray(result.model_afc)[used], label=label,
-                           magnitude_only=bool(getattr(result, "magnitude", False)))
+            magnitude_only = bool(getattr(result, "magnitude", False))
+            if setup is not None:
+                from vibid.report.figures import fine_model
+
+                f, H, _ = fine_model(setup, result)
+            else:
+                used = np.asarray(result.used, bool)
+                f, H = np.asarray(result.frequency_hz)[used], np.asarray(result.model_afc)[used]
+            self.set_model(f, H, label=label, magnitude_only=magnitude_only)
         except Exception as exc:  # a figure is never worth stopping the flow for
             self._warn(exc)
 
@@ -153,16 +163,26 @@ class LiveAfc:
             return False
 
     # -- output ---------------------------------------------------------------------------
-    def render_png(self, dpi: int = 80) -> bytes:
-        """The points so far (and the model) as a PNG: |H| (log) and phase vs frequency."""
+    def figure(self):
+        """The points so far (and the model) as a figure: |H| (log) and phase against
+        frequency, the phase unwrapped as in the report's AFC figure (the model's along its
+        grid, each measured one within half a turn of the model's; without a model phase
+        the measured ones unwrapped along frequency)."""
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
+
+        from vibid.report.plots import H_UNIT, phase_near
 
         idx = sorted(self.points, key=lambda i: self.points[i][0])
         f = np.array([self.points[i][0] for i in idx])
         mag = np.array([self.points[i][1] for i in idx])
-        ph = np.array([self.points[i][2] for i in idx])
+        ph = np.radians([self.points[i][2] for i in idx])
         std = [self.points[i][3] for i in idx]
+        model = self.model
+        if model is not None and model[2] is not None and len(model[0]):
+            ph = phase_near(ph, np.interp(f, model[0], np.radians(model[2])))
+        else:
+            ph = np.unwrap(ph)
         fig = Figure(figsize=(6.4, 4.4))
         FigureCanvasAgg(fig)
         ax1, ax2 = fig.subplots(2, 1, sharex=True)
@@ -171,17 +191,15 @@ class LiveAfc:
             ax1.fill_between(f, np.maximum(mag - 2 * s, mag * 1e-3), mag + 2 * s,
                              color="C0", alpha=0.25, lw=0, label="±2 std")
         ax1.plot(f, mag, "o", ms=3, color="C0", label="measured")
-        ax2.plot(f, ph, "o", ms=3, color="C0")
-        if self.model is not None:
-            mf, mm, mp, label = self.model
+        ax2.plot(f, np.degrees(ph), "o", ms=3, color="C0")
+        if model is not None:
+            mf, mm, mp, label = model
             ax1.plot(mf, mm, "-", lw=1, color="C3", label=label)
             if mp is not None:
-                # the model's phase near the measured one (whole turns)
-                mp = mp - 360 * np.round((mp - np.interp(mf, f, ph)) / 360) if len(f) else mp
                 ax2.plot(mf, mp, "-", lw=1, color="C3")
         if np.any(mag > 0):
             ax1.set_yscale("log")
-        ax1.set_ylabel("|H| (m/s² per m/s²)")
+        ax1.set_ylabel(f"|H| ({H_UNIT})")
         ax2.set_ylabel("phase (deg)")
         ax2.set_xlabel("frequency (Hz)")
         ax1.legend(loc="upper right", fontsize=7)  # "best" searches: slow with many points
@@ -189,6 +207,11 @@ class LiveAfc:
         for ax in (ax1, ax2):
             ax.grid(True, alpha=0.3)
         fig.subplots_adjust(left=0.13, right=0.97, top=0.93, bottom=0.11, hspace=0.08)
+        return fig
+
+    def render_png(self, dpi: int = 80) -> bytes:
+        """:meth:`figure` as a PNG."""
+        fig = self.figure()
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)
         fig.clear()

@@ -50,7 +50,7 @@ def _figure(figsize):
     return Figure(figsize=figsize)
 
 
-def _phase_near(phase_rad, reference_rad):
+def phase_near(phase_rad, reference_rad):
     """``phase_rad`` shifted by whole turns to lie within half a turn of ``reference_rad``."""
     return phase_rad - 2 * np.pi * np.round((phase_rad - reference_rad) / (2 * np.pi))
 
@@ -82,13 +82,13 @@ def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
     ax_mag.semilogy(fm, np.abs(Hm), "-", color="C1", lw=1.2, label="identified model")
     ax_mag.errorbar(f, np.abs(H), yerr=2 * s, fmt="o", ms=3, color="C0", elinewidth=0.9,
                     capsize=2, label="measured (±2 std)")
-    ph = _phase_near(np.angle(H), np.interp(f, fm, ph_model))
+    ph = phase_near(np.angle(H), np.interp(f, fm, ph_model))
     ph_err = 2 * s / np.maximum(np.abs(H), 1e-300)
     ax_ph.plot(fm, np.degrees(ph_model), "-", color="C1", lw=1.2)
     ax_ph.errorbar(f, np.degrees(ph), yerr=np.degrees(ph_err), fmt="o", ms=3, color="C0",
                    elinewidth=0.9, capsize=2)
     for i, fx in enumerate(flagged):
-        p = _phase_near(np.angle(fx.H), np.interp(fx.frequency_hz, fm, ph_model))
+        p = phase_near(np.angle(fx.H), np.interp(fx.frequency_hz, fm, ph_model))
         kw = {"label": "flagged, not used"} if i == 0 else {}
         ax_mag.plot(fx.frequency_hz, max(abs(fx.H), 1e-300), "x", color="C3", ms=7, mew=1.5, **kw)
         ax_mag.annotate(fx.label, (fx.frequency_hz, max(abs(fx.H), 1e-300)), fontsize=7,
