@@ -4,6 +4,7 @@ setting and the replay command's input checks."""
 
 import csv
 import io
+import re
 
 import numpy as np
 import pytest
@@ -30,7 +31,7 @@ def test_units_come_from_the_model_terms():
 
 def test_measured_phase_is_drawn_within_half_a_turn_of_the_unwrapped_model():
     # a model unwrapped to -540 deg; the measurement's angle() says +180 deg: same phasor
-    ph = plots._phase_near(np.radians([180.0, -170.0]), np.radians([-540.0, -190.0]))
+    ph = plots.phase_near(np.radians([180.0, -170.0]), np.radians([-540.0, -190.0]))
     assert np.allclose(np.degrees(ph), [-540.0, -170.0])
 
 
@@ -176,6 +177,37 @@ def test_the_figure_list_drives_the_png_files_report_md_and_the_ui(tmp_path, mon
     ui = figures_markdown(tmp_path)
     assert "![An extra figure](data:image/png;base64," in ui and "*An extra figure*" in ui
     assert "Never drawn" not in ui
+
+
+def _html(markdown_text):
+    markdown_it = pytest.importorskip("markdown_it")
+    return markdown_it.MarkdownIt("commonmark").enable("table").render(markdown_text)
+
+
+def test_the_residual_diagnosis_is_one_list_with_one_bullet_per_stage():
+    r = _report("a", 17.97, 2e-5)
+    r["loop"]["diagnosis"] = [[{"kind": "trend", "f_hz": None,
+                                "note": "phase falls linearly by 11° across the band"}], []]
+    html = _html(report.summary_markdown(r))
+    start = html.index("What the residual showed")
+    items = html[start:html.index("</ul>", start)]
+    # "- + channel_delay: ..." would be a list inside the list: two bullets
+    assert items.count("<li>") == 2 and items.count("<ul>") == 1
+    assert "channel_delay</strong>: nothing beyond the noise</li>" in items
+
+
+def test_a_figure_s_alt_text_is_plain_and_its_caption_stays_visible():
+    from vibid.report import figures
+
+    captions = [fig.caption for fig in figures.FIGURES] + ["Tom's <b>bold</b> & [x] *y*"]
+    assert any("'" in c for c in captions)  # the convergence figure's "optimiser's"
+    for caption in captions:
+        html = _html("\n".join(figures.figure_markdown(caption, "f.png")))
+        (alt,) = re.findall(r'alt="([^"]*)"', html)
+        assert not set(alt) & set("'\"&<>[]*_`\\"), alt  # nothing HTML would escape
+        assert alt.replace("’", "'").split()[0] == caption.split()[0]
+    md = "\n".join(figures.figure_markdown(figures.FIGURES[-1].caption, "convergence.png"))
+    assert "*The local optimiser's χ² per iteration*" in md
 
 
 def test_artifact_keys_are_stable_per_specimen():

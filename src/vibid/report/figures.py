@@ -179,7 +179,20 @@ def draw_figures(data, identified, report: dict) -> dict[str, Any]:
     return {file: fig for file, fig in drawn.items() if fig is not None}
 
 
+#: Characters of a caption its image's alt text leaves out or replaces: markdown would
+#: read them as syntax, HTML escapes them (the Prefect UI showed ``optimiser&#39;s``).
+_ALT_REPLACED = str.maketrans({"'": "’", "&": "and", '"': None, "<": None, ">": None,
+                               "[": None, "]": None, "*": None, "_": None, "`": None,
+                               "\\": None})
+
+
+def alt_text(caption: str) -> str:
+    """A caption as plain image alt text (:data:`_ALT_REPLACED`: no character that markdown
+    or HTML escapes)."""
+    return " ".join(caption.translate(_ALT_REPLACED).split())
+
+
 def figure_markdown(caption: str, src: str) -> list[str]:
-    """One figure as markdown lines: the image (``src``: a file name or a data URI) and
-    its caption below it."""
-    return [f"![{caption}]({src})", "", f"*{caption}*", ""]
+    """One figure as markdown lines: the image (``src``: a file name or a data URI; its alt
+    text the caption made plain, :func:`alt_text`) and the caption below it as text."""
+    return [f"![{alt_text(caption)}]({src})", "", f"*{caption}*", ""]

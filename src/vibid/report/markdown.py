@@ -98,7 +98,8 @@ def _diagnosis_text(report: dict) -> list[str]:
     lines = ["", "What the residual showed (its diagnosis, stage by stage):", ""]
     for st, features in zip(report["loop"]["stages"], per_stage):
         said = "; ".join(f["note"] for f in features) or "nothing beyond the noise"
-        lines.append(f"- {stage_label(st['added'])}: {said}")
+        # bold: a label "+ effect" at an item's start would open a nested list (two bullets)
+        lines.append(f"- **{stage_label(st['added'])}**: {said}")
     return lines
 
 
