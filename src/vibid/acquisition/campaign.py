@@ -21,7 +21,10 @@ Per step:
    ``vibid_note`` attribute says so (the AFC is a ratio and stays valid);
 3. the record is fitted by the signal stage (:func:`vibid.signal.afc_from_records`) for the
    progress line and for the plan's settle rule (an unsettled record is recorded again after
-   the damping settle);
+   the damping settle). Unsettled: the signal stage's ``unsettled`` flag, or a free
+   vibration a few hertz off the drive frequency that dies out and leaks more than 3 std
+   into a channel's phasor (:func:`vibid.signal.flags.free_vibration`; the halves test
+   misses it, since the ring raises the noise it is judged against);
 4. **abort limit**: any record whose response peak exceeds ``abort_response_m_s2`` switches
    the output off at once; that record is written as an ``aborted`` step and the session is
    closed ``aborted`` with the reason;
@@ -382,13 +385,22 @@ def amplitude_m_s2(x: np.ndarray, frequency_hz: float, sample_rate_hz: float) ->
 
 
 def _fit(cmd: StepCommand, reading: Reading) -> tuple[complex, float, bool]:
-    """H of the record, its std per part and whether it is settled, by the signal stage's
-    harmonic fit."""
+    """H of the record, its std per part and whether it is settled: by the signal stage's
+    harmonic fit (its ``unsettled`` flag), and with no free vibration off the drive
+    frequency that dies out and leaks more than ``FREE_VIBRATION_LEAK_STD`` standard
+    deviations into either channel's phasor (:func:`vibid.signal.flags.free_vibration`: a
+    mode a few hertz away, still ringing after the change, which the halves test misses)."""
     from vibid.signal import StepRecord, afc_from_records
+    from vibid.signal.flags import free_vibration
 
     point = afc_from_records([StepRecord(cmd.frequency_hz, reading.sample_rate_hz,
                                          reading.base_m_s2, reading.response_m_s2)]).points[0]
-    return point.h, point.std, "unsettled" not in point.flag_names
+    settled = "unsettled" not in point.flag_names
+    f = point.frequency_hz if math.isfinite(point.frequency_hz) else cmd.frequency_hz
+    if settled:
+        settled = not any(free_vibration(x, f, reading.sample_rate_hz).unsettled()
+                          for x in (reading.base_m_s2, reading.response_m_s2))
+    return point.h, point.std, settled
 
 
 def _begin_step(stand: Stand, index: int) -> None:
