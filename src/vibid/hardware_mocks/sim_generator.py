@@ -15,7 +15,8 @@ range"``, ``-113,"Undefined header"``, ``-104,"Data type error"``) to be read wi
 Simulation-only controls carry a ``sim_`` prefix: :meth:`sim_no_reply`,
 :meth:`sim_late_reply`, :meth:`sim_queue_error`, :meth:`sim_drop_connection`, :attr:`sim_reply_delay_s`,
 :attr:`sim_log`, and scheduled faults (:meth:`sim_schedule`) that fire at the N-th frequency
-command (a step of a campaign), once (:attr:`sim_fired`).
+command, or at the frequency command of a campaign's step N (:attr:`sim_step_index`), once
+(:attr:`sim_fired`).
 
 Notes (where this differs from a real instrument): there is no output impedance or load, the
 amplitude is exact, a change of setting is instantaneous, and only the commands of
@@ -38,6 +39,7 @@ FAULT_KINDS = ("no_reply", "error", "drop")
 class _Fault:
     kind: str                 #: one of FAULT_KINDS
     at_step: int              #: the 0-based index of the frequency command it fires at
+    at_index: int | None = None  #: or the campaign's step index it fires at (if given)
     count: int = 1            #: no_reply: how many replies are lost
     code: int = -310
     message: str = "System error"
@@ -81,6 +83,9 @@ class SimulatedGenerator:
     #: keys of the scheduled faults that have fired (shared with a reopened stand, so that
     #: each fault fires once: see :class:`~vibid.hardware_mocks.virtual_stand.VirtualStand`)
     sim_fired: set[int] = field(default_factory=set)
+    #: the campaign's step now being played (set by the virtual stand's ``begin_step``;
+    #: None outside a campaign): a fault with ``at_index`` fires at that step's frequency
+    sim_step_index: int | None = None
 
     # -- what the specimen sees ---------------------------------------------------------
     def played_at(self, frequency_hz: float) -> float:
@@ -115,15 +120,28 @@ class SimulatedGenerator:
         """Unplug the instrument: the port raises on its next read or write."""
         self.connected = False
 
+    def sim_left_playing(self, other: "SimulatedGenerator") -> None:
+        """Start as ``other`` was left when its link went down: the same frequency, amplitude
+        and output, played steadily (no transient until the next change). A reopened stand
+        finds the generator still driving the shaker after a dropped connection."""
+        self.frequency_hz, self.amplitude_vpp = other.frequency_hz, other.amplitude_vpp
+        self.output_on = other.output_on
+        self.previous = (self.played_frequency_hz, self.amplitude_vpp, self.output_on)
+        self.changed_at_s = -math.inf
+
     def sim_schedule(self, fault: dict, key: int = -1) -> None:
         """Schedule a fault from the stand configuration, e.g. ``{"kind": "no_reply",
-        "at_step": 3}``: it fires when the ``at_step``-th frequency command arrives; its
-        ``key`` goes into :attr:`sim_fired` then."""
+        "at_step": 3}``: it fires when the ``at_step``-th frequency command arrives (counted
+        from this instrument's start), or with ``"at_index": N`` at the frequency command of
+        the campaign's step ``N`` (whatever the instrument played before); its ``key`` goes
+        into :attr:`sim_fired` then."""
         kind = fault.get("kind")
         if kind not in FAULT_KINDS:
             raise ValueError(f"unknown fault kind {kind!r}, expected one of {', '.join(FAULT_KINDS)}")
-        self._faults.append(_Fault(kind, int(fault.get("at_step", 0)), int(fault.get("count", 1)),
-                                   int(fault.get("code", -310)),
+        at_index = fault.get("at_index")
+        self._faults.append(_Fault(kind, int(fault.get("at_step", 0)),
+                                   None if at_index is None else int(at_index),
+                                   int(fault.get("count", 1)), int(fault.get("code", -310)),
                                    str(fault.get("message", "System error")), int(key)))
 
     # -- the instrument -----------------------------------------------------------------
@@ -188,7 +206,9 @@ class SimulatedGenerator:
     def _set_frequency(self, value: float) -> None:
         step = self.frequency_commands
         self.frequency_commands += 1
-        for fault in [f for f in self._faults if f.at_step == step]:
+        due = [f for f in self._faults
+               if (f.at_step == step if f.at_index is None else f.at_index == self.sim_step_index)]
+        for fault in due:
             self._faults.remove(fault)
             self.sim_fired.add(fault.key)
             if fault.kind == "no_reply":

@@ -25,7 +25,13 @@ synthesis, as for ``vibid simulate``):
   natural frequency and decay rate, starting with the jump of the mode's steady response
   (a one-mode resonance ``|H(f_n)| iβ f² / (f_n² − f² + iβ f_n²)`` times the base
   amplitude, before and after the change) and decayed over the time since the change;
-* clipping at each DAQ channel's range (in the fake task), which reports an overload.
+* clipping at each DAQ channel's range (in the fake task), which reports an overload;
+* injected faults (``simulated.faults``): the generator's (``no_reply``, ``error``,
+  ``drop``: :meth:`~vibid.hardware_mocks.sim_generator.SimulatedGenerator.sim_schedule`) and
+  the DAQ's ``overload``: a shock on the response channel (a knock on the table: a 2 ms
+  half-sine of :data:`SHOCK_RANGES` times the channel's range, in the middle of the record),
+  which the fake task clips and reports, in the first record after the ``at_step``-th
+  frequency command, or of the campaign's step ``at_index``. Each fires once.
 
 Randomness is seeded per acquisition from (``simulated.seed``, the step index, the number
 of acquisitions in the step) when the campaign announces its steps
@@ -54,9 +60,9 @@ from vibid.acquisition.generator import open_generator
 from vibid.acquisition.protocols import Clock, Stand, WallClock
 from vibid.acquisition.stand_config import StandConfig, StandConfigError
 from vibid.errors import VibidError
-from vibid.hardware_mocks.fake_daq import DeviceLimits, FakeTask
+from vibid.hardware_mocks.fake_daq import G_M_S2, DeviceLimits, FakeTask
 from vibid.hardware_mocks.records import Transient, synthetic_step
-from vibid.hardware_mocks.sim_generator import SimulatedGenerator, register
+from vibid.hardware_mocks.sim_generator import FAULT_KINDS, SimulatedGenerator, register
 from vibid.hardware_mocks.simulated_session import StandConditions
 from vibid.hardware_mocks.specimen import VirtualSpecimen
 from vibid.setup_model import Setup
@@ -64,6 +70,12 @@ from vibid.setup_model import Setup
 #: a transient (or the IEPE offset) below exp(-30) of its start is left out: exactly 0, so
 #: that a stand reopened after a long settle records the same samples as one that ran on
 TRANSIENT_DECAYS = 30.0
+#: faults of the DAQ side (the rest are the generator's, ``sim_generator.FAULT_KINDS``)
+DAQ_FAULT_KINDS = ("overload",)
+#: an injected overload's shock peak, in multiples of the response channel's range
+SHOCK_RANGES = 3.0
+#: its duration (a half sine), s
+SHOCK_S = 0.002
 
 
 class VirtualClock:
@@ -107,8 +119,20 @@ class VirtualStand:
                                              changed_at_s=clock.now_s())
         if fired is not None:
             self.instrument.sim_fired = fired  # shared: a fault that fired stays fired
+        known = FAULT_KINDS + DAQ_FAULT_KINDS
+        #: scheduled DAQ faults: (key, at_step, at_index or None)
+        self.daq_faults: list[tuple[int, int, int | None]] = []
         for key, fault in enumerate(sim.faults):
-            if key not in self.instrument.sim_fired:
+            kind = fault.get("kind") if isinstance(fault, dict) else None
+            if kind not in known:
+                raise ValueError(f"unknown fault kind {kind!r}, expected one of {', '.join(known)}")
+            if key in self.instrument.sim_fired:
+                continue
+            if kind in DAQ_FAULT_KINDS:
+                at_index = fault.get("at_index")
+                self.daq_faults.append((key, int(fault.get("at_step", 0)),
+                                        None if at_index is None else int(at_index)))
+            else:
                 self.instrument.sim_schedule(fault, key=key)
         self.truth = true_parameters(config)
         freqs = setup.excitation.frequencies_hz if setup.excitation else (setup.daq.sample_rate_hz / 2,)
@@ -135,8 +159,10 @@ class VirtualStand:
         return FakeTask(self, DeviceLimits(device=self.config.daq.device))
 
     def begin_step(self, index: int) -> None:
-        """The campaign starts step ``index``: seed its acquisitions from it from now on."""
+        """The campaign starts step ``index``: seed its acquisitions from it from now on
+        (and fire the faults scheduled ``at_index`` of it)."""
         self._step, self._acquisitions = int(index), 0
+        self.instrument.sim_step_index = int(index)
 
     def _rng(self) -> np.random.Generator:
         """This acquisition's random numbers: from (seed, step index, acquisitions in the
@@ -169,7 +195,27 @@ class VirtualStand:
                               c.drift_m_s2_per_s[1] - iepe / self.iepe_settle_s),
             harmonics_db=c.harmonics_db, noise_std_m_s2=(self.noise_std_m_s2,) * 2,
             transient=self._transient(now, rng), rng=rng)
+        if self._overload_due():
+            response = response + self._shock(n_samples, sample_rate_hz)
         return base, response
+
+    def _overload_due(self) -> bool:
+        """Whether an injected ``overload`` fires in this record (then it has fired)."""
+        step = self.instrument.frequency_commands - 1  # this instrument's frequency command
+        for fault in self.daq_faults:
+            key, at_step, at_index = fault
+            if (at_step == step) if at_index is None else (at_index == self._step):
+                self.daq_faults.remove(fault)
+                self.instrument.sim_fired.add(key)
+                return True
+        return False
+
+    def _shock(self, n_samples: int, sample_rate_hz: float) -> np.ndarray:
+        """A knock on the table, seen by the response: a half sine of ``SHOCK_S`` peaking at
+        ``SHOCK_RANGES`` times the channel's range, in the middle of the record."""
+        peak = SHOCK_RANGES * self.config.daq.range_g * G_M_S2
+        t = (np.arange(n_samples) - n_samples // 2) / sample_rate_hz
+        return np.where((t >= 0) & (t < SHOCK_S), peak * np.sin(np.pi * np.clip(t, 0, SHOCK_S) / SHOCK_S), 0.0)
 
     def _transient(self, now_s: float, rng: np.random.Generator) -> Transient | None:
         gen = self.instrument
@@ -247,12 +293,15 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     frequency first, which takes a while on a fine mesh), otherwise time is virtual. The
     :class:`VirtualStand` behind it is ``stand.virtual`` and :func:`lookup_stand` ``(NAME)``.
     Each injected fault of ``simulated.faults`` fires once per ``NAME`` in a process: a
-    stand reopened under that name (a retried campaign) runs without the faults that fired.
+    stand reopened under that name (a retried campaign) runs without the faults that fired,
+    and finds the generator as the last one left it where its output was still on (a
+    dropped link: :meth:`~vibid.hardware_mocks.sim_generator.SimulatedGenerator.sim_left_playing`).
     """
     url = config.generator.url
     parts = urllib.parse.urlsplit(url)
     if parts.scheme != "vibidsim" or not parts.netloc:
         raise StandConfigError(f"generator.url: the simulated stand needs vibidsim://NAME, got {url!r}")
+    left = _STANDS.get(parts.netloc)
     try:
         virtual = VirtualStand(setup, config, clock=WallClock() if realtime else VirtualClock(),
                                accuracy=accuracy, fired=_FIRED.setdefault(parts.netloc, set()))
@@ -263,6 +312,10 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     virtual.specimen.modes  # noqa: B018 - solved now, not during the first record
     if realtime:
         virtual.prefetch()
+    if left is not None and left.instrument.output_on:
+        # the last stand of this name left its generator playing (its link dropped): the
+        # reopened link finds it still driving, until the campaign switches it off
+        virtual.instrument.sim_left_playing(left.instrument)
     register(parts.netloc, virtual.instrument)
     _STANDS[parts.netloc] = virtual
     generator = open_generator(url, baudrate=config.generator.baudrate,
