@@ -341,3 +341,19 @@ def test_a_planned_setup_settles_and_records_each_step_as_listed():
         cycles = c.n_samples * c.frequency_hz / fs
         assert c.record_s >= wanted_s - 0.5 / fs and abs(cycles - round(cycles)) < c.frequency_hz / fs
         assert c.record_s < wanted_s + 1.0 / c.frequency_hz + 1.0 / fs  # the least whole cycles
+
+
+def test_the_drive_controls_amplitude_is_right_on_a_long_record_with_a_clock_offset():
+    # 8.75 s at 1427.5 Hz, the DAQ's clock 40 ppm off the generator's: the phase drifts by
+    # 2π·1427.5·40e-6·8.75 = 3.14 rad over the record, so one fit at the commanded
+    # frequency reads sinc-reduced 2/π = 0.64 of the amplitude; by blocks it reads 1
+    fs, f, t_s, ppm = 25600.0, 1427.5, 8.75, 40.0
+    t = np.arange(int(fs * t_s)) / fs
+    x = 1.0 * np.cos(2 * np.pi * f * (1 + ppm * 1e-6) * t + 0.3) + 0.02
+    one_fit = np.linalg.lstsq(np.stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t),
+                                        np.ones_like(t)], 1), x, rcond=None)[0]
+    assert np.hypot(*one_fit[:2]) == pytest.approx(2 / np.pi, abs=0.01)  # the old reading
+    assert amplitude_m_s2(x, f, fs) == pytest.approx(1.0, abs=2e-3)
+    # a short record at a low frequency still fits whole cycles (4 at least)
+    t = np.arange(int(fs * 0.4)) / fs
+    assert amplitude_m_s2(0.5 * np.sin(2 * np.pi * 12.5 * t), 12.5, fs) == pytest.approx(0.5, rel=1e-6)

@@ -7,8 +7,10 @@ deviations. On the virtual strip at the default noise this alone gave chi2/dof 1
 ``unexplained_residual`` on a clean specimen, with or without injected faults (the steps
 next to the 496.5 and 790 Hz modes: 487.5 Hz 9.4 std off, 806 Hz 5.3 std).
 
-The reference here is independent of the check: the signal stage's own H of the same record
-without the ring (the same noise), and the ring's decay ``e^{-π f_n η t}`` worked out by hand.
+The signal stage flags such a record ``ringing`` (it is not used) and the runner records
+it again. The reference here is independent of the check: the signal stage's own H of the
+same record without the ring (the same noise), and the ring's decay ``e^{-π f_n η t}``
+worked out by hand.
 """
 
 import math
@@ -55,7 +57,9 @@ def test_a_ring_two_bins_off_biases_h_unflagged_and_free_vibration_measures_the_
     ringing, clean = _records(0.03), _records(0.0)
     p, p0 = _point(ringing), _point(clean)
     bias_std = abs(p.h - p0.h) / p.std  # what the ring did to H, in H's stated std
-    assert "unsettled" not in p.flag_names  # the blind spot
+    assert "unsettled" not in p.flag_names  # the halves test's blind spot ...
+    assert "ringing" in p.flag_names and not p.used  # ... the ringing flag's case
+    assert "ringing" not in p0.flag_names and p0.used
     assert bias_std > 5.0
     found = free_vibration(ringing[1], p.frequency_hz, FS)
     assert abs(found.frequency_hz - F_N) < 0.5
@@ -74,6 +78,7 @@ def test_after_the_damping_settle_the_ring_has_decayed_below_the_limit():
     p, p0 = _point(again), _point(_records(0.0))
     assert abs(p.h - p0.h) / p.std < 1.0
     assert not free_vibration(again[1], p.frequency_hz, FS).unsettled()
+    assert p.used and not p.flags
 
 
 def test_a_steady_tone_or_plain_noise_is_not_a_free_vibration():

@@ -21,10 +21,10 @@ Per step:
    ``vibid_note`` attribute says so (the AFC is a ratio and stays valid);
 3. the record is fitted by the signal stage (:func:`vibid.signal.afc_from_records`) for the
    progress line and for the plan's settle rule (an unsettled record is recorded again after
-   the damping settle). Unsettled: the signal stage's ``unsettled`` flag, or a free
-   vibration a few hertz off the drive frequency that dies out and leaks more than 3 std
-   into a channel's phasor (:func:`vibid.signal.flags.free_vibration`; the halves test
-   misses it, since the ring raises the noise it is judged against);
+   the damping settle). Unsettled: the signal stage's ``unsettled`` flag, or its
+   ``ringing`` flag (a free vibration a few hertz off the drive frequency that dies out
+   and leaks more than 3 std into a channel's phasor: the halves test misses it, since the
+   ring raises the noise it is judged against);
 4. **abort limit**: any record whose response peak exceeds ``abort_response_m_s2`` switches
    the output off at once; that record is written as an ``aborted`` step and the session is
    closed ``aborted`` with the reason;
@@ -373,34 +373,50 @@ def _short(timing):
     return replace(timing, min_record_s=timing.min_record_s / 4, min_cycles=max(4, timing.min_cycles // 4))
 
 
+#: the drive control measures the amplitude over blocks of about this length, s
+AMPLITUDE_BLOCK_S = 0.25
+
+
 def amplitude_m_s2(x: np.ndarray, frequency_hz: float, sample_rate_hz: float) -> float:
-    """Amplitude of the sinusoid at ``frequency_hz`` in ``x`` (least squares with an offset), m/s²."""
+    """Amplitude of the sinusoid at ``frequency_hz`` in ``x``, m/s²: least squares with an
+    offset over blocks of about :data:`AMPLITUDE_BLOCK_S` (at least 4 cycles), averaged.
+
+    In blocks because the generator's and the DAQ's clocks differ (up to 200 ppm): over a
+    long record the sinusoid drifts in phase against the commanded frequency, and one fit
+    over all of it loses amplitude as a sinc of the drift (an 8.75 s record at 1428 Hz with a
+    40 ppm offset drifts by π and read 0.64 of the true amplitude: the drive control then
+    chased a base that was on target)."""
     x = np.asarray(x, dtype=np.float64)
     if x.size < 3:
         return 0.0
-    w = 2.0 * np.pi * frequency_hz * np.arange(x.size) / sample_rate_hz
-    a = np.stack([np.cos(w), np.sin(w), np.ones_like(w)], axis=1)
-    coef, *_ = np.linalg.lstsq(a, x, rcond=None)
-    return float(math.hypot(coef[0], coef[1]))
+    block = max(int(round(AMPLITUDE_BLOCK_S * sample_rate_hz)),
+                int(math.ceil(4 * sample_rate_hz / frequency_hz)), 3)
+    n_blocks = max(1, x.size // block)
+    edges = np.linspace(0, x.size, n_blocks + 1).astype(int)
+    amps = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        w = 2.0 * np.pi * frequency_hz * np.arange(lo, hi) / sample_rate_hz
+        a = np.stack([np.cos(w), np.sin(w), np.ones_like(w)], axis=1)
+        coef, *_ = np.linalg.lstsq(a, x[lo:hi], rcond=None)
+        amps.append(math.hypot(coef[0], coef[1]))
+    return float(np.mean(amps))
+
+
+#: flags of the signal stage that say waiting would have given another record: the step is
+#: recorded again after the damping settle
+UNSETTLED_FLAGS = ("unsettled", "ringing")
 
 
 def _fit(cmd: StepCommand, reading: Reading) -> tuple[complex, float, bool]:
-    """H of the record, its std per part and whether it is settled: by the signal stage's
-    harmonic fit (its ``unsettled`` flag), and with no free vibration off the drive
-    frequency that dies out and leaks more than ``FREE_VIBRATION_LEAK_STD`` standard
-    deviations into either channel's phasor (:func:`vibid.signal.flags.free_vibration`: a
-    mode a few hertz away, still ringing after the change, which the halves test misses)."""
+    """H of the record, its std per part and whether it is settled, by the signal stage's
+    harmonic fit: neither its halves disagree (``unsettled``) nor a nearby mode still rings
+    into it (``ringing``, :func:`vibid.signal.flags.free_vibration`: a mode a few hertz off
+    the drive frequency, which the halves test misses)."""
     from vibid.signal import StepRecord, afc_from_records
-    from vibid.signal.flags import free_vibration
 
     point = afc_from_records([StepRecord(cmd.frequency_hz, reading.sample_rate_hz,
                                          reading.base_m_s2, reading.response_m_s2)]).points[0]
-    settled = "unsettled" not in point.flag_names
-    f = point.frequency_hz if math.isfinite(point.frequency_hz) else cmd.frequency_hz
-    if settled:
-        settled = not any(free_vibration(x, f, reading.sample_rate_hz).unsettled()
-                          for x in (reading.base_m_s2, reading.response_m_s2))
-    return point.h, point.std, settled
+    return point.h, point.std, not set(UNSETTLED_FLAGS) & set(point.flag_names)
 
 
 def _begin_step(stand: Stand, index: int) -> None:

@@ -24,7 +24,8 @@ from typing import Any, Collection, Iterable, Protocol
 import numpy as np
 
 from vibid.signal.basis import Layout
-from vibid.signal.flags import CHANNELS, Flag, FlagThresholds, flat_top_fraction, quality_flags, settling_chi2
+from vibid.signal.flags import (CHANNELS, Flag, FlagThresholds, flat_top_fraction, free_vibration,
+                               quality_flags, settling_chi2)
 from vibid.signal.harmonic import fit_harmonics, max_harmonics
 from vibid.signal.ratio import phasor_ratio
 
@@ -189,6 +190,15 @@ class AfcTable:
     def status(self) -> tuple[str, ...]:
         return tuple(p.status for p in self.points)
 
+    def by_frequency(self) -> "AfcTable":
+        """The points sorted by commanded frequency (a stable sort: equal frequencies keep
+        their step order). The identification reads an AFC this way; a session keeps the
+        order acquired, which an adaptive campaign does not choose by frequency."""
+        order = sorted(range(len(self.points)), key=lambda i: self.points[i].commanded_hz)
+        if order == list(range(len(self.points))):
+            return self
+        return AfcTable(tuple(self.points[i] for i in order))
+
     def to_report_block(self) -> dict[str, Any]:
         """The report's ``afc`` block: the used steps, plus ``diagnostics`` for every step."""
         used = [p for p in self.points if p.used]
@@ -298,12 +308,16 @@ def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: 
     ppm_std = fit.frequency_std_hz / f * 1e6
     flat = flat_top_fraction(x)
     amp_chi2, h_chi2 = settling_chi2(fit.half_phasors_m_s2, fit.half_cov)
+    ringing = [[free_vibration(x[i, c], float(fit.frequency_hz[i]) if np.isfinite(fit.frequency_hz[i])
+                               else f[i], fs[i], degree=layout.degree,
+                               n_harmonics=layout.n_harmonics) for c in range(2)]
+               for i in range(len(steps))]
     flags = quality_flags(
         status=[s.status for s in steps], flat_top=flat,
         amplitude_change_chi2=amp_chi2, h_change_chi2=h_chi2,
         estimate_snr_db=est_snr_db, thd_db=thd_db, harmonic_chi2=harmonic_chi2,
         harmonic_dof=2 * (layout.n_harmonics - 1), clock_offset_ppm=ppm, clock_std_ppm=ppm_std,
-        cycles=f * n / fs, converged=fit.converged, thresholds=thr,
+        cycles=f * n / fs, converged=fit.converged, thresholds=thr, ringing=ringing,
     )
     with np.errstate(invalid="ignore"):
         std_re, std_im = np.sqrt(cov_h[:, 0, 0]), np.sqrt(cov_h[:, 1, 1])

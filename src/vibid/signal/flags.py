@@ -26,14 +26,18 @@ distortion  a channel's total harmonic distortion (2nd and 3rd, noise power remo
 clock       the refined frequency is further than ``max_clock_offset_ppm`` (+5σ) from the
             commanded one: the generator and DAQ clocks disagree beyond their tolerance, or
             the fit locked on something else
+ringing     a channel holds a free vibration off the drive frequency that dies out
+            (its residual's first half stronger than its second beyond ``unsettled_sigma``)
+            and moves the fundamental phasor by more than ``ringing_leak_std`` of its
+            standard deviations (:func:`free_vibration`): a nearby mode still ringing
 few_cycles  the record holds fewer than ``min_cycles`` periods; drift and fundamental blur
 fit         the frequency search did not converge (the step is fitted at the commanded
             frequency instead)
 invalid     the record cannot be fitted (non-finite samples, too short, unequal lengths)
 ========== ==================================================================================
 
-A blind spot of ``unsettled``, and the check that covers it (:func:`free_vibration`, asked
-by the campaign runner before it accepts a record): a mode a few hertz off the drive
+A blind spot of ``unsettled``, and the check that covers it (``ringing``: :func:`free_vibration`;
+the campaign runner records such a step again, as an unsettled one): a mode a few hertz off the drive
 frequency, still ringing after the last change, adds to each half's residual as much as it
 moves the halves' phasors, so the halves agree within the noise the ring itself raises; yet
 its leakage biases the phasor by many of the (inflated) standard deviations: about
@@ -65,7 +69,8 @@ __all__ = [
 ]
 
 FLAG_NAMES = (
-    "overload", "aborted", "unsettled", "low_snr", "distortion", "clock", "few_cycles", "fit", "invalid",
+    "overload", "aborted", "unsettled", "ringing", "low_snr", "distortion", "clock", "few_cycles",
+    "fit", "invalid",
 )
 CHANNELS = ("base", "response")
 
@@ -88,6 +93,7 @@ class FlagThresholds:
     max_thd_db: float = -20.0
     max_clock_offset_ppm: float = 200.0
     min_cycles: float = 2.0
+    ringing_leak_std: float = 3.0
 
 
 def unsettled_chi2_limit(sigma: float, dof: int = 2) -> float:
@@ -126,7 +132,8 @@ def settling_chi2(half_phasors: np.ndarray, half_cov: np.ndarray) -> tuple[np.nd
 
 
 #: a free vibration that moves a channel's fundamental phasor by more than this many of its
-#: standard deviations makes the record unsettled (:meth:`FreeVibration.unsettled`)
+#: standard deviations makes the record unsettled (:meth:`FreeVibration.unsettled`; the
+#: ``ringing`` flag's ``FlagThresholds.ringing_leak_std``)
 FREE_VIBRATION_LEAK_STD = 3.0
 
 
@@ -253,8 +260,11 @@ def quality_flags(
     cycles: np.ndarray,
     converged: np.ndarray,
     thresholds: FlagThresholds = FlagThresholds(),
+    ringing: list | None = None,
 ) -> list[tuple[Flag, ...]]:
-    """The flags of ``S`` steps from their diagnostics; per-channel arrays are (S, 2).
+    """The flags of ``S`` steps from their diagnostics; per-channel arrays are (S, 2);
+    ``ringing[i][c]`` the :class:`FreeVibration` of step ``i``'s channel ``c`` (None: not
+    looked for).
 
     ``estimate_snr_db`` is ``10 log10(|X|² / var)`` of each channel's fundamental phasor,
     ``var`` its variance per real component; ``harmonic_chi2`` is ``Σ_k |X_k|² / var_k`` over
@@ -297,6 +307,12 @@ def quality_flags(
         if abs(off) - 5.0 * std > thr.max_clock_offset_ppm:
             flags.append(Flag("clock", f"frequency in the record is {off:+.0f} ppm from the commanded "
                                        f"(tolerance {thr.max_clock_offset_ppm:g} ppm)"))
+        for c, name in enumerate(CHANNELS):
+            ring = None if ringing is None else ringing[i][c]
+            if ring is not None and ring.unsettled(thr.unsettled_sigma, thr.ringing_leak_std):
+                flags.append(Flag("ringing", f"{name} rings at {ring.frequency_hz:.1f} Hz, dying out "
+                                             f"(decay z {ring.decay_z:.1f}), moving the phasor "
+                                             f"{ring.leak_std:.1f} std"))
         if cycles[i] < thr.min_cycles:
             flags.append(Flag("few_cycles", f"record holds {cycles[i]:.2f} cycles (minimum {thr.min_cycles:g})"))
         if not converged[i]:
