@@ -77,14 +77,15 @@ def parse_candidates(candidates) -> tuple[str, ...] | None:
 
 
 def session_afc(session_path: str | os.PathLike) -> SessionAfc:
-    """Read a session file and fit the AFC of every step (:func:`vibid.signal.afc_from_session`)."""
+    """Read a session file and fit the AFC of every step (:func:`vibid.signal.afc_from_session`),
+    sorted by frequency (the file keeps the order acquired: an adaptive campaign's is not)."""
     from vibid.identify.profile import section
     from vibid.session import read_session
     from vibid.signal import afc_from_session
 
     with read_session(session_path) as s, section("signal stage"):
         setup, session_id = s.setup, s.session_id
-        afc = afc_from_session(s)
+        afc = afc_from_session(s).by_frequency()
     return SessionAfc(setup, session_id, afc)
 
 

@@ -34,6 +34,11 @@ STAND_TIME_S = "stand_time_s"
 SETTLE_S = "settle_s"
 #: Optional free-text root attributes of the spec.
 OPTIONAL_TEXT_ATTRIBUTES = ("operator", "notes")
+#: Optional root attribute: a JSON document (target, band, stand-time cap, batch size,
+#: seed) marking a campaign that chooses its frequencies as it goes; the setup's
+#: ``excitation.frequencies_hz`` then lists the steps recorded so far, and the step groups
+#: are the truth where the two disagree.
+ADAPTIVE = "adaptive"
 
 _STEP_NAME = re.compile(r"^[0-9]{6}$")
 
@@ -62,7 +67,8 @@ def run_status_of(attrs, n_steps: int, n_frequencies: int) -> tuple[str, str]:
 
     ``run_status`` when written; else vibid's earlier ``vibid_run_status`` ("running" read as
     ``interrupted``); else, as the spec says, ``interrupted`` when fewer steps than
-    frequencies were recorded and ``complete`` otherwise.
+    frequencies were recorded and ``complete`` otherwise (an adaptive campaign's setup
+    lists only what it recorded: without ``run_status`` it stopped before it decided to).
     """
     if RUN_STATUS in attrs:
         reason = text(attrs[RUN_STATUS_REASON]) if RUN_STATUS_REASON in attrs else ""
@@ -72,6 +78,8 @@ def run_status_of(attrs, n_steps: int, n_frequencies: int) -> tuple[str, str]:
         if legacy in ("complete", "aborted"):
             return legacy, ""
         return "interrupted", "stopped before closing the session"
+    if ADAPTIVE in attrs:
+        return "interrupted", f"stopped before closing the session, {n_steps} steps recorded"
     if n_steps < n_frequencies:
         return "interrupted", (f"stopped before closing the session, {n_steps} of "
                                f"{n_frequencies} steps recorded")
@@ -100,3 +108,16 @@ def setup_digest_problem(attrs) -> str | None:
         return "the setup does not match its checksum (the file is damaged)"
     return None
 
+
+
+def adaptive_document(attrs) -> dict | None:
+    """The ``adaptive`` root attribute as a dict, or None for a campaign of fixed steps.
+    Raises ValueError when it is not a JSON object."""
+    import json
+
+    if ADAPTIVE not in attrs:
+        return None
+    doc = json.loads(text(attrs[ADAPTIVE]))
+    if not isinstance(doc, dict):
+        raise ValueError("must be a JSON object")
+    return doc

@@ -61,6 +61,8 @@ class Session:
             #: seconds the specimen was driven (written when the session was closed), or None
             self.stand_time_s = (float(attrs[fmt.STAND_TIME_S]) if fmt.STAND_TIME_S in attrs
                                  else None)
+            #: the ``adaptive`` document of a campaign that chose its steps as it went, or None
+            self.adaptive = fmt.adaptive_document(attrs)
         with reading(path, f"/{fmt.STEPS_GROUP}"):
             self._names = sorted(k for k in f[fmt.STEPS_GROUP] if fmt.is_step_name(k))
         n_freq = len(self.setup.excitation.frequencies_hz) if self.setup.excitation else 0

@@ -139,7 +139,7 @@ def _root_problems(f: h5py.File) -> Iterator[Problem]:
 
 def _optional_root_problems(attrs) -> Iterator[Problem]:
     """``run_status``, ``run_status_reason``, ``operator``, ``notes``: strings when present;
-    ``stand_time_s`` a number >= 0."""
+    ``stand_time_s`` a number >= 0; ``adaptive`` a JSON object."""
     for name in (fmt.RUN_STATUS, fmt.RUN_STATUS_REASON, *fmt.OPTIONAL_TEXT_ATTRIBUTES):
         if name in attrs and _as_str(attrs[name]) is None:
             yield Problem(f"/@{name}", f"must be a string, got {_describe(attrs[name])}")
@@ -148,6 +148,11 @@ def _optional_root_problems(attrs) -> Iterator[Problem]:
         if value is not None and value not in fmt.RUN_STATUSES:
             yield Problem(f"/@{fmt.RUN_STATUS}",
                           f"unknown run status {value!r}, expected one of {', '.join(fmt.RUN_STATUSES)}")
+    if fmt.ADAPTIVE in attrs:
+        try:
+            fmt.adaptive_document(attrs)
+        except (ValueError, TypeError) as exc:
+            yield Problem(f"/@{fmt.ADAPTIVE}", f"not a JSON object ({exc})")
     if fmt.STAND_TIME_S in attrs:
         value = _as_float(attrs[fmt.STAND_TIME_S])
         if value is None or not (np.isfinite(value) and value >= 0):

@@ -28,6 +28,7 @@ shared/spec/session-format.md, "How a session ends"); while it runs the file has
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -70,11 +71,17 @@ class SessionWriter:
     created_utc : defaults to now.
     software : defaults to ``vibid <version>``.
     operator, notes : optional free-text root attributes of the format.
+    adaptive : the ``adaptive`` root attribute (a dict: target, band, cap, batch size, seed)
+        of a campaign that chooses its frequencies as it goes. The setup's excitation then
+        lists the steps recorded so far (:func:`recorded_setup`), rewritten with each step
+        in the same atomic change; the file is created with its first step (a setup lists
+        at least one frequency), so an adaptive campaign stopped before it leaves no file.
     """
 
     def __init__(self, path: str | os.PathLike, setup: Setup, *, session_id: str | None = None,
                  created_utc: str | None = None, software: str | None = None,
-                 operator: str | None = None, notes: str | None = None):
+                 operator: str | None = None, notes: str | None = None,
+                 adaptive: dict | None = None):
         self.path = os.fspath(path)
         if os.path.exists(self.path):
             raise VibidError(f"{self.path}: already exists; a session file is never overwritten")
@@ -84,6 +91,9 @@ class SessionWriter:
         self.setup = setup
         self.session_id = session_id or str(uuid.uuid4())
         self.n_steps = 0
+        self.adaptive = None if adaptive is None else dict(adaptive)
+        #: an adaptive session's steps so far, Hz (its setup's excitation)
+        self.recorded_hz: list[float] = []
         _remove(self._tmp)
 
         def header(f: h5py.File) -> None:
@@ -92,15 +102,20 @@ class SessionWriter:
             f.attrs["created_utc"] = created_utc or utc_now()
             f.attrs["session_id"] = self.session_id
             f.attrs["software"] = software or f"vibid {__version__}"
-            text = setup.to_json(indent=None)
-            f.attrs["setup"] = text
-            f.attrs[fmt.SETUP_DIGEST] = fmt.setup_digest(text)
+            _write_setup(f, setup)
             for name, value in (("operator", operator), ("notes", notes)):
                 if value is not None:
                     f.attrs[name] = str(value)
+            if self.adaptive is not None:
+                f.attrs[fmt.ADAPTIVE] = json.dumps(self.adaptive, sort_keys=True)
             f.create_group(fmt.STEPS_GROUP)
 
-        self._commit(header, phase_tag="create", create=True)
+        #: the header not yet written (an adaptive session's, written with its first step)
+        self._header: Callable[[h5py.File], None] | None = None
+        if self.adaptive is None:
+            self._commit(header, phase_tag="create", create=True)
+        else:
+            self._header = header
 
     @property
     def _tmp(self) -> str:
@@ -119,6 +134,9 @@ class SessionWriter:
 
         with read_session(self.path) as s:  # a damaged file: one line, nothing written
             self.setup, self.session_id, self.n_steps = s.setup, s.session_id, len(s)
+            self.adaptive = s.adaptive
+            self.recorded_hz = [float(v) for v in s.frequencies_hz()]  # the steps: the truth
+        self._header = None
         with h5py.File(self.path, "r", locking=False) as f:
             stale = fmt.PARTIAL_STEP in f or any(a in f.attrs for a in fmt.RUN_STATUS_ATTRS)
 
@@ -132,6 +150,11 @@ class SessionWriter:
         if stale:
             self._commit(reopen, phase_tag="resume")
         return self
+
+    @property
+    def exists(self) -> bool:
+        """Whether the file is there (an adaptive session's is created with its first step)."""
+        return self._header is None
 
     def append(self, *, frequency_hz: float, sample_rate_hz: float, base: np.ndarray,
                response: np.ndarray, status: str = "ok", t0_utc: str | None = None,
@@ -172,7 +195,21 @@ class SessionWriter:
                 g.create_dataset(label, data=_float_samples(x), chunks=x.shape, fletcher32=True,
                                  fillvalue=np.nan)
 
-        self._commit(add_step, phase_tag=f"step{index}")
+        change, create = add_step, False
+        if self.adaptive is not None:
+            recorded = self.recorded_hz + [float(frequency_hz)]
+
+            def change(f: h5py.File) -> None:
+                if header is not None:
+                    header(f)
+                add_step(f)
+                _write_setup(f, recorded_setup(self.setup, recorded))
+
+            header, create = self._header, self._header is not None
+        self._commit(change, phase_tag=f"step{index}", create=create)
+        self._header = None
+        if self.adaptive is not None:
+            self.recorded_hz = recorded
         self.n_steps += 1
         return index
 
@@ -182,6 +219,9 @@ class SessionWriter:
         The file stays valid either way."""
         if run_status not in fmt.RUN_STATUSES:
             raise VibidError(f"run status {run_status!r} is not one of {', '.join(fmt.RUN_STATUSES)}")
+        if not self.exists:
+            self.stand_time_s = None
+            return  # an adaptive session that recorded no step: there is no file to close
 
         def mark(f: h5py.File) -> None:
             f.attrs[fmt.RUN_STATUS] = run_status
@@ -238,6 +278,27 @@ class SessionWriter:
             _remove(tmp)
             raise
         _kill_point(phase_tag, "after_replace")
+
+
+def recorded_setup(setup: Setup, frequencies_hz) -> Setup:
+    """An adaptive session's setup: the declared one with the steps recorded so far as its
+    excitation (each step's own settle and record time are in its group), the declared
+    settle time (the floor) and minimum record length kept where they are one number."""
+    from dataclasses import replace
+
+    from vibid.setup_model import Excitation
+
+    exc = setup.excitation
+    settle = exc.settle_s if not isinstance(exc.settle_s, tuple) else min(exc.settle_s)
+    record = exc.record_s if not isinstance(exc.record_s, tuple) else None
+    return replace(setup, excitation=Excitation(tuple(float(f) for f in frequencies_hz),
+                                                float(settle), record))
+
+
+def _write_setup(f: h5py.File, setup: Setup) -> None:
+    text = setup.to_json(indent=None)
+    f.attrs["setup"] = text
+    f.attrs[fmt.SETUP_DIGEST] = fmt.setup_digest(text)
 
 
 def stand_time_s(f: h5py.File) -> float | None:
