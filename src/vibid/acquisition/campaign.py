@@ -46,6 +46,7 @@ makes the same commands as an uninterrupted one.
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import os
@@ -58,7 +59,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from vibid.acquisition.plan import StepCommand, StepOutcome, plan_summary, record_samples, stepped_sine
+from vibid.acquisition.plan import (Pause, PlanError, StepCommand, StepOutcome, StepSource, plan_summary,
+                                    record_samples, stepped_sine)
 from vibid.acquisition.protocols import Reading, Stand
 from vibid.acquisition.stand_config import StandConfig
 from vibid.errors import VibidError
@@ -110,13 +112,16 @@ class CampaignResult:
     ``aborted``), its one-line reason (empty when complete), the steps the file holds and
     the seconds the specimen was driven over all of them (``stand_time_s`` of the session:
     every step's settle and record time, re-records and earlier runs of a resumed campaign
-    included; None if no step says how long it settled)."""
+    included; None if no step says how long it settled); for an adaptive campaign, the
+    line its plan stopped with."""
 
     path: str
     run_status: str
     reason: str
     n_steps: int
     stand_time_s: float | None = None
+    #: why a campaign that chooses its steps stopped (target reached, stand-time cap), or ""
+    stopped_because: str = ""
 
 
 class _Stop(KeyboardInterrupt):
@@ -154,12 +159,18 @@ class _State:
 def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config: StandConfig, *,
                  resume: bool = False, progress: Callable[[StepProgress], Any] | None = None,
                  operator: str | None = None, notes: str | None = None,
-                 temperature_c: float | None = None, stop: Any = None) -> CampaignResult:
+                 temperature_c: float | None = None, stop: Any = None,
+                 chooser: StepSource | None = None) -> CampaignResult:
     """Run (or with ``resume`` continue) ``setup``'s stepped sine on ``stand`` into ``out_path``.
 
     Parameters
     ----------
-    setup : the declared setup; its excitation is played.
+    setup : the declared setup; its excitation is played (with a ``chooser``, its settle
+        time is the floor and its frequencies are not played).
+    chooser : a :class:`~vibid.acquisition.plan.StepSource` that chooses the steps as the
+        campaign goes (an adaptive campaign): its commands are played instead of the
+        setup's, the session carries its ``adaptive`` attribute, and a resume compares the
+        setup without its excitation (the steps in the file are the truth).
     stand : opened instruments (the caller closes them).
     out_path : the session file: new, or with ``resume`` an interrupted (or aborted) session
         of the same setup, continued from its first missing step.
@@ -183,9 +194,10 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     _check_drive(config)
     stepped_sine(setup, config)  # checks the timing before any file is touched
     if resume:
-        start, drive, near = _resume_point(path, setup)
+        start, drive, near = (_resume_point(path, setup) if chooser is None
+                              else _adaptive_resume_point(path, setup, chooser))
         writer = SessionWriter.resume(path)
-        if start >= n_steps:  # stopped after its last step, before it was closed
+        if chooser is None and start >= n_steps:  # stopped after its last step, before it was closed
             writer.close("complete")
             return CampaignResult(path, "complete", "", writer.n_steps)
     else:
@@ -193,9 +205,15 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
             raise CampaignError(f"{path}: already exists; a session file is never overwritten "
                                 "(use --resume to continue an interrupted one)")
         start, drive, near = 0, config.drive.initial_vpp, False
-        writer = SessionWriter(path, setup, operator=operator, notes=notes)
-    plan = stepped_sine(setup, config, start=start, near_resonance=near)
-    nominal = {c.index: c.settle_s + c.record_s for c in plan_summary(setup, config, start=start).commands}
+        writer = SessionWriter(path, setup, operator=operator, notes=notes,
+                               adaptive=None if chooser is None else chooser.attribute)
+    if chooser is None:
+        plan = stepped_sine(setup, config, start=start, near_resonance=near)
+        nominal = {c.index: c.settle_s + c.record_s
+                   for c in plan_summary(setup, config, start=start).commands}
+    else:
+        plan = chooser.plan(path if resume else None, start)
+        nominal = {}  # the steps to come are not known: no time left to show
     if not (math.isfinite(drive) and drive > 0):
         drive = config.drive.initial_vpp
     runner = _Runner(stand, config, _State(drive_vpp=min(drive, config.drive.max_vpp)))
@@ -214,11 +232,21 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
 
     runner.during_settle = flush
     first_unsettled = False
-    run_status, reason = "interrupted", "stopped on request"
+    run_status, reason, stopped_because = "interrupted", "stopped on request", ""
     try:
         with _sigterm_raises():
             cmd = next(plan, None)
             while cmd is not None and not stop_requested():
+                if isinstance(cmd, Pause):
+                    # the plan thinks: every measured step written, the specimen at rest
+                    flush()
+                    stand.generator.shutdown()
+                    runner.state.output_on = False
+                    try:
+                        cmd = plan.send(None)
+                    except StopIteration as end:
+                        cmd, stopped_because = None, str(end.value or "")
+                    continue
                 m = runner.execute(cmd)
                 if cmd.attempt == 0:
                     first_unsettled = not m.settled
@@ -228,10 +256,11 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
                     run_status, reason = "aborted", m.abort_reason
                     break
                 try:
-                    nxt = plan.send(StepOutcome(settled=m.settled))
-                except StopIteration:
-                    nxt = None
-                if nxt is None or nxt.index != cmd.index:
+                    nxt = plan.send(StepOutcome(settled=m.settled, reading=m.reading,
+                                                settle_s=m.settle_s))
+                except StopIteration as end:
+                    nxt, stopped_because = None, str(end.value or "")
+                if nxt is None or getattr(nxt, "index", None) != cmd.index:
                     pending.append((cmd, m, first_unsettled))
                 cmd = nxt
             else:
@@ -245,6 +274,8 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     except _WriteError as exc:
         pending.clear()
         run_status, reason = "aborted", str(exc)
+    except PlanError as exc:
+        run_status, reason = "aborted", f"the plan could not go on: {exc}"
     except VibidError as exc:
         run_status, reason = "aborted", f"stand fault: {exc}"
     except BaseException as exc:
@@ -253,7 +284,7 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
         raise
     _finish(stand, writer, run_status, reason, flush)
     return CampaignResult(path, run_status, reason, writer.n_steps,
-                          getattr(writer, "stand_time_s", None))
+                          getattr(writer, "stand_time_s", None), stopped_because)
 
 
 def _finish(stand: Stand, writer: SessionWriter, run_status: str, reason: str, flush) -> None:
@@ -486,6 +517,28 @@ def _resume_point(path: str, setup: Setup) -> tuple[int, float, bool]:
         last = s.step_attributes(n - 1)
     drive = float(last.get("vibid_drive_vpp", math.nan))
     return n, drive, bool(last.get("vibid_unsettled_first", False))
+
+
+def _adaptive_resume_point(path: str, setup: Setup, chooser: StepSource) -> tuple[int, float, bool]:
+    """The resume point of an adaptive campaign: its file must be adaptive, of the same
+    setup apart from the excitation (the file's lists the steps it recorded) and of the
+    same adaptive options."""
+    if not os.path.exists(path):
+        raise CampaignError(f"{path}: no such session file to resume")
+    with read_session(path) as s:
+        if s.adaptive is None:
+            raise CampaignError(f"{path}: not an adaptive campaign; resume it without --adaptive")
+        if replace(s.setup, excitation=None).to_dict() != replace(setup, excitation=None).to_dict():
+            raise CampaignError(f"{path}: its declared setup differs from the one given (the "
+                                "excitation aside); resume a session only with its own setup")
+        if s.adaptive != chooser.attribute:
+            raise CampaignError(f"{path}: it was started with other adaptive options "
+                                f"({json.dumps(s.adaptive, sort_keys=True)}); resume it with those")
+        n = len(s)
+        if n == 0:
+            return 0, math.nan, False
+        last = s.step_attributes(n - 1)
+    return n, float(last.get("vibid_drive_vpp", math.nan)), bool(last.get("vibid_unsettled_first", False))
 
 
 # -- stopping ----------------------------------------------------------------------------------

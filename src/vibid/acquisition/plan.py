@@ -32,17 +32,22 @@ rounded to whole samples.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Generator, Iterator
+from dataclasses import dataclass, replace
+from typing import Any, Generator, Iterator, Protocol
 
 from vibid.acquisition.stand_config import StandConfig, TimingConfig
 from vibid.errors import VibidError
 from vibid.setup_model import Setup
 
 __all__ = [
-    "PlanSummary", "StepCommand", "StepOutcome", "damping_settle_s", "plan_summary",
-    "record_samples", "stepped_sine",
+    "Pause", "PlanError", "PlanSummary", "StepCommand", "StepOutcome", "damping_settle_s", "plan_summary",
+    "play_step", "record_samples", "stepped_sine", "StepSource",
 ]
+
+
+class PlanError(VibidError):
+    """A plan that cannot go on (an adaptive campaign whose fit failed): the campaign ends
+    ``aborted`` with this reason, and is not retried as a stand fault would be."""
 
 
 @dataclass(frozen=True)
@@ -69,9 +74,36 @@ class StepCommand:
 
 @dataclass(frozen=True)
 class StepOutcome:
-    """What the runner tells the plan after executing a command."""
+    """What the runner tells the plan after executing a command: whether the record was
+    settled, and for a plan that reads the data (an adaptive campaign) the record itself
+    (a :class:`~vibid.acquisition.protocols.Reading`) and the seconds since the frequency
+    changed when it began."""
 
     settled: bool
+    reading: Any = None
+    settle_s: float = math.nan
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Not a record: the plan stops to think (an adaptive campaign fits what it measured).
+    The runner writes every measured step, switches the output off (the specimen is not
+    driven while the plan thinks) and sends ``None`` back for the plan's next command."""
+
+    reason: str = ""
+
+
+class StepSource(Protocol):
+    """A plan that chooses its steps as the campaign goes (an adaptive campaign:
+    :mod:`vibid.planner.adaptive`). ``attribute`` is the session's ``adaptive`` root
+    attribute; ``plan(session_path, start)`` yields the commands from step ``start`` on
+    (with :class:`Pause` where it stops to think), given the session file holding the
+    earlier steps (None for a new campaign), and returns one line saying why it stopped."""
+
+    attribute: dict
+
+    def plan(self, session_path: str | None, start: int) -> Generator["StepCommand | Pause", StepOutcome | None, str]:
+        ...
 
 
 def record_samples(frequency_hz: float, sample_rate_hz: float, timing: TimingConfig,
@@ -122,22 +154,31 @@ def _plan(setup: Setup, t: TimingConfig, start: int, near: bool) -> Generator[St
     n = len(exc.frequencies_hz)
     for i in range(start, n):
         f = exc.frequencies_hz[i]
-        damping = damping_settle_s(f, t)
-        settle = max(exc.settle_at(i), damping) if near else exc.settle_at(i)
+        settle = max(exc.settle_at(i), damping_settle_s(f, t)) if near else exc.settle_at(i)
         samples = record_samples(f, fs, t, exc.record_at(i))
-        outcome = yield StepCommand(i, n, f, settle, samples, fs)
-        near = outcome is not None and not outcome.settled
-        since_change_s = settle + samples / fs
-        attempt = 0
-        tau_s = _time_constants_s(f, t)
-        while outcome is not None and not outcome.settled and tau_s > 0:
-            attempt += 1
-            # wait until the next whole multiple of the damping settle since the change, within the cap
-            until_s = min(t.max_settle_s, (math.floor(since_change_s / tau_s) + 1) * tau_s)
-            if until_s <= since_change_s:
-                break  # the cap is reached: the signal stage flags what is left
-            outcome = yield StepCommand(i, n, f, until_s - since_change_s, samples, fs, attempt=attempt)
-            since_change_s = until_s + samples / fs
+        near = not (yield from play_step(StepCommand(i, n, f, settle, samples, fs), t))
+
+
+def play_step(first: StepCommand, t: TimingConfig) -> Generator[StepCommand, StepOutcome | None, bool]:
+    """The records of one step: ``first``, then, while the record is unsettled, the same
+    again at the next whole multiple of the damping settle since the frequency changed,
+    within the cap (the settle rule above). Returns whether the first record was settled
+    (an unsettled one says a resonance is near: the next step settles longer)."""
+    outcome = yield first
+    first_settled = outcome is None or outcome.settled
+    f, samples, fs = first.frequency_hz, first.n_samples, first.sample_rate_hz
+    since_change_s = first.settle_s + samples / fs
+    attempt = 0
+    tau_s = _time_constants_s(f, t)
+    while outcome is not None and not outcome.settled and tau_s > 0:
+        attempt += 1
+        # wait until the next whole multiple of the damping settle since the change, within the cap
+        until_s = min(t.max_settle_s, (math.floor(since_change_s / tau_s) + 1) * tau_s)
+        if until_s <= since_change_s:
+            break  # the cap is reached: the signal stage flags what is left
+        outcome = yield replace(first, settle_s=until_s - since_change_s, attempt=attempt)
+        since_change_s = until_s + samples / fs
+    return first_settled
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """`vibid campaign SETUP.json --stand simulated|ni [--stand-config STAND.json] [--out S.h5]
 [--report DIR] [--no-loop] [--candidates A,B] [--restarts N] [--seed N] [--resume]
 [--realtime] [--operator NAME] [--notes TEXT] [--temperature-c T] [--dry-run]
-[--record-only]`: the live stepped-sine campaign, then its identification report.
+[--record-only] [--adaptive --target D=0.1% [--band 5:2000] [--max-stand-time 600]
+[--batch 4]]`: the live stepped-sine campaign, then its identification report.
 
 Plays the setup's frequencies on the stand and records the session step by step (each
 step is in the file by the time the next one has settled; a crash or Ctrl-C leaves a valid
@@ -16,6 +17,13 @@ resume (no step is recorded twice). --record-only records the session without Pr
 without the report (one progress line per step on stderr). Exit 0 when the campaign
 completes (and the identification converges), 1 when it is interrupted or aborted (the
 reason is printed) or the input is bad.
+
+--adaptive chooses the steps as the test goes (vibid.planner.adaptive): a coarse sweep over
+the band, a fit after each batch, the next batch where the current fit learns most per
+second of stand time, until every --target is reached by the report's own standard
+uncertainty or the stand time reaches --max-stand-time. The file keeps the steps in the
+order acquired and carries the options as its `adaptive` attribute, so --resume continues
+it (with the options it was started with).
 """
 
 from __future__ import annotations
@@ -56,7 +64,63 @@ def add_parser(sub):
                    "and exit without opening the stand or writing --out")
     p.add_argument("--record-only", action="store_true",
                    help="record the session only: no Prefect flow, no identification or report")
+    a = p.add_argument_group("adaptive campaign", "choose the steps as the test goes: a coarse "
+                             "sweep, a fit after each batch, the next steps where the fit learns "
+                             "most per second of stand time, until the targets or the cap")
+    a.add_argument("--adaptive", action="store_true",
+                   help="run an adaptive campaign (the setup's excitation gives the band and "
+                   "the settle floor; its frequencies are not played)")
+    a.add_argument("--target", nargs="+", metavar="NAME=STD[%]",
+                   help="standard uncertainties to reach, relative with %%, e.g. D=0.1%% nu=0.002")
+    a.add_argument("--band", metavar="LOW:HIGH",
+                   help="frequency band, Hz (default: the setup's frequency span)")
+    a.add_argument("--max-stand-time", type=float, metavar="S",
+                   help="stop at this stand time, s (default 600)")
+    a.add_argument("--batch", type=int, metavar="N", help="steps per batch (default 4)")
     p.set_defaults(run=run)
+
+
+def adaptive_options(args, setup):
+    """The adaptive campaign's options from the command line, or from the session file an
+    adaptive campaign is resumed from (None for a campaign of the setup's steps). One-line
+    errors for options that do not go together."""
+    from vibid.identify.model.forward import plate_model
+    from vibid.planner.adaptive import AdaptiveOptions
+    from vibid.planner.prior import parse_targets
+
+    given = [o for o, v in (("--target", args.target), ("--band", args.band),
+                            ("--max-stand-time", args.max_stand_time), ("--batch", args.batch))
+             if v is not None]
+    recorded = None
+    if args.resume and args.out and os.path.isfile(args.out):
+        from vibid.session import read_session
+
+        with read_session(args.out) as s:
+            recorded = s.adaptive
+    if not args.adaptive and recorded is None:
+        if given:
+            raise VibidError(f"{given[0]} goes with --adaptive")
+        return None
+    if args.record_only:
+        raise VibidError("--record-only with --adaptive: an adaptive campaign fits between "
+                         "batches to choose its steps; run it without --record-only")
+    if args.magnitude_only:
+        raise VibidError("--magnitude-only with --adaptive: the adaptive campaign plans on the "
+                         "complex AFC; run it without --magnitude-only")
+    names = plate_model(setup.identification.model).names
+    if recorded is not None and not given:
+        return AdaptiveOptions.from_attribute(recorded, names)  # --resume: the file's own
+    if not args.target:
+        raise VibidError("--adaptive needs --target, e.g. --target D=0.1%")
+    from vibid.cli.plan import parse_band
+
+    freqs = setup.excitation.frequencies_hz
+    band = parse_band(args.band) or (float(min(freqs)), float(max(freqs)))
+    options = AdaptiveOptions(parse_targets(args.target, names), band,
+                              600.0 if args.max_stand_time is None else args.max_stand_time,
+                              4 if args.batch is None else args.batch, seed=args.seed)
+    options.check(setup)
+    return options
 
 
 def default_out(setup_path: str, now=None) -> str:
@@ -102,12 +166,18 @@ def run(args) -> int:
     candidates = parse_candidates(args.candidates)
     if args.restarts < 1:
         raise VibidError("--restarts must be at least 1")
+    if args.resume and args.out is None:
+        raise VibidError("--resume needs --out: the session file to continue")
+    adaptive = adaptive_options(args, setup)
     if args.dry_run:
-        print_plan(setup, config)
+        if adaptive is not None:
+            from vibid.planner.adaptive import AdaptiveCampaign
+
+            print("\n".join(AdaptiveCampaign(setup, config, adaptive, loop=not args.no_loop).describe()))
+        else:
+            print_plan(setup, config)
         return 0
     if args.out is None:
-        if args.resume:
-            raise VibidError("--resume needs --out: the session file to continue")
         args.out = default_out(args.setup)
         os.makedirs(os.path.dirname(args.out), exist_ok=True)
     check_out_path(args.out, args.resume)
@@ -118,12 +188,14 @@ def run(args) -> int:
 
     report_dir = args.report or default_report_dir(args.out)
     check_output_dir(report_dir)
-    return run_flow(args, report_dir, None if candidates is None else list(candidates))
+    return run_flow(args, report_dir, None if candidates is None else list(candidates),
+                    None if adaptive is None else adaptive.attribute())
 
 
-def run_flow(args, report_dir: str, candidates) -> int:
-    """The campaign as the Prefect flow: acquisition, AFC, identification, report; then the
-    report's path and its summary on stdout."""
+def run_flow(args, report_dir: str, candidates, adaptive: dict | None = None) -> int:
+    """The campaign as the Prefect flow: acquisition (``adaptive``: the adaptive campaign's
+    options, as the session's attribute), AFC, identification, report; then the report's
+    path and its summary on stdout."""
     from vibid.identify import configure
 
     configure()
@@ -137,7 +209,7 @@ def run_flow(args, report_dir: str, candidates) -> int:
                               operator=args.operator, notes=args.notes,
                               temperature_c=args.temperature_c, restarts=args.restarts,
                               seed=args.seed, magnitude_only=args.magnitude_only,
-                              return_state=True)
+                              adaptive=adaptive, return_state=True)
     if not state.is_completed():
         error = state.result(raise_on_failure=False)
         message = str(error) if isinstance(error, BaseException) else (state.message or state.name)

@@ -46,12 +46,13 @@ def default_report_dir(out) -> str:
 
 def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: bool = False,
             retries: int = 2, retry_delay_s: float = 1.0, logger=None, live=None,
-            **campaign_options):
+            chooser=None, **campaign_options):
     """Run the campaign, retrying a transient stand fault up to ``retries`` times as a
     resume (the stand reopened, the session continued from its first missing step).
     ``live``: a :class:`~vibid.flows.live.LiveAfc` each written step goes to (the
-    ``<specimen>-live`` artifact), or None. Returns the last
-    :class:`~vibid.acquisition.campaign.CampaignResult`."""
+    ``<specimen>-live`` artifact), or None; ``chooser``: an adaptive campaign's
+    :class:`~vibid.planner.adaptive.AdaptiveCampaign` (it reads the steps from the file on
+    a resume). Returns the last :class:`~vibid.acquisition.campaign.CampaignResult`."""
     from vibid.acquisition.campaign import run_campaign
     from vibid.acquisition.stand import open_stand
 
@@ -69,18 +70,46 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
                     if stand == "simulated" else "")
         with open_stand(stand, setup, config, realtime=realtime) as st:
             result = run_campaign(setup, st, out, config, resume=resume, progress=step_logged,
-                                  **campaign_options)
-        logger.info("campaign %s: %s %s (%d steps, stand time %s s)", result.path,
+                                  chooser=chooser, **campaign_options)
+        logger.info("campaign %s: %s %s (%d steps, stand time %s s)%s", result.path,
                     result.run_status, result.reason, result.n_steps,
-                    "?" if result.stand_time_s is None else f"{result.stand_time_s:.1f}")
+                    "?" if result.stand_time_s is None else f"{result.stand_time_s:.1f}",
+                    f"; {result.stopped_because}" if result.stopped_because else "")
         if not is_transient(result) or attempt == retries:
             return result
         logger.warning("%s; resuming (retry %d of %d)", result.reason, attempt + 1, retries)
-        resume = True  # a retry never repeats a written step
+        # a retry never repeats a written step (an adaptive campaign that stopped before
+        # its first step left no file: it starts again)
+        resume = os.path.exists(out)
         # operator/notes are attributes of a new session only
         campaign_options = {k: v for k, v in campaign_options.items() if k == "temperature_c"}
         time.sleep(retry_delay_s)
     return result
+
+
+def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, logger):
+    """The live AFC and the :class:`~vibid.planner.adaptive.AdaptiveCampaign` of an adaptive
+    campaign: each batch's fit is drawn over the points and its decision logged."""
+    from vibid.flows.live import LiveAfc
+    from vibid.identify.model.forward import plate_model
+    from vibid.pipeline import parse_candidates
+    from vibid.planner.adaptive import AdaptiveCampaign, AdaptiveOptions
+
+    options = AdaptiveOptions.from_attribute(adaptive, plate_model(setup.identification.model).names)
+    live = LiveAfc(setup.specimen.name, 0, logger=logger, plan=(
+        f"adaptive: until {', '.join(map(str, options.targets))} or "
+        f"{options.max_stand_time_s:g} s of stand time, batches of {options.batch_size}"))
+
+    def on_fit(fit, n_steps, stand_time_s) -> None:
+        from vibid.planner.adaptive import reached
+
+        live.set_identified(fit.result, setup, label=f"fit of {n_steps} steps")
+        live.show(note=f"after {n_steps} steps: {reached(fit, options.targets)[1]}")
+
+    names = parse_candidates(candidates)
+    chooser = AdaptiveCampaign(setup, config, options, loop=loop, candidates=names,
+                               on_fit=on_fit, say=lambda line: logger.info("adaptive: %s", line))
+    return live, chooser
 
 
 @flow(name="campaign")
@@ -90,14 +119,18 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
                   candidates: list[str] | str | None = None, retries: int = 2,
                   operator: str | None = None, notes: str | None = None,
                   temperature_c: float | None = None, restarts: int = RESTARTS,
-                  seed: int = SEED, magnitude_only: bool = False):
+                  seed: int = SEED, magnitude_only: bool = False, adaptive: dict | None = None):
     """Record a session of the setup at ``setup_path`` on ``stand`` (``"simulated"`` or
     ``"ni"``, configured by the STAND.json ``stand_config``) into ``out``, then identify it
     and write the report into ``report_dir`` (default: ``<out stem>-report`` beside ``out``).
 
     ``restarts`` and ``seed`` are the identification's (as ``vibid replay``), so a replay
     of the session with the same values gives the same report; ``magnitude_only`` fits
-    |H| alone (``vibid campaign --magnitude-only``).
+    |H| alone (``vibid campaign --magnitude-only``). ``adaptive``: the options of an
+    adaptive campaign (:meth:`~vibid.planner.adaptive.AdaptiveOptions.attribute`: target,
+    band, cap, batch size, seed), which chooses its steps as it goes, fitting between
+    batches with the closed loop as ``loop`` and ``candidates`` say; the live AFC then
+    shows each batch's fit.
 
     Returns the report (a dict). A campaign that did not complete (interrupted, aborted)
     ends the flow run ``Failed`` with its reason (a returned state: no traceback in the
@@ -113,10 +146,16 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
     logger = run_logger()
     setup = read_setup(setup_path)
     config = load_stand_config(stand_config)
-    live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
+    chooser = None
+    if adaptive is None:
+        live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
+    else:
+        live, chooser = adaptive_campaign(setup, config, adaptive, loop=loop,
+                                          candidates=candidates, logger=logger)
     result = acquire(setup, stand=stand, config=config, out=out, resume=resume,
                      realtime=realtime, retries=retries, logger=logger, live=live,
-                     operator=operator, notes=notes, temperature_c=temperature_c)
+                     chooser=chooser, operator=operator, notes=notes,
+                     temperature_c=temperature_c)
     if result.run_status != "complete":
         message = (f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
                    f"{result.n_steps} steps (resume to continue)")
@@ -127,10 +166,11 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
     data = afc_task(os.fspath(out))
     identified = identify_task(data, loop=loop, candidates=candidates, restarts=restarts,
                                seed=seed, magnitude_only=magnitude_only)
-    # a uniform campaign has its fit only now: the live AFC's last version shows it (on
-    # the report's fine grid, computed once here)
+    # the live AFC's last version shows the report's fit (on the report's fine grid,
+    # computed once here)
     live.set_identified(identified.result, data.setup)
-    live.close(note="campaign complete; the identified model over the points")
+    live.close(note="campaign complete; the identified model over the points"
+               + (f" ({result.stopped_because})" if result.stopped_because else ""))
     # the folder gets report.json beside report.md
     report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)

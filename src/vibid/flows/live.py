@@ -63,12 +63,15 @@ class LiveAfc:
 
     def __init__(self, specimen: str, n_steps: int, *, min_interval_s: float = 2.0,
                  publish=None, clock=None, max_share: float | None = MAX_SHARE,
-                 logger=None):
+                 logger=None, plan: str = ""):
         from vibid.report import artifact_key
 
         self.specimen = specimen or "specimen"
         self.key = artifact_key(specimen, "live")
         self.n_steps = int(n_steps)
+        #: an adaptive campaign's rule (its steps to come are not known: ``n_steps`` is
+        #: what it has planned so far), or "" for a campaign of fixed steps
+        self.plan = plan
         self.min_interval_s = float(min_interval_s)
         self.max_share = max_share
         self.publish = publish or prefect_publish
@@ -152,6 +155,11 @@ class LiveAfc:
 
     def close(self, note: str = "") -> bool:
         """Publish now if anything (or ``note``) is new since the last publication."""
+        return self.show(note)
+
+    def show(self, note: str = "") -> bool:
+        """Publish now if anything (or ``note``) is new since the last publication (an
+        adaptive campaign's new fit between batches). Never raises."""
         if note:
             self.note, self._dirty = note, True
         if not self._dirty or not self.points:
@@ -203,7 +211,8 @@ class LiveAfc:
         ax2.set_ylabel("phase (deg)")
         ax2.set_xlabel("frequency (Hz)")
         ax1.legend(loc="upper right", fontsize=7)  # "best" searches: slow with many points
-        ax1.set_title(f"{self.specimen}: {len(self.points)} of {self.n_steps} steps", fontsize=9)
+        ax1.set_title(f"{self.specimen}: {len(self.points)} steps" if self.plan else
+                      f"{self.specimen}: {len(self.points)} of {self.n_steps} steps", fontsize=9)
         for ax in (ax1, ax2):
             ax.grid(True, alpha=0.3)
         fig.subplots_adjust(left=0.13, right=0.97, top=0.93, bottom=0.11, hspace=0.08)
@@ -222,8 +231,12 @@ class LiveAfc:
         done = (int(self.last.index) + 1) if self.last is not None else len(self.points)
         done = max(done, len(self.points))
         now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-        lines = [f"# {self.specimen}: live AFC", "",
-                 f"- steps done {done} of {self.n_steps} ({max(self.n_steps - done, 0)} to go)"]
+        lines = [f"# {self.specimen}: live AFC", ""]
+        if self.plan:
+            lines += [f"- {self.plan}",
+                      f"- steps done {done} ({max(self.n_steps - done, 0)} more planned in this batch)"]
+        else:
+            lines.append(f"- steps done {done} of {self.n_steps} ({max(self.n_steps - done, 0)} to go)")
         if self.stand_time_s is not None:
             lines.append(f"- stand time so far: {self.stand_time_s:.1f} s")
         if self.eta_s is not None and done < self.n_steps:

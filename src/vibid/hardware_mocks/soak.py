@@ -25,11 +25,15 @@ Checked on the way and at the end (a failed check raises :class:`SoakError`):
   parameter's error in its std) and, with ``reference=True``, with an uninterrupted run of
   the same stand (chi2/dof, ``unexplained_residual``).
 
-The campaign is a parameter: ``runner`` (in-process runs, with the signature of
-:func:`vibid.acquisition.campaign.run_campaign`) and ``cli`` (the process runs:
-``python -m vibid <cli[0]> SETUP --stand simulated --stand-config STAND --out OUT
-<cli[1:]>``), so the same soak can drive another campaign (an adaptive one) later. A
-campaign whose steps are not the setup's frequencies in order needs ``expected_hz``.
+The campaign is a parameter: the setup's stepped sine by default (in-process runs of
+:func:`vibid.acquisition.campaign.run_campaign`, process runs of ``vibid campaign
+--record-only``), or with ``adaptive`` an adaptive campaign (:mod:`vibid.planner.adaptive`:
+in process with its chooser, as a process ``vibid campaign --adaptive`` with the same
+options, which runs the Prefect flow). An adaptive campaign's steps are not known in
+advance: the file must then hold every step reported, once, in the order acquired, and end
+``complete`` when the campaign decided to stop. SIGKILL of the flow's process leaves
+Prefect's temporary server (its child) running: the soak removes it with the process group
+and counts it (``orphans``).
 """
 
 from __future__ import annotations
@@ -58,7 +62,8 @@ __all__ = ["Fault", "FaultOutcome", "SoakError", "SoakResult", "Identification",
 KINDS = ("no_reply", "error", "drop", "overload", "kill")
 #: a generator that stops answering loses this many replies (its shutdown's too)
 NO_REPLY_COUNT = 5
-_PROGRESS = re.compile(r"^step (\d+)/(\d+)\b")
+#: a step reported done, on the console line of ``--record-only`` or in the flow's log
+_PROGRESS = re.compile(r"\bstep (\d+)/(\d+)\b")
 
 
 class SoakError(VibidError):
@@ -115,6 +120,7 @@ class SoakResult:
     runs: int
     seconds: float
     stand_time_s: float | None = None
+    orphans: int = 0   #: server processes a killed campaign process left behind (removed)
     identification: Identification | None = None
     reference: Identification | None = None
     reference_stand_time_s: float | None = None
@@ -133,7 +139,7 @@ class SoakResult:
         by_kind = ", ".join(f"{k} {a}/{b}" for k, (a, b) in kinds.items())
         lines = [f"faults survived: {self.survived} of {len(self.outcomes)} ({by_kind})",
                  f"steps: {self.n_steps} in the file, duplicates {self.duplicates}, "
-                 f"campaign runs {self.runs}, stand time "
+                 f"campaign runs {self.runs}, orphaned processes removed {self.orphans}, stand time "
                  + (f"{self.stand_time_s:.1f} s" if self.stand_time_s is not None else "?")
                  + (f" (without faults {self.reference_stand_time_s:.1f} s)"
                     if self.reference_stand_time_s is not None else "")]
@@ -191,10 +197,10 @@ def identify_session(path, truth: dict[str, float], *, restarts: int = 2, seed: 
 
 
 def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None = None,
-         cli: Sequence[str] = ("campaign", "--record-only"), seed: int = 0,
+         cli: Sequence[str] | None = None, seed: int = 0,
          identify: bool = True, reference: bool = False, restarts: int = 2,
          expected_hz: Sequence[float] | None = None, max_runs: int | None = None,
-         log: Callable[[str], Any] | None = None) -> SoakResult:
+         log: Callable[[str], Any] | None = None, adaptive=None) -> SoakResult:
     """Run ``setup``'s campaign on the simulated stand of ``config`` into ``out`` (a new
     file) through ``faults`` (:func:`fault_plan`), then check and identify it.
 
@@ -203,8 +209,11 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
     setup, config : the declared setup (with its excitation) and the stand configuration;
         its ``simulated`` section is the truth, its ``faults`` are replaced by ``faults``
         and its generator URL by a stand name of this soak's own.
-    runner : the in-process campaign (default :func:`~vibid.acquisition.campaign.run_campaign`).
-    cli : the process campaign's command and options (``kill`` faults run it).
+    runner : the in-process campaign (default :func:`~vibid.acquisition.campaign.run_campaign`,
+        with an adaptive campaign's chooser when ``adaptive``).
+    cli : the process campaign's command and options (``kill`` faults run it; default
+        ``campaign --record-only``, or ``campaign --adaptive`` with ``adaptive``'s options).
+    adaptive : an :class:`~vibid.planner.adaptive.AdaptiveOptions`: soak an adaptive campaign.
     seed : the random kill instants.
     identify, reference, restarts : identify the soaked session (and an uninterrupted run's,
         ``reference``) with the closed loop and ``restarts`` global restarts.
@@ -218,8 +227,12 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
     from vibid.session import read_session
 
     configure()
-    runner = runner or run_campaign
     say = log or (lambda line: None)
+    if adaptive is not None:
+        runner = runner or _adaptive_runner(setup, config, adaptive, say)
+        cli = cli or ("campaign", "--adaptive", *_adaptive_args(adaptive))
+    runner = runner or run_campaign
+    cli = cli or ("campaign", "--record-only")
     out = os.fspath(out)
     if os.path.exists(out):
         raise SoakError(f"{out}: already exists")
@@ -233,13 +246,14 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
     child_path = out + ".soak-stand.json"            # a killed process's: the faults on its way
     setup_path = out + ".soak-setup.json"
     Path(setup_path).write_text(setup.to_json())
-    want = np.asarray(setup.excitation.frequencies_hz if expected_hz is None else expected_hz, float)
+    want = (None if adaptive is not None else
+            np.asarray(setup.excitation.frequencies_hz if expected_hz is None else expected_hz, float))
     outcomes = {f: FaultOutcome(f) for f in faults}
     by_key = dict(enumerate(injected))               # simulated.faults place -> fault
     rng = np.random.default_rng(seed)
     reported: list[int] = []                         # every step reported done, all runs
     awaiting: list[Fault] = []   # faults whose output the next in-process run must switch off first
-    runs = 0
+    runs = orphans = 0
     max_runs = max_runs or len(faults) + 4
     t0 = time.perf_counter()
     lines: list[str] = []
@@ -251,7 +265,8 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
     try:
         while True:
             done = _steps_in(out, want, reported)
-            if done == want.size and _status(out) == "complete":
+            if (os.path.exists(out) and (want is None or done == want.size)
+                    and _status(out) == "complete"):
                 break
             runs += 1
             if runs > max_runs:
@@ -264,8 +279,9 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
                 kill = ending
                 on_the_way = [f for f in pending if f.index < kill.index]
                 Path(child_path).write_text(json.dumps(_config_doc(config, name, on_the_way)))
-                killed, seen = _killed_run(out, setup_path, child_path, cli, kill.index, rng)
+                killed, seen, left = _killed_run(out, setup_path, child_path, cli, kill.index, rng)
                 reported += seen
+                orphans += left
                 now = _steps_in(out, want, reported)
                 for f in on_the_way:  # it struck the step's first record, and the step is in
                     outcomes[f].fired = now > f.index
@@ -275,7 +291,9 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
                           else "the process ended before the signal")
                 struck = ", ".join(f"{f.kind}@{f.index}" for f in on_the_way if outcomes[f].fired)
                 note(f"run {runs}: process from step {done}: {o.note}; {now} steps in the file"
-                     f"{'; fired ' + struck if struck else ''} ({time.perf_counter() - t_run:.1f} s)")
+                     f"{'; fired ' + struck if struck else ''}"
+                     f"{f'; {left} orphaned process(es) removed' if left else ''} "
+                     f"({time.perf_counter() - t_run:.1f} s)")
                 if killed:
                     awaiting.append(kill)  # a killed process leaves the output as it was
                 continue
@@ -325,7 +343,7 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
         n_file = len(s)
     duplicates = len(reported) - len(set(reported))
     result = SoakResult(out, [outcomes[f] for f in faults], n_file, duplicates, runs,
-                        time.perf_counter() - t0, stand_time, log=lines)
+                        time.perf_counter() - t0, stand_time, orphans, log=lines)
     if duplicates:
         raise SoakError(f"{duplicates} steps reported done twice")
     truth = _truth(live)
@@ -336,7 +354,9 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
         if os.path.exists(ref_out):
             os.unlink(ref_out)
         ref_config = StandConfig.from_dict(_config_doc(config, name + "-ref", []))
-        ref, _, _, _, _ = _in_process_run(runner, setup, ref_config, ref_out, name + "-ref", [])
+        ref_runner = (runner if adaptive is None else
+                      _adaptive_runner(setup, ref_config, adaptive, lambda line: None))
+        ref, _, _, _, _ = _in_process_run(ref_runner, setup, ref_config, ref_out, name + "-ref", [])
         if ref.run_status != "complete":
             raise SoakError(f"the run without faults ended {ref.run_status}: {ref.reason}")
         result.reference_stand_time_s = ref.stand_time_s
@@ -344,6 +364,26 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
             result.reference = identify_session(ref_out, truth, restarts=restarts)
     result.seconds = time.perf_counter() - t0
     return result
+
+
+# -- the adaptive campaign ------------------------------------------------------------------------
+def _adaptive_runner(setup, config, options, say):
+    """In-process runs of one adaptive campaign (one chooser: its fit carries over)."""
+    from functools import partial
+
+    from vibid.acquisition.campaign import run_campaign
+    from vibid.planner.adaptive import AdaptiveCampaign
+
+    chooser = AdaptiveCampaign(setup, config, options, say=lambda line: say(f"  adaptive: {line}"))
+    return partial(run_campaign, chooser=chooser)
+
+
+def _adaptive_args(options) -> list[str]:
+    """``vibid campaign --adaptive``'s options for ``options``."""
+    lo, hi = options.band_hz
+    return ["--target", *map(str, options.targets), "--band", f"{lo!r}:{hi!r}",
+            "--max-stand-time", repr(options.max_stand_time_s), "--batch",
+            str(options.batch_size), "--seed", str(options.seed)]
 
 
 # -- one campaign run ----------------------------------------------------------------------------
@@ -379,7 +419,9 @@ def _played_before_off(log) -> bool:
 
 def _killed_run(out, setup_path, stand_path, cli, kill_index, rng):
     """Run the campaign as a process and SIGKILL it at a random instant after it reported
-    step ``kill_index``: ``(killed, the steps it reported)``."""
+    step ``kill_index``: ``(killed, the steps it reported, orphaned processes removed)``:
+    what the killed process left running in its process group (Prefect's temporary server)
+    is removed after it."""
     import vibid
 
     args = [sys.executable, "-m", "vibid", cli[0], setup_path, "--stand", "simulated",
@@ -389,11 +431,12 @@ def _killed_run(out, setup_path, stand_path, cli, kill_index, rng):
     env = dict(os.environ)
     src = str(Path(vibid.__file__).resolve().parents[1])
     env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    child = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    child = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                             env=env, start_new_session=True)
     seen, times, killed = [], [], False
     try:
         for line in child.stderr:
-            m = _PROGRESS.match(line)
+            m = _PROGRESS.search(line)
             if not m:
                 continue
             seen.append(int(m.group(1)) - 1)
@@ -405,16 +448,40 @@ def _killed_run(out, setup_path, stand_path, cli, kill_index, rng):
                 killed = True
                 break
     finally:
+        if killed:
+            child.wait()
+        # what it left running holds its stderr open: removed before reading to the end
+        left = _remove_group(child.pid) if killed else 0
         try:
             child.communicate(timeout=600)
         except subprocess.TimeoutExpired:
             child.kill()
+            _remove_group(child.pid)
             child.communicate()
     if killed and child.returncode != -signal.SIGKILL:
         killed = False  # it ended by itself between the report and the signal
     if not killed and child.returncode not in (0, -signal.SIGKILL):
         raise SoakError(f"the campaign process failed ({child.returncode})")
-    return killed, seen
+    return killed, seen, left
+
+
+def _remove_group(pgid: int) -> int:
+    """SIGKILL whatever is left in process group ``pgid``; how many processes were."""
+    import glob
+
+    left = 0
+    for stat in glob.glob("/proc/[0-9]*/stat"):
+        try:
+            fields = Path(stat).read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            left += 1
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    return left
 
 
 # -- checks ----------------------------------------------------------------------------------------
@@ -426,8 +493,9 @@ def _status(out) -> str | None:
 
 
 def _steps_in(out, want, reported) -> int:
-    """The file's step count, after checking that its steps are ``want``'s first ones and
-    that every step reported done is among them."""
+    """The file's step count, after checking that its steps are ``want``'s first ones (None:
+    an adaptive campaign's, whatever they are) and that every step reported done is among
+    them."""
     if not os.path.exists(out):
         if reported:
             raise SoakError(f"steps {sorted(set(reported))[:5]}... reported, but no session file")
@@ -440,7 +508,7 @@ def _steps_in(out, want, reported) -> int:
     with read_session(out) as s:
         got = np.asarray(s.frequencies_hz(), float)
     n = got.size
-    if n > want.size or not np.array_equal(got, want[:n]):
+    if want is not None and (n > want.size or not np.array_equal(got, want[:n])):
         bad = next(i for i in range(n) if i >= want.size or got[i] != want[i])
         raise SoakError(f"step {bad} of the file is {got[bad]:g} Hz, not the setup's step "
                         f"{bad} (each step once, in order)")
@@ -455,8 +523,8 @@ def _final_checks(out, want, reported) -> float | None:
     n = _steps_in(out, want, reported)
     with read_session(out) as s:
         status, stand_time = s.run_status, s.stand_time_s
-    if n != want.size or status != "complete":
-        raise SoakError(f"{out}: {status} with {n} of {want.size} steps")
+    if (want is not None and n != want.size) or status != "complete":
+        raise SoakError(f"{out}: {status} with {n} of {'?' if want is None else want.size} steps")
     return stand_time
 
 

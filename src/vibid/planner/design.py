@@ -73,12 +73,16 @@ def sequence_settle(info: Information, index, record_s, *, floor_s: float, cap_s
 def greedy(info: Information, candidates, shortest_record_s, targets_std: np.ndarray, targeted,
            prior_information: np.ndarray, *, floor_s: float, cap_s: float, quantile: float,
            settle_quantile: float,
-           max_stand_time_s: float, start=(), max_steps: int = 400) -> Steps:
+           max_stand_time_s: float, start=(), max_steps: int = 400,
+           measured: tuple = ((), ())) -> Steps:
     """The steps (see the module docstring). ``candidates``: indices into ``info``;
     ``shortest_record_s`` (len(candidates),); ``targets_std`` (m, len(targeted));
     ``prior_information`` (m, p, p); ``start``: positions in ``candidates`` taken first, at
     their shortest record (a coarse sweep: the global search needs the resonances found,
-    which local information does not see)."""
+    which local information does not see); ``measured``: (indices into ``info``, record
+    lengths) of steps already measured (an adaptive campaign's: their information is in
+    ``prior_information`` too), counted when the targets are checked; ``max_steps``: new
+    steps at most (a batch)."""
     cand = np.asarray(candidates)
     mult = np.asarray(RECORD_MULTIPLES, float)
     T = (np.asarray(shortest_record_s)[:, None] * mult[None, :]).ravel()       # (C,)
@@ -101,6 +105,7 @@ def greedy(info: Information, candidates, shortest_record_s, targets_std: np.nda
         d = np.diagonal(inv, axis1=-2, axis2=-1)[..., targeted]
         return np.sum(d / targets_std.reshape(targets_std.shape[0], *([1] * (d.ndim - 2)), -1) ** 2, axis=-1)
 
+    m_index, m_record = (np.asarray(a) for a in measured)
     while len(chosen) < max_steps and spent < max_stand_time_s:
         now = psi(np.linalg.inv(A)).sum()
         after = psi(np.linalg.inv(A[:, None] + F_c)).sum(axis=0)                 # (C,)
@@ -110,8 +115,9 @@ def greedy(info: Information, candidates, shortest_record_s, targets_std: np.nda
         spent += T[c] + (0.0 if k in chosen else cost[c] - T[c])
         chosen[k] = chosen.get(k, 0.0) + T[c]  # the record lengthens: its e² counts once
         index = np.array(sorted(chosen, key=lambda i: info.frequency_hz[i]))
-        if met(data_std(info, index, [chosen[i] for i in index]), targets_std, targeted,
-               quantile) <= 1.0:
+        every = np.concatenate([m_index, index]).astype(int)
+        record = np.concatenate([m_record, [chosen[i] for i in index]])
+        if met(data_std(info, every, record), targets_std, targeted, quantile) <= 1.0:
             break
     index = np.array(sorted(chosen, key=lambda i: info.frequency_hz[i]))
     record = np.array([chosen[i] for i in index])

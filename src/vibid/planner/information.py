@@ -55,23 +55,43 @@ def noise_std(H, record_s, sample_rate_hz: float, noise: float):
     return noise * np.sqrt(2.0 / n) * np.sqrt(1.0 + np.abs(H) ** 2)
 
 
+#: where a mode is sampled: its response's phase this far from the phase at resonance,
+#: degrees (±45°: the half-power points)
+PHASES_DEG = np.arange(-75.0, 76.0, 15.0)
+
+
+def across_mode(f_n, beta, phases_deg=PHASES_DEG) -> np.ndarray:
+    """Frequencies across a mode's half-power band, evenly in phase: where the one-mode
+    response ``1 / (f_n²(1 + iβ) − f²)`` is ``φ`` from its phase at ``f_n``,
+    ``f = f_n √(1 − β tan φ)`` (φ = ±45° the half-power points). (..., len(phases))."""
+    t = np.tan(np.radians(np.asarray(phases_deg, float)))
+    f_n = np.asarray(f_n, float)[..., None]
+    b = np.asarray(beta, float)[..., None]
+    return f_n * np.sqrt(np.maximum(1.0 - b * t, 1e-12))
+
+
 def candidate_frequencies(band_hz, f_n: np.ndarray, beta: np.ndarray, n_grid: int = 240) -> np.ndarray:
     """A geometric grid over the band, and for every draw's every mode in the band, points
-    across its half-power band (±3 half-widths): where the information may be."""
+    across its half-power band evenly in phase (:func:`across_mode`): where the
+    information may be."""
     lo, hi = band_hz
     out = [np.geomspace(lo, hi, n_grid)]
-    across = np.array([-3, -2, -1, -0.5, 0, 0.5, 1, 2, 3])
     for fm, b in zip(f_n, beta):
         inside = fm[(fm > lo) & (fm < hi)]
-        out.append((inside[:, None] * (1 + 0.5 * b * across[None, :])).ravel())
+        out.append(across_mode(inside, b).ravel())
     f = np.unique(np.round(np.concatenate(out), 6))
     return f[(f >= lo) & (f <= hi)]
 
 
 def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
-                extra_hz=(), magnitude: bool = False, n_modes: int = 8) -> Information:
+                extra_hz=(), magnitude: bool = False, n_modes: int = 8, plate=None,
+                bounds: dict | None = None, more_hz=()) -> Information:
     """The information of the setup's plate over the prior's ``draws`` (m, p), at candidate
-    frequencies in ``band_hz`` followed by ``extra_hz`` (e.g. the setup's own sweep)."""
+    frequencies in ``band_hz`` (and ``more_hz``, e.g. across a resonance the plate model
+    does not have) followed by ``extra_hz`` (e.g. the setup's own sweep, or the steps
+    measured so far). ``plate``: a :class:`~vibid.identify.model.terms.PlateModel` (the
+    declared material with the effects a fit found; default the setup's material) and
+    ``bounds`` its prior box."""
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
@@ -79,13 +99,19 @@ def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
 
     extra = np.asarray(extra_hz, float)
     f_top = max(band_hz[1], float(extra.max()) if extra.size else 0.0)
-    coarse = build_forward_model(setup, np.geomspace(band_hz[0], f_top, 64))
+    coarse = build_forward_model(setup, np.geomspace(band_hz[0], f_top, 64), model=plate,
+                                 bounds=bounds)
     if tuple(coarse.parameter_names) != tuple(names):
         raise ValueError("the draws' parameters differ from the model's")
     f_n, peak = coarse.modes_batch(draws)
     f_n, peak = f_n[:, :n_modes], peak[:, :n_modes]
     beta = draws[:, list(names).index("beta")] if "beta" in names else np.full(len(draws), 1e-3)
-    freqs = np.concatenate([candidate_frequencies(band_hz, f_n, beta), extra])
+    cand = candidate_frequencies(band_hz, f_n, beta)
+    more = np.asarray(more_hz, float)
+    if more.size:
+        more = more[(more >= band_hz[0]) & (more <= band_hz[1])]
+        cand = np.unique(np.concatenate([cand, more]))
+    freqs = np.concatenate([cand, extra])
     model = coarse.on_frequencies(freqs)
     data = fit_data(freqs, np.zeros(freqs.size), np.ones(freqs.size))
     problem = LeastSquaresProblem(model, data, ParameterSpace.from_bounds(names, model.bounds))
