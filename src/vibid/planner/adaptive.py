@@ -13,15 +13,17 @@ One batch at a time, as a plain generator of step commands
    no longer explains the data).
 3. **Stop** when every targeted parameter's reported standard uncertainty is at or below
    its target (the same estimator as the report), when the stand time reaches the cap, or
-   when the last three batches lowered it by less than 5 % (the model's own error or a
-   residual the model cannot explain limits it, not the number of steps).
+   when the last three batches lowered it by less than a quarter of what their information
+   predicted (the model's own error or a residual the model cannot explain limits it, not
+   the number of steps).
 4. **Choose** the next batch (:func:`next_batch`): draws from the current fit's posterior
    (its estimate and covariance), the Fisher information per step over them at candidate
    frequencies (a grid over the band and, for every mode of every draw, its half-power band
    evenly in phase: :mod:`.information`), greedily by expected gain per second of stand
    time (:mod:`.design`) starting from the information of the steps measured, aiming below
    the target by as much as the report's std is now wider than the information's (a Birge
-   ratio, rival minima, the model's error: :func:`calibration`). A resonance
+   ratio, rival minima, the model's error: :func:`calibration`), and spending at most as
+   much stand time as all the steps before it. A resonance
    the residual's diagnosis finds where the model has none gets steps across its
    half-power band as well.
 5. **Play** the batch in ascending frequency, each step settled as the current fit's modes
@@ -136,9 +138,10 @@ def reached(fit: CurrentFit, targets) -> tuple[bool, str]:
 
 
 #: the campaign stops when its last STALL_BATCHES batches together lowered the worst ratio
-#: of a targeted std to its target by less than STALL_GAIN (relative)
+#: of a targeted std to its target by less than STALL_SHARE of what their information
+#: predicted (in log ratio): more steps no longer buy certainty
 STALL_BATCHES = 3
-STALL_GAIN = 0.05
+STALL_SHARE = 0.25
 
 
 def worst_ratio(fit: CurrentFit, targets) -> float:
@@ -150,11 +153,15 @@ def worst_ratio(fit: CurrentFit, targets) -> float:
     return out
 
 
-def stalled(progress) -> bool:
-    """Whether the last :data:`STALL_BATCHES` batches bought less than :data:`STALL_GAIN`."""
-    if len(progress) <= STALL_BATCHES:
+def stalled(progress, predicted) -> bool:
+    """Whether the last :data:`STALL_BATCHES` batches lowered the worst ratio (``progress``,
+    one per fit) by less than :data:`STALL_SHARE` of what they were predicted to
+    (``predicted``: per batch after the coarse sweep, the predicted drop of its log)."""
+    if len(progress) <= STALL_BATCHES or len(predicted) < STALL_BATCHES:
         return False
-    return progress[-1] > (1.0 - STALL_GAIN) * progress[-1 - STALL_BATCHES]
+    got = math.log(progress[-1 - STALL_BATCHES] / progress[-1])
+    expected = float(sum(predicted[-STALL_BATCHES:]))
+    return expected > 0 and got < STALL_SHARE * expected
 
 
 # -- the fit ------------------------------------------------------------------------------------
@@ -247,6 +254,8 @@ class Batch:
     frequency_hz: np.ndarray
     settle_s: np.ndarray
     record_s: np.ndarray
+    #: the predicted drop of log(worst targeted std / target) at the estimate
+    predicted_gain: float = math.nan
 
     def __len__(self) -> int:
         return int(self.frequency_hz.size)
@@ -279,7 +288,8 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
                measured_hz, measured_record_s, *, spent_s: float, floor_s: float,
                seed: int = 0) -> Batch:
     """The next steps (module doc, 4): at most ``options.batch_size``, within the stand
-    time left under the cap."""
+    time left under the cap and no more than all the steps before took (so that a batch the
+    information overrates wastes at most as much as was spent)."""
     from vibid.planner.design import greedy
     from vibid.planner.information import across_mode, fisher, information
 
@@ -309,9 +319,16 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     start = np.unique(np.searchsorted(info.frequency_hz[:n_cand], np.round(forced, 6)).clip(0, n_cand - 1))
     steps = greedy(info, np.arange(n_cand), shortest, t_std, targeted, A0, floor_s=floor_s,
                    cap_s=config.timing.max_settle_s, quantile=0.5, settle_quantile=0.9,
-                   max_stand_time_s=max(options.max_stand_time_s - spent_s, 0.0),
+                   max_stand_time_s=max(min(options.max_stand_time_s - spent_s, spent_s), 0.0),
                    start=start, max_steps=max(options.batch_size, start.size), measured=measured)
-    return Batch(info.frequency_hz[steps.index], steps.settle_s, steps.record_s)
+    from vibid.planner.design import data_std
+
+    every = (np.concatenate([measured[0], steps.index]).astype(int),
+             np.concatenate([measured[1], steps.record_s]))
+    before, after = (np.max(data_std(info, *which)[0, targeted] / t_std[0])
+                     for which in ((measured[0].astype(int), measured[1]), every))
+    gain = float(np.log(before / after)) if np.isfinite(before) and np.isfinite(after) else math.nan
+    return Batch(info.frequency_hz[steps.index], steps.settle_s, steps.record_s, gain)
 
 
 def calibration(info, measured, result, targeted) -> np.ndarray:
@@ -457,10 +474,11 @@ class AdaptiveCampaign:
             return f"target reached: {where}{tail}"
         if measured.stand_s >= o.max_stand_time_s:
             return f"stand-time cap {o.max_stand_time_s:g} s reached: {where}{tail}"
-        if stalled(self.progress):
-            return (f"the standard uncertainty no longer falls ({STALL_BATCHES} batches brought "
-                    f"it down by less than {100 * STALL_GAIN:g} %: the model's own error or the "
-                    f"residual limits it, not the steps): {where}{tail}")
+        if stalled(self.progress, [d["predicted_gain"] for d in self.history]):
+            return (f"the standard uncertainty no longer falls as the steps' information "
+                    f"says it should (the last {STALL_BATCHES} batches brought under "
+                    f"{100 * STALL_SHARE:g} % of the predicted gain: the model's own error or "
+                    f"a residual limits it, not the steps): {where}{tail}")
         measured_hz = [r.frequency_hz for r in measured.records]
         batch = next_batch(self.setup, self.config, self.fit, o, measured_hz, measured.record_s,
                            spent_s=measured.stand_s, floor_s=self.floor_s, seed=o.seed + batch_no)
@@ -468,7 +486,8 @@ class AdaptiveCampaign:
             return f"no step left under the stand-time cap {o.max_stand_time_s:g} s: {where}{tail}"
         self.history.append({"steps": n, "stand_time_s": measured.stand_s,
                              "unexpected": self.fit.unexpected,
-                             "batch_hz": tuple(float(f) for f in batch.frequency_hz)})
+                             "batch_hz": tuple(float(f) for f in batch.frequency_hz),
+                             "predicted_gain": batch.predicted_gain})
         if self.fit.unexpected:
             self.say("resonance where the model has none: " + ", ".join(
                 f"{f:.1f} Hz (Q {q:.0f})" for f, q in self.fit.unexpected))
