@@ -194,3 +194,30 @@ def test_live_afc_phase_is_unwrapped_as_in_the_report():
     assert ax_mag.get_ylabel() == f"|H| ({H_UNIT})"
     (measured,) = ax_ph.lines
     assert np.all(np.diff(measured.get_ydata()) < 0)  # falling, never a jump up by 360
+
+
+def test_a_resumed_campaigns_live_afc_starts_from_the_steps_its_file_holds():
+    """The steps recorded before a crash (their AFC, as the signal stage read them from the
+    file) are drawn with this process's steps, and the stand time goes on from theirs."""
+    from vibid.flows.live import LiveAfc
+    from vibid.hardware_mocks.records import synthetic_step
+    from vibid.signal import StepRecord, afc_from_records
+
+    fs, h = 25600.0, (2.0 + 1.0j, 3.0 - 1.0j, -1.0j)
+    afc = afc_from_records([StepRecord(f, fs, *synthetic_step(f, hk, sample_rate_hz=fs, n_samples=6400,
+                                                                noise_std_m_s2=(1e-4, 1e-4), rng=i),
+                                       index=i)
+                            for i, (f, hk) in enumerate(zip((50.0, 60.0, 70.0), h))])
+    published = []
+    live = LiveAfc("s", 5, min_interval_s=1e6, clock=_Clock(), publish=lambda k, md: published.append(md))
+    live.add_recorded(afc, stand_time_s=7.5)
+    assert sorted(live.points) == [0, 1, 2]
+    for i, hk in enumerate(h):
+        f, mag, phase, std = live.points[i]
+        assert mag == pytest.approx(abs(hk), rel=1e-3)
+        assert phase == pytest.approx(np.degrees(np.angle(hk)), abs=0.1) and 0 < std < 1e-3
+    live.update(StepProgress(index=3, n_steps=5, frequency_hz=80.0, h_abs=1.0, phase_deg=0.0,
+                             eta_s=1.0, settle_s=0.5, record_s=0.25))
+    assert "steps done 4 of 5 (1 to go)" in published[-1]
+    assert "stand time so far: 8.2 s" in published[-1]  # 7.5 + 0.5 + 0.25
+    assert len(live.figure().axes[0].lines[0].get_xdata()) == 4

@@ -128,6 +128,7 @@ def test_vibid_plan_writes_a_setup_the_campaign_plays_and_says_what_it_predicts(
     assert main(args) == 0
     text = capsys.readouterr().out
     assert "plan " in text and "setup's sweep" in text and "std D (median / 90 %)" in text
+    assert "prior draws the plan was not chosen on" in text  # judged on held-out draws
     planned = parse_setup(out.read_text())
     f = planned.excitation.frequencies_hz
     assert list(f) == sorted(f) and 8 <= len(f) < 40

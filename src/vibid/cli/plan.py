@@ -89,9 +89,13 @@ def run(args) -> int:
     except OSError as exc:
         raise VibidError(f"{args.out}: cannot write: {exc.strerror or exc}") from None
     print(comparison(plan))
-    if not plan.reached:
+    if not plan.reached_design:
         print(f"the targets are not reached within {args.max_stand_time:g} s of stand time "
               "in this band: the plan is the best found")
+    elif not plan.reached:
+        print(f"the plan meets the targets at the draws it was chosen on, not at "
+              f"{100 * plan.quantile:g} % of others: the prior is too wide for a fixed plan to "
+              "find the resonances (narrow the prior, or let `vibid campaign --adaptive` find them)")
     print(f"{args.out}: {len(plan.frequencies_hz)} steps; play it with `vibid campaign {args.out} …`")
     return 0
 
@@ -113,8 +117,9 @@ def comparison(plan) -> str:
         rows.append(f"{pr.label:16}{pr.n_steps:>6}{pr.stand_time_s:>10.1f} s"
                     + "".join(f"{c:>30}" for c in cells))
     targets = ", ".join(str(t) for t in plan.targets)
-    rows.append(f"targets {targets}, over {len(plan.planned.draws)} prior draws; predicted "
-                "from the model, its error and the noise (re-records not counted)")
+    rows.append(f"targets {targets}, over {len(plan.planned.draws)} prior draws the plan was "
+                "not chosen on; predicted from the model, its error and the noise (re-records "
+                "not counted)")
     return "\n".join(rows)
 
 

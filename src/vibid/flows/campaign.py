@@ -87,7 +87,23 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
     return result
 
 
-def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, logger):
+def show_recorded(live, out) -> None:
+    """Give a resumed campaign's live AFC the steps its file holds already, and their stand
+    time (a damaged file is the campaign's to report, not the live view's)."""
+    from vibid.errors import VibidError
+    from vibid.pipeline import session_afc
+    from vibid.session import read_session
+
+    try:
+        with read_session(out) as s:
+            driven = s.driven_s()
+        live.add_recorded(session_afc(out).afc, driven)
+    except VibidError as exc:
+        live.logger.warning("live AFC: the steps recorded before could not be read: %s", exc)
+
+
+def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, logger,
+                      restarts: int = RESTARTS, seed: int = SEED):
     """The live AFC and the :class:`~vibid.planner.adaptive.AdaptiveCampaign` of an adaptive
     campaign: each batch's fit is drawn over the points and its decision logged."""
     from vibid.flows.live import LiveAfc
@@ -108,7 +124,8 @@ def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, 
 
     names = parse_candidates(candidates)
     chooser = AdaptiveCampaign(setup, config, options, loop=loop, candidates=names,
-                               on_fit=on_fit, say=lambda line: logger.info("adaptive: %s", line))
+                               restarts=restarts, seed=seed, on_fit=on_fit,
+                               say=lambda line: logger.info("adaptive: %s", line))
     return live, chooser
 
 
@@ -151,7 +168,10 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
         live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
     else:
         live, chooser = adaptive_campaign(setup, config, adaptive, loop=loop,
-                                          candidates=candidates, logger=logger)
+                                          candidates=candidates, logger=logger,
+                                          restarts=restarts, seed=seed)
+    if resume and os.path.exists(out):
+        show_recorded(live, out)
     result = acquire(setup, stand=stand, config=config, out=out, resume=resume,
                      realtime=realtime, retries=retries, logger=logger, live=live,
                      chooser=chooser, operator=operator, notes=notes,

@@ -121,6 +121,20 @@ class LiveAfc:
             self._warn(exc)
         return False
 
+    def add_recorded(self, afc, stand_time_s: float | None = None) -> None:
+        """The steps a resumed campaign's file holds already (an
+        :class:`~vibid.signal.afc.AfcTable`) and the stand time they took, so that the live
+        AFC shows the whole test, not only this process's part of it."""
+        for p in afc.points:
+            h = complex(p.h)
+            if math.isfinite(p.commanded_hz) and math.isfinite(abs(h)):
+                std = float(p.std) if math.isfinite(p.std) else None
+                self.points[int(p.index)] = (float(p.commanded_hz), abs(h),
+                                             math.degrees(math.atan2(h.imag, h.real)), std)
+        if stand_time_s is not None:
+            self.stand_time_s = float(stand_time_s)
+        self._dirty = bool(self.points)
+
     def set_model(self, frequency_hz, H, *, label: str = "model", magnitude_only: bool = False):
         """A model's AFC to draw over the points from the next publication on (``H``
         complex; with ``magnitude_only`` its |H| alone, no phase). Its phase is unwrapped

@@ -374,7 +374,8 @@ def _adaptive_runner(setup, config, options, say):
     from vibid.acquisition.campaign import run_campaign
     from vibid.planner.adaptive import AdaptiveCampaign
 
-    chooser = AdaptiveCampaign(setup, config, options, say=lambda line: say(f"  adaptive: {line}"))
+    chooser = AdaptiveCampaign(setup, config, options, seed=options.seed,
+                               say=lambda line: say(f"  adaptive: {line}"))
     return partial(run_campaign, chooser=chooser)
 
 

@@ -12,7 +12,8 @@ One batch at a time, as a plain generator of step commands
    model with the effects found so far; the declared model, and the loop, again when that
    no longer explains the data).
 3. **Stop** when every targeted parameter's reported standard uncertainty is at or below
-   its target (the same estimator as the report), when the stand time reaches the cap, or
+   its target (the same estimator as the report: a warm refit that claims it is checked by
+   the report's own identification, global search and all), when the stand time reaches the cap, or
    when the last three batches lowered it by less than a quarter of what their information
    predicted (the model's own error or a residual the model cannot explain limits it, not
    the number of steps).
@@ -23,9 +24,10 @@ One batch at a time, as a plain generator of step commands
    time (:mod:`.design`) starting from the information of the steps measured, aiming below
    the target by as much as the report's std is now wider than the information's (a Birge
    ratio, rival minima, the model's error: :func:`calibration`), and spending at most as
-   much stand time as all the steps before it. A resonance
-   the residual's diagnosis finds where the model has none gets steps across its
-   half-power band as well.
+   much stand time as all the steps before it. A resonance the residual's diagnosis finds
+   where the model has none gets steps across its half-power band as well, and each
+   minimum the fit could not tell from its estimate (its std includes their spread) a step
+   where their AFCs differ most (:func:`telling_apart`).
 5. **Play** the batch in ascending frequency, each step settled as the current fit's modes
    require (:mod:`.settle`; the setup's ``settle_s`` the floor; a record still ringing is
    recorded again, :func:`~vibid.acquisition.plan.play_step`, waiting the fit's Q), then
@@ -116,6 +118,9 @@ class CurrentFit:
     noise: float
     unexpected: tuple[tuple[float, float], ...] = ()
     seconds: float = math.nan
+    #: a local refit from the last fit (cheap); else the report's own identification
+    #: (the global search with the report's restarts and seed, the loop where asked)
+    warm: bool = False
 
     def std_of(self, name: str) -> tuple[float, float]:
         """(value, reported standard uncertainty) of a parameter."""
@@ -166,8 +171,9 @@ def stalled(progress, predicted) -> bool:
 
 # -- the fit ------------------------------------------------------------------------------------
 def fit_steps(setup, afc, previous: CurrentFit | None = None, *, loop: bool = True,
-              candidates=None, restarts: int = 3, seed: int = 0) -> CurrentFit:
-    """Fit the AFC of the steps so far (sorted by frequency), as the module doc says."""
+              candidates=None, restarts: int = 5, seed: int = 0) -> CurrentFit:
+    """Fit the AFC of the steps so far (sorted by frequency), as the module doc says.
+    Without ``previous``, the report's own identification (``restarts``, ``seed``)."""
     from vibid.identify.fit import identify
     from vibid.identify.fit.noise import explains
     from vibid.pipeline import COMPUTE_LOCK
@@ -178,7 +184,7 @@ def fit_steps(setup, afc, previous: CurrentFit | None = None, *, loop: bool = Tr
             warm = _local(setup, afc, previous.result)
             if warm is not None and explains(warm):
                 return CurrentFit(warm, previous.declared, previous.loop, noise_level(afc),
-                                  seconds=time.perf_counter() - t0)
+                                  seconds=time.perf_counter() - t0, warm=True)
         declared = None
         if previous is not None:
             declared = _local(setup, afc, previous.declared)
@@ -194,7 +200,7 @@ def fit_steps(setup, afc, previous: CurrentFit | None = None, *, loop: bool = Tr
             result = closed.final
         unexpected = () if explains(result) else _unexpected(setup, result, closed)
     return CurrentFit(result, declared, closed, noise_level(afc), unexpected,
-                      time.perf_counter() - t0)
+                      time.perf_counter() - t0, warm=previous is not None)
 
 
 def _local(setup, afc, start_result):
@@ -297,6 +303,9 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     names = tuple(r.parameter_names)
     box = r.plate_model.default_bounds(dict(setup.identification.bounds))
     draws = posterior_draws(r, box, N_DRAWS, seed)
+    # the other minima the fit could not tell from its estimate: draws right after it
+    rivals = np.array(list(getattr(r, "rivals", ())), float).reshape(-1, len(names))
+    draws = np.vstack([draws[:1], rivals, draws[1:]])
     unexpected = [f for f, q in fit.unexpected if not _covered(f, q, measured_hz)]
     forced = (across_mode(np.array([f for f, _ in fit.unexpected]),
                           np.array([1.0 / q for _, q in fit.unexpected]),
@@ -308,15 +317,19 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     measured = (n_cand + np.arange(measured_hz.size), np.asarray(measured_record_s, float))
     targeted = [names.index(t.name) for t in options.targets]
     t_std = np.array([[t.std_of(d[j]) for t, j in zip(options.targets, targeted)] for d in draws])
-    # the report's std is the Fisher one widened (a Birge ratio, rival minima, the model's
-    # error): aim lower by the factor it is wider now, so that the batch reaches the target
-    # by the report's measure
-    t_std = t_std * calibration(info, measured, r, targeted)
+    # the report's std is the Fisher one widened (a Birge ratio, the model's error): aim
+    # lower by the factor it is wider now, so that the batch reaches the target by the
+    # report's measure. Rival minima widen it too, but steps that tell them apart remove
+    # that, not more precision at the estimate: those steps come first, and no factor.
+    if not len(rivals):
+        t_std = t_std * calibration(info, measured, r, targeted)
     fs = setup.daq.sample_rate_hz
     shortest = np.array([record_samples(f, fs, config.timing) / fs for f in info.frequency_hz[:n_cand]])
     weak = np.diag(1.0 / prior_std(names, box, {}, draws[0]) ** 2)  # the box: keeps A invertible
     A0 = weak[None] + fisher(info, *measured).sum(axis=1)
-    start = np.unique(np.searchsorted(info.frequency_hz[:n_cand], np.round(forced, 6)).clip(0, n_cand - 1))
+    start = np.searchsorted(info.frequency_hz[:n_cand], np.round(forced, 6)).clip(0, n_cand - 1)
+    start = np.unique(np.concatenate([start, telling_apart(info, n_cand, len(rivals), shortest,
+                                                           floor_s)])).astype(int)
     steps = greedy(info, np.arange(n_cand), shortest, t_std, targeted, A0, floor_s=floor_s,
                    cap_s=config.timing.max_settle_s, quantile=0.5, settle_quantile=0.9,
                    max_stand_time_s=max(min(options.max_stand_time_s - spent_s, spent_s), 0.0),
@@ -329,6 +342,19 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
                      for which in ((measured[0].astype(int), measured[1]), every))
     gain = float(np.log(before / after)) if np.isfinite(before) and np.isfinite(after) else math.nan
     return Batch(info.frequency_hz[steps.index], steps.settle_s, steps.record_s, gain)
+
+
+def telling_apart(info, n_cand: int, n_rivals: int, record_s, floor_s: float) -> np.ndarray:
+    """For each rival minimum (draws 1..``n_rivals`` of ``info``; draw 0 the estimate), the
+    candidate where the two AFCs differ most against the step's noise and model error, per
+    second of its stand time (its shortest record and the settle floor)."""
+    out = []
+    T = np.asarray(record_s, float)
+    for i in range(1, n_rivals + 1):
+        diff = np.abs(info.H[i, :n_cand] - info.H[0, :n_cand]) ** 2
+        var = info.s_1s[0, :n_cand] ** 2 / T + info.e[0, :n_cand] ** 2
+        out.append(int(np.argmax(diff / var / (T + floor_s))))
+    return np.asarray(out, int)
 
 
 def calibration(info, measured, result, targeted) -> np.ndarray:
@@ -374,10 +400,12 @@ class AdaptiveCampaign:
     """
 
     def __init__(self, setup, config: StandConfig, options: AdaptiveOptions, *,
-                 loop: bool = True, candidates=None,
+                 loop: bool = True, candidates=None, restarts: int = 5, seed: int = 0,
                  on_fit: Callable[[CurrentFit, int, float], Any] | None = None,
                  say: Callable[[str], Any] | None = None):
         options.check(setup)
+        #: the identification's global search, as the report runs it
+        self.restarts, self.seed = int(restarts), int(seed)
         self.setup, self.config, self.options = setup, config, options
         self.loop, self.candidates = loop, candidates
         self.on_fit = on_fit or (lambda fit, n, stand_s: None)
@@ -458,11 +486,18 @@ class AdaptiveCampaign:
 
         o = self.options
         afc = afc_from_records(measured.records).by_frequency()
-        self.fit = fit_steps(self.setup, afc, self.fit, loop=self.loop,
-                             candidates=self.candidates, seed=o.seed)
+        fit = lambda previous: fit_steps(self.setup, afc, previous, loop=self.loop,  # noqa: E731
+                                         candidates=self.candidates, restarts=self.restarts,
+                                         seed=self.seed)
+        self.fit = fit(self.fit)
+        ok, where = reached(self.fit, o.targets)
+        if ok and self.fit.warm:
+            # the stop is the report's to decide: its own identification (a global search
+            # may find rival minima that widen the std a local refit does not see)
+            self.fit = fit(None)
+            ok, where = reached(self.fit, o.targets)
         n = len(measured.records)
         self.on_fit(self.fit, n, measured.stand_s)
-        ok, where = reached(self.fit, o.targets)
         self.progress.append(worst_ratio(self.fit, o.targets))
         effects = [t.name for t in (self.fit.result.plate_model.effects if self.fit.result.plate_model else ())]
         self.say(f"fit of {n} steps ({measured.stand_s:.1f} s of stand time): {where}"

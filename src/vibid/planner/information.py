@@ -85,13 +85,14 @@ def candidate_frequencies(band_hz, f_n: np.ndarray, beta: np.ndarray, n_grid: in
 
 def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
                 extra_hz=(), magnitude: bool = False, n_modes: int = 8, plate=None,
-                bounds: dict | None = None, more_hz=()) -> Information:
+                bounds: dict | None = None, more_hz=(), grid: bool = True) -> Information:
     """The information of the setup's plate over the prior's ``draws`` (m, p), at candidate
     frequencies in ``band_hz`` (and ``more_hz``, e.g. across a resonance the plate model
     does not have) followed by ``extra_hz`` (e.g. the setup's own sweep, or the steps
     measured so far). ``plate``: a :class:`~vibid.identify.model.terms.PlateModel` (the
     declared material with the effects a fit found; default the setup's material) and
-    ``bounds`` its prior box."""
+    ``bounds`` its prior box. ``grid`` False: at ``extra_hz`` alone (a plan's steps judged
+    on other draws)."""
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
@@ -106,7 +107,7 @@ def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
     f_n, peak = coarse.modes_batch(draws)
     f_n, peak = f_n[:, :n_modes], peak[:, :n_modes]
     beta = draws[:, list(names).index("beta")] if "beta" in names else np.full(len(draws), 1e-3)
-    cand = candidate_frequencies(band_hz, f_n, beta)
+    cand = candidate_frequencies(band_hz, f_n, beta) if grid else np.zeros(0)
     more = np.asarray(more_hz, float)
     if more.size:
         more = more[(more >= band_hz[0]) & (more <= band_hz[1])]

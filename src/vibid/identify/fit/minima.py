@@ -90,14 +90,15 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
     chi2_best) / 2) of a Laplace approximation of the posterior around it; the returned
     covariance is the mixture's second moment about the best estimate,
     sum_i w_i (C + d_i d_i^T) / sum_i w_i with d_i = theta_i - theta_best (the Fisher C of
-    the best minimum standing in for each). Returns (covariance, warning or None).
+    the best minimum standing in for each). Returns (covariance, warning or None, the
+    rivals' parameter vectors).
     """
     p = len(names)
     noise_var = 1.0 if noise_known else (chi2_red if np.isfinite(chi2_red) and chi2_red > 0 else 1.0)
     delta = indistinct_chi2(p, noise_var)
     sd = np.sqrt(np.abs(np.diag(cov)))
     if not np.all(np.isfinite(sd)):
-        return cov, None
+        return cov, None, ()
     rivals = []
     for r in runs:
         if r is best or not r.converged or not np.isfinite(r.loss) or r.loss > best.loss + delta:
@@ -110,7 +111,7 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
             continue
         rivals.append((r, d))
     if not rivals:
-        return cov, None
+        return cov, None, ()
     # weights relative to the lowest chi2 (under the final weights a rival may lie lower
     # than the best, which was chosen under earlier ones): no overflow
     losses = np.array([best.loss] + [r.loss for r, _ in rivals])
@@ -127,7 +128,7 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
         f"{len(rivals) + 1} distinct minima fit the data about equally well (chi2 within "
         f"{delta:.3g} of the best): the data do not single out one answer ({spans}); "
         "the standard deviations include this spread"
-    )
+    ), tuple(np.asarray(r.theta, float).copy() for r, _ in rivals)
 
 
 def distinct(U, tol: float = 1e-3, against=()) -> list[np.ndarray]:

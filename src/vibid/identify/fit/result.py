@@ -129,6 +129,8 @@ class IdentificationResult:
         in complex arrays) and ``dof`` is n - p.
     magnitude_only_std_ratio: for a magnitude-only fit, each parameter's standard deviation
         over the complex fit's of the same points (both Fisher informations); else None.
+    rivals: the other minima that fit the data about as well (parameter vectors in
+        ``parameter_names`` order): the covariance includes their spread.
     """
 
     model: str
@@ -159,6 +161,7 @@ class IdentificationResult:
     plate_model: object = None
     magnitude: bool = False
     magnitude_only_std_ratio: dict[str, float] | None = None
+    rivals: tuple = ()
 
     @property
     def weighted_residuals(self) -> np.ndarray:

@@ -34,8 +34,8 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
     unc = fisher_uncertainty(problem.jacobian_theta(theta), space.names,
                              chi2_reduced=chi2_red, noise_known=data.noise_known)
     warnings.extend(unc.warnings)
-    cov, note = rival_minima(compared, best, unc.covariance, chi2_red, data.noise_known,
-                              space.names)
+    cov, note, rivals = rival_minima(compared, best, unc.covariance, chi2_red, data.noise_known,
+                                     space.names)
     if systematic is not None:
         cov = cov + systematic.covariance
     if note:
@@ -94,7 +94,7 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
         plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel)
                      else None),
         magnitude=data.magnitude,
-        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta),
+        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta), rivals=rivals,
     )
 
 
