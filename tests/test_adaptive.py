@@ -227,6 +227,30 @@ def test_a_resonance_where_the_model_has_none_gets_steps_across_it(tmp_path):
     assert min(across) < f_hz < max(across)  # on both sides of it
 
 
+@pytest.mark.slow
+def test_an_effect_the_loop_finds_between_batches_is_in_the_model_the_next_steps_are_chosen_on(tmp_path):
+    """The undeclared 20 µs channel delay of the quick start's stand: the coarse sweep's fit
+    does not explain the data, the loop adds the delay, and every later batch is chosen on
+    (and every later fit starts from) the model with it."""
+    from vibid.acquisition.stand import open_stand
+    from vibid.planner.adaptive import AdaptiveCampaign, AdaptiveOptions
+    from vibid.planner.prior import parse_targets
+
+    setup, config = _strip_stand("adaptive-delay", effects={"channel_delay": {"tau_s": 2e-5}})
+    options = AdaptiveOptions(parse_targets(["D=0.0005%"], ("D", "nu", "beta")), (18.75, 1500.0), 60.0)
+    lines = []
+    chooser = AdaptiveCampaign(setup, config, options, candidates=("channel_delay",),
+                               restarts=2, say=lines.append)
+    with open_stand("simulated", setup, config) as stand:
+        result = run_campaign(setup, stand, tmp_path / "a.h5", config, chooser=chooser)
+    print("\n".join(lines))
+    assert result.run_status == "complete"
+    assert chooser.history and all(d["effects"] == ("channel_delay",) for d in chooser.history)
+    r = chooser.fit.result
+    tau = r.parameters["tau_s"]
+    assert abs(tau - 2e-5) < 3 * r.std[list(r.parameter_names).index("tau_s")]
+
+
 def test_campaign_options_that_do_not_go_together_are_refused_in_one_line(tmp_path, capsys):
     setup = str(EXAMPLES / "strip_setup.json")
     base = ["campaign", setup, "--stand", "simulated", "--out", str(tmp_path / "x.h5")]

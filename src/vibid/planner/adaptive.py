@@ -415,8 +415,9 @@ class AdaptiveCampaign:
         self.fit: CurrentFit | None = None
         #: after each fit, the worst ratio of a targeted std to its target
         self.progress: list[float] = []
-        #: each decision between batches: steps and stand time so far, the resonances the
-        #: residual showed where the model has none, the next batch's frequencies (Hz)
+        #: each decision between batches: steps and stand time so far, the effects of the
+        #: fit it was made on, the resonances the residual showed where the model has none,
+        #: the next batch's frequencies (Hz) and the gain its information predicted
         self.history: list[dict] = []
         exc = setup.excitation
         self.floor_s = float(min(exc.settle_s) if isinstance(exc.settle_s, tuple) else exc.settle_s)
@@ -520,7 +521,7 @@ class AdaptiveCampaign:
         if not len(batch):
             return f"no step left under the stand-time cap {o.max_stand_time_s:g} s: {where}{tail}"
         self.history.append({"steps": n, "stand_time_s": measured.stand_s,
-                             "unexpected": self.fit.unexpected,
+                             "effects": tuple(effects), "unexpected": self.fit.unexpected,
                              "batch_hz": tuple(float(f) for f in batch.frequency_hz),
                              "predicted_gain": batch.predicted_gain})
         if self.fit.unexpected:
