@@ -297,19 +297,13 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     time left under the cap and no more than all the steps before took (so that a batch the
     information overrates wastes at most as much as was spent)."""
     from vibid.planner.design import greedy
-    from vibid.planner.information import across_mode, fisher, information
+    from vibid.planner.information import fisher, information
 
     r = fit.result
     names = tuple(r.parameter_names)
     box = r.plate_model.default_bounds(dict(setup.identification.bounds))
-    draws = posterior_draws(r, box, N_DRAWS, seed)
-    # the other minima the fit could not tell from its estimate: draws right after it
-    rivals = np.array(list(getattr(r, "rivals", ())), float).reshape(-1, len(names))
-    draws = np.vstack([draws[:1], rivals, draws[1:]])
-    unexpected = [f for f, q in fit.unexpected if not _covered(f, q, measured_hz)]
-    forced = (across_mode(np.array([f for f, _ in fit.unexpected]),
-                          np.array([1.0 / q for _, q in fit.unexpected]),
-                          UNEXPECTED_PHASES_DEG).ravel() if unexpected else np.zeros(0))
+    draws, n_rivals = design_draws(r, box, seed)
+    forced = unexpected_steps(fit, measured_hz)
     measured_hz = np.asarray(measured_hz, float)
     info = information(setup, names, draws, options.band_hz, noise=fit.noise,
                        extra_hz=measured_hz, plate=r.plate_model, bounds=box, more_hz=forced)
@@ -321,27 +315,54 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     # lower by the factor it is wider now, so that the batch reaches the target by the
     # report's measure. Rival minima widen it too, but steps that tell them apart remove
     # that, not more precision at the estimate: those steps come first, and no factor.
-    if not len(rivals):
+    if not n_rivals:
         t_std = t_std * calibration(info, measured, r, targeted)
     fs = setup.daq.sample_rate_hz
     shortest = np.array([record_samples(f, fs, config.timing) / fs for f in info.frequency_hz[:n_cand]])
     weak = np.diag(1.0 / prior_std(names, box, {}, draws[0]) ** 2)  # the box: keeps A invertible
     A0 = weak[None] + fisher(info, *measured).sum(axis=1)
     start = np.searchsorted(info.frequency_hz[:n_cand], np.round(forced, 6)).clip(0, n_cand - 1)
-    start = np.unique(np.concatenate([start, telling_apart(info, n_cand, len(rivals), shortest,
+    start = np.unique(np.concatenate([start, telling_apart(info, n_cand, n_rivals, shortest,
                                                            floor_s)])).astype(int)
     steps = greedy(info, np.arange(n_cand), shortest, t_std, targeted, A0, floor_s=floor_s,
                    cap_s=config.timing.max_settle_s, quantile=0.5, settle_quantile=0.9,
                    max_stand_time_s=max(min(options.max_stand_time_s - spent_s, spent_s), 0.0),
                    start=start, max_steps=max(options.batch_size, start.size), measured=measured)
+    gain = predicted_gain(info, measured, (steps.index, steps.record_s), targeted, t_std[0])
+    return Batch(info.frequency_hz[steps.index], steps.settle_s, steps.record_s, gain)
+
+
+def design_draws(result, box: dict, seed: int) -> tuple[np.ndarray, int]:
+    """The draws a batch is chosen over: the estimate, the other minima the fit could not
+    tell from it (their number is returned too), then draws of its covariance."""
+    draws = posterior_draws(result, box, N_DRAWS, seed)
+    rivals = np.array(list(result.rivals), float).reshape(-1, draws.shape[1])
+    return np.vstack([draws[:1], rivals, draws[1:]]), len(rivals)
+
+
+def unexpected_steps(fit: CurrentFit, measured_hz) -> np.ndarray:
+    """Frequencies across each resonance the residual shows where the model has none, evenly
+    in its phase, unless steps lie across its half-power band already."""
+    from vibid.planner.information import across_mode
+
+    todo = [(f, q) for f, q in fit.unexpected if not _covered(f, q, measured_hz)]
+    if not todo:
+        return np.zeros(0)
+    f, q = np.array(todo, float).T
+    return across_mode(f, 1.0 / q, UNEXPECTED_PHASES_DEG).ravel()
+
+
+def predicted_gain(info, measured, new, targeted, t_std) -> float:
+    """How much the new steps lower ``log`` of the worst targeted std over its target
+    ``t_std`` at the estimate (draw 0), by the information."""
     from vibid.planner.design import data_std
 
-    every = (np.concatenate([measured[0], steps.index]).astype(int),
-             np.concatenate([measured[1], steps.record_s]))
-    before, after = (np.max(data_std(info, *which)[0, targeted] / t_std[0])
-                     for which in ((measured[0].astype(int), measured[1]), every))
-    gain = float(np.log(before / after)) if np.isfinite(before) and np.isfinite(after) else math.nan
-    return Batch(info.frequency_hz[steps.index], steps.settle_s, steps.record_s, gain)
+    def worst(index, record):
+        return float(np.max(data_std(info, np.asarray(index, int), np.asarray(record, float))[0, targeted] / t_std))
+
+    before = worst(*measured)
+    after = worst(np.concatenate([measured[0], new[0]]), np.concatenate([measured[1], new[1]]))
+    return math.log(before / after) if np.isfinite(before) and np.isfinite(after) else math.nan
 
 
 def telling_apart(info, n_cand: int, n_rivals: int, record_s, floor_s: float) -> np.ndarray:
