@@ -168,3 +168,28 @@ def differential_evolution(
     U = np.array(us)[order]
     return GlobalResult(U, space.theta(U), np.array(losses)[order], n_eval[0],
                         tuple(messages[i] for i in order))
+
+
+def robust_score(problem: LeastSquaresProblem, scale: float = 1.0):
+    """A population score that gives every point a bounded say: ``Σ_k log(1 + |r_k|² /
+    scale²)`` over the fitted points (``r_k`` the weighted residual of chi2), for
+    :func:`differential_evolution`'s ``score``.
+
+    Where a few points are far more telling than the rest (an adaptive campaign's steps at
+    the resonances, recorded long), chi2 is a needle: away from the one basin where the
+    model's modes sit on those points they dominate it with a plateau of huge residuals,
+    whose ripples (a mode of the model passing one of them) are the minima the search
+    finds. Logarithmically, a point fitted badly counts about as much as any other, so the
+    many points off resonance place the basin; the polish on chi2 then finds the needle."""
+    H = problem.observed(problem.data.H[problem.data.used])
+    sigma = problem.sigma
+    space, model = problem.space, problem.model
+
+    def score(U):
+        thetas = np.array([space.theta(u) for u in np.atleast_2d(U)])
+        A = problem.observed(problem.on_points(np.asarray(model.afc_batch(thetas)).T).T)
+        r2 = np.abs((A - H[None, :]) / sigma[None, :]) ** 2
+        s = np.log1p(r2 / scale**2).sum(axis=1)
+        return np.where(np.isfinite(s), s, np.inf)
+
+    return score

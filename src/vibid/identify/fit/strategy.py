@@ -45,7 +45,7 @@ import numpy as np
 
 from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData, fit_data
-from vibid.identify.fit.global_search import differential_evolution
+from vibid.identify.fit.global_search import differential_evolution, robust_score
 from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_by_continuation
 from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
 from vibid.identify.fit.noise import fits
@@ -147,8 +147,12 @@ def search_problem(problem: LeastSquaresProblem) -> LeastSquaresProblem:
 
 def search(problem: LeastSquaresProblem, opts: Options):
     """Global search on chi2 (on at most :data:`SEARCH_POINTS` points) and the polish of
-    each restart's best on every point, then, if the best does not fit the data, a search
-    on the resonance peaks. Returns (GlobalResult, fits)."""
+    each restart's best on every point, then, if the best does not fit the data and its
+    modes are not on the measured peaks (the basin may be wrong, not the model), a search
+    on the resonance peaks and, if that does not fit either, a search on a robust score
+    (:func:`~vibid.identify.fit.global_search.robust_score`: a few precise points at the
+    resonances, as an adaptive campaign records, make chi2 a needle). Returns
+    (GlobalResult, fits)."""
     global_result = differential_evolution(search_problem(problem), restarts=opts.restarts,
                                            rng=opts.rng, progress=opts.progress)
     found = _by_loss(polish(problem, distinct(global_result.u), opts))
@@ -170,7 +174,15 @@ def search(problem: LeastSquaresProblem, opts: Options):
         ib = problem.space.names.index(SMOOTHING_PARAMETER)
         for u in starts:
             u[ib] = global_result.u[0][ib]
-    found += polish(problem, distinct(starts, against=global_result.u), opts)
+    found = _by_loss(found + polish(problem, distinct(starts, against=global_result.u), opts))
+    best = found[0]
+    if fits(best.loss, best.problem.dof, best.problem.n_residuals, problem.data.noise_known):
+        return global_result, found
+    thin = search_problem(problem)
+    robust = differential_evolution(thin, restarts=opts.restarts, rng=opts.rng,
+                                    progress=opts.progress, score=robust_score(thin),
+                                    label="robust search")
+    found += polish(problem, distinct(robust.u, against=global_result.u), opts)
     return global_result, _by_loss(found)
 
 
