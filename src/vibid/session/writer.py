@@ -197,15 +197,16 @@ class SessionWriter:
 
         change, create = add_step, False
         if self.adaptive is not None:
-            recorded = self.recorded_hz + [float(frequency_hz)]
+            # the setup lists the steps recorded, this one too; the first step brings the header
+            recorded, header = self.recorded_hz + [float(frequency_hz)], self._header
 
-            def change(f: h5py.File) -> None:
+            def with_setup(f: h5py.File) -> None:
                 if header is not None:
                     header(f)
                 add_step(f)
                 _write_setup(f, recorded_setup(self.setup, recorded))
 
-            header, create = self._header, self._header is not None
+            change, create = with_setup, header is not None
         self._commit(change, phase_tag=f"step{index}", create=create)
         self._header = None
         if self.adaptive is not None:
