@@ -121,3 +121,17 @@ def adaptive_document(attrs) -> dict | None:
     if not isinstance(doc, dict):
         raise ValueError("must be a JSON object")
     return doc
+
+
+def stand_time_s(f) -> float | None:
+    """Seconds the specimen was driven, of an open session file ``f`` (h5py), from its step
+    groups (after a crash and a resume they are the truth): each step's ``settle_s``
+    (re-records included) plus its record's duration. None when no step says how long it
+    settled (a file written before the field)."""
+    total, known = 0.0, False
+    for name, g in f[STEPS_GROUP].items():
+        if not is_step_name(name) or SETTLE_S not in g.attrs:
+            continue
+        known = True
+        total += float(g.attrs[SETTLE_S]) + g["base"].shape[0] / float(g.attrs["sample_rate_hz"])
+    return total if known else None

@@ -112,10 +112,8 @@ class Session:
         """Seconds the specimen was driven, summed over the step groups (each step's
         ``settle_s`` and record): the truth after a crash, when the root ``stand_time_s``
         is missing or older than the last steps. None when no step says how long it settled."""
-        from vibid.session.writer import stand_time_s
-
         with reading(self.path, f"/{fmt.STEPS_GROUP}"):
-            return stand_time_s(self._file)
+            return fmt.stand_time_s(self._file)
 
     def frequencies_hz(self) -> np.ndarray:
         """The commanded frequency of every step, without reading any samples."""

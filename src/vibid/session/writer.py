@@ -216,7 +216,7 @@ class SessionWriter:
 
     def close(self, run_status: str = "complete", reason: str | None = None) -> None:
         """Write how the session ended: ``complete``, ``interrupted`` or ``aborted``, with a
-        one-line ``reason`` when it is not complete, and its stand time (:func:`stand_time_s`).
+        one-line ``reason`` when it is not complete, and its stand time (:func:`vibid.session.format.stand_time_s`).
         The file stays valid either way."""
         if run_status not in fmt.RUN_STATUSES:
             raise VibidError(f"run status {run_status!r} is not one of {', '.join(fmt.RUN_STATUSES)}")
@@ -232,7 +232,7 @@ class SessionWriter:
                 del f.attrs[fmt.RUN_STATUS_REASON]
             if fmt.LEGACY_RUN_STATUS in f.attrs:
                 del f.attrs[fmt.LEGACY_RUN_STATUS]
-            self.stand_time_s = stand_time_s(f)
+            self.stand_time_s = fmt.stand_time_s(f)
             if self.stand_time_s is not None:
                 f.attrs[fmt.STAND_TIME_S] = self.stand_time_s
 
@@ -300,19 +300,6 @@ def _write_setup(f: h5py.File, setup: Setup) -> None:
     text = setup.to_json(indent=None)
     f.attrs["setup"] = text
     f.attrs[fmt.SETUP_DIGEST] = fmt.setup_digest(text)
-
-
-def stand_time_s(f: h5py.File) -> float | None:
-    """Seconds the specimen was driven, from the step groups (after a crash and a resume
-    they are the truth): each step's ``settle_s`` (re-records included) plus its record's
-    duration. None when no step says how long it settled (a file written before the field)."""
-    total, known = 0.0, False
-    for name, g in f[fmt.STEPS_GROUP].items():
-        if not fmt.is_step_name(name) or fmt.SETTLE_S not in g.attrs:
-            continue
-        known = True
-        total += float(g.attrs[fmt.SETTLE_S]) + g["base"].shape[0] / float(g.attrs["sample_rate_hz"])
-    return total if known else None
 
 
 def _float_samples(a: np.ndarray) -> np.ndarray:
