@@ -147,6 +147,7 @@ def test_an_adaptive_campaign_survives_faults_and_identifies_as_without_them(tmp
         assert o.output_off is (None if o.fault.kind == "overload" else True), o
     assert result.duplicates == 0 and result.n_steps > max(f.index for f in plan)
     assert result.runs == 1 + sum(o.ended_run for o in result.outcomes)
+    assert result.orphans == 0  # the killed flow's Prefect server ended with it
     ident, ref = result.identification, result.reference
     for i in (ident, ref):
         assert max(i.error_std().values()) < 3.0, i

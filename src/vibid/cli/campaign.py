@@ -200,7 +200,10 @@ def run_flow(args, report_dir: str, candidates, adaptive: dict | None = None) ->
 
     configure()
     from vibid.flows import campaign_flow
+    from vibid.flows.server import tie_temporary_server
     from vibid.report import console_summary
+
+    tie_temporary_server()  # a campaign killed outright leaves no Prefect server behind
 
     with profiled(args.profile):
         state = campaign_flow(args.setup, stand=args.stand, stand_config=args.stand_config,

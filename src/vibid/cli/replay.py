@@ -50,7 +50,9 @@ def run(args) -> int:
     with read_session(args.session):  # a file that is no session: one line, before Prefect starts
         pass
     from vibid.flows import replay_flow
+    from vibid.flows.server import tie_temporary_server
 
+    tie_temporary_server()  # a replay killed outright leaves no Prefect server behind
     with profiled(args.profile):
         report = replay_flow(args.session, json_path=args.json, report_dir=args.report,
                              uff_path=args.uff, loop=not args.no_loop,

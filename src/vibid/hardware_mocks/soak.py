@@ -31,9 +31,10 @@ The campaign is a parameter: the setup's stepped sine by default (in-process run
 in process with its chooser, as a process ``vibid campaign --adaptive`` with the same
 options, which runs the Prefect flow). An adaptive campaign's steps are not known in
 advance: the file must then hold every step reported, once, in the order acquired, and end
-``complete`` when the campaign decided to stop. SIGKILL of the flow's process leaves
-Prefect's temporary server (its child) running: the soak removes it with the process group
-and counts it (``orphans``).
+``complete`` when the campaign decided to stop. What a SIGKILLed process leaves running
+after a grace of a few seconds (Prefect's temporary server would be, were it not tied to
+its parent: :mod:`vibid.flows.server`) is removed with the process group and counted
+(``orphans``).
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ __all__ = ["Fault", "FaultOutcome", "SoakError", "SoakResult", "Identification",
 KINDS = ("no_reply", "error", "drop", "overload", "kill")
 #: a generator that stops answering loses this many replies (its shutdown's too)
 NO_REPLY_COUNT = 5
+#: after a SIGKILL, how long what the process started may take to end by itself, s
+ORPHAN_GRACE_S = 5.0
 #: a step reported done, on the console line of ``--record-only`` or in the flow's log
 _PROGRESS = re.compile(r"\bstep (\d+)/(\d+)\b")
 
@@ -452,7 +455,8 @@ def _killed_run(out, setup_path, stand_path, cli, kill_index, rng):
         if killed:
             child.wait()
         # what it left running holds its stderr open: removed before reading to the end
-        left = _remove_group(child.pid) if killed else 0
+        # (after a grace of ORPHAN_GRACE_S: a child told to end with its parent is ending)
+        left = _remove_group(child.pid, grace_s=ORPHAN_GRACE_S) if killed else 0
         try:
             child.communicate(timeout=600)
         except subprocess.TimeoutExpired:
@@ -466,8 +470,23 @@ def _killed_run(out, setup_path, stand_path, cli, kill_index, rng):
     return killed, seen, left
 
 
-def _remove_group(pgid: int) -> int:
-    """SIGKILL whatever is left in process group ``pgid``; how many processes were."""
+def _remove_group(pgid: int, grace_s: float = 0.0) -> int:
+    """SIGKILL whatever is left in process group ``pgid`` after ``grace_s``; how many
+    processes were left."""
+    deadline = time.monotonic() + grace_s
+    left = _alive_in_group(pgid)
+    while left and time.monotonic() < deadline:
+        time.sleep(0.1)
+        left = _alive_in_group(pgid)
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    return left
+
+
+def _alive_in_group(pgid: int) -> int:
+    """Processes of group ``pgid`` that are not zombies (Linux /proc)."""
     import glob
 
     left = 0
@@ -478,10 +497,6 @@ def _remove_group(pgid: int) -> int:
             continue
         if int(fields[2]) == pgid and fields[0] != "Z":
             left += 1
-    try:
-        os.killpg(pgid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
     return left
 
 
