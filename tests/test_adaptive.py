@@ -40,6 +40,21 @@ def test_steps_across_a_mode_are_evenly_spaced_in_its_phase():
     assert f.min() > f_n * (1 - 2 * beta) and f.max() < f_n * (1 + 2 * beta)
 
 
+def test_the_campaign_stalls_only_where_steps_stop_buying_what_their_information_promised():
+    import math
+
+    from vibid.planner.adaptive.campaign import stalled
+
+    # slow but as promised: each batch of N steps on N lowers the std by sqrt(N / (N + b))
+    n = np.array([100.0, 108.0, 116.0, 124.0])
+    steady = list(1.0 / np.sqrt(n))
+    promised = [0.5 * math.log(n[k + 1] / n[k]) for k in range(3)]
+    assert not stalled(steady, promised)
+    # a floor: the same promises, the std no longer moves (the model's error limits it)
+    assert stalled([0.1, 0.0995, 0.099, 0.0985], promised)
+    assert not stalled([0.1, 0.0995, 0.099], promised[:2])  # too few batches to tell
+
+
 class Scripted:
     """A chooser that plays given batches (Hz) with a pause after each, then stops."""
 
