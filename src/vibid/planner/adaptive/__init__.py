@@ -20,8 +20,8 @@ One batch at a time, as a plain generator of step commands
 4. **Choose** the next batch (:func:`~.batch.next_batch`): draws from the current fit's posterior
    (its estimate and covariance), the Fisher information per step over them at candidate
    frequencies (a grid over the band and, for every mode of every draw, its half-power band
-   evenly in phase: :mod:`.information`), greedily by expected gain per second of stand
-   time (:mod:`.design`) starting from the information of the steps measured, aiming below
+   evenly in phase: :mod:`vibid.planner.information`), greedily by expected gain per second of stand
+   time (:mod:`vibid.planner.design`) starting from the information of the steps measured, aiming below
    the target by as much as the report's std is now wider than the information's (a Birge
    ratio, rival minima, the model's error: :func:`~.batch.calibration`), and spending at most as
    much stand time as all the steps before it. A resonance the residual's diagnosis finds
@@ -29,7 +29,7 @@ One batch at a time, as a plain generator of step commands
    minimum the fit could not tell from its estimate (its std includes their spread) a step
    where their AFCs differ most (:func:`~.batch.telling_apart`).
 5. **Play** the batch in ascending frequency, each step settled as the current fit's modes
-   require (:mod:`.settle`; the setup's ``settle_s`` the floor; a record still ringing is
+   require (:mod:`vibid.planner.settle`; the setup's ``settle_s`` the floor; a record still ringing is
    recorded again, :func:`~vibid.acquisition.plan.play_step`, waiting the fit's Q), then
    pause with the output off while the next fit runs: compute time is not stand time.
 

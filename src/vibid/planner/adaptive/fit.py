@@ -144,7 +144,7 @@ def _unexpected(setup, result, closed) -> tuple[tuple[float, float], ...]:
 
 def noise_level(afc) -> float:
     """Each channel's noise relative to the base amplitude, from the AFC's std: the median
-    over the used steps of ``s / (√(2/N) √(1 + |H|²))`` (:mod:`.information`)."""
+    over the used steps of ``s / (√(2/N) √(1 + |H|²))`` (:mod:`vibid.planner.information`)."""
     used = np.asarray(afc.used, bool)
     n = np.array([p.n_samples for p in afc.points], float)[used]
     s = np.asarray(afc.std, float)[used]
