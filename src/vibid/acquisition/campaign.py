@@ -512,11 +512,17 @@ def _resume_point(path: str, setup: Setup) -> tuple[int, float, bool]:
             raise CampaignError(f"{path}: its steps do not follow the setup's frequencies")
         if n >= len(want) and s.run_status_written and s.run_status == "complete":
             raise CampaignError(f"{path}: the session is already complete ({n} steps)")
-        if n == 0:
-            return 0, math.nan, False
-        last = s.step_attributes(n - 1)
-    drive = float(last.get("vibid_drive_vpp", math.nan))
-    return n, drive, bool(last.get("vibid_unsettled_first", False))
+        return _last_step_state(s)
+
+
+def _last_step_state(s) -> tuple[int, float, bool]:
+    """``(steps in the open session s, drive of its last step Vpp, last step was unsettled)``:
+    where a resumed campaign goes on from, as an uninterrupted one would."""
+    n = len(s)
+    if n == 0:
+        return 0, math.nan, False
+    last = s.step_attributes(n - 1)
+    return n, float(last.get("vibid_drive_vpp", math.nan)), bool(last.get("vibid_unsettled_first", False))
 
 
 def _adaptive_resume_point(path: str, setup: Setup, chooser: StepSource) -> tuple[int, float, bool]:
@@ -534,11 +540,7 @@ def _adaptive_resume_point(path: str, setup: Setup, chooser: StepSource) -> tupl
         if s.adaptive != chooser.attribute:
             raise CampaignError(f"{path}: it was started with other adaptive options "
                                 f"({json.dumps(s.adaptive, sort_keys=True)}); resume it with those")
-        n = len(s)
-        if n == 0:
-            return 0, math.nan, False
-        last = s.step_attributes(n - 1)
-    return n, float(last.get("vibid_drive_vpp", math.nan)), bool(last.get("vibid_unsettled_first", False))
+        return _last_step_state(s)
 
 
 # -- stopping ----------------------------------------------------------------------------------

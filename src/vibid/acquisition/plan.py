@@ -90,8 +90,6 @@ class Pause:
     The runner writes every measured step, switches the output off (the specimen is not
     driven while the plan thinks) and sends ``None`` back for the plan's next command."""
 
-    reason: str = ""
-
 
 class StepSource(Protocol):
     """A plan that chooses its steps as the campaign goes (an adaptive campaign:

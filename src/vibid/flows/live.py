@@ -167,10 +167,6 @@ class LiveAfc:
         except Exception as exc:  # a figure is never worth stopping the flow for
             self._warn(exc)
 
-    def close(self, note: str = "") -> bool:
-        """Publish now if anything (or ``note``) is new since the last publication."""
-        return self.show(note)
-
     def show(self, note: str = "") -> bool:
         """Publish now if anything (or ``note``) is new since the last publication (an
         adaptive campaign's new fit between batches). Never raises."""
@@ -183,6 +179,9 @@ class LiveAfc:
         except Exception as exc:
             self._warn(exc)
             return False
+
+    #: the campaign's end: the last publication, if anything is new
+    close = show
 
     # -- output ---------------------------------------------------------------------------
     def figure(self):

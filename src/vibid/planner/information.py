@@ -109,8 +109,8 @@ def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
     beta = draws[:, list(names).index("beta")] if "beta" in names else np.full(len(draws), 1e-3)
     cand = candidate_frequencies(band_hz, f_n, beta) if grid else np.zeros(0)
     more = np.asarray(more_hz, float)
-    if more.size:
-        more = more[(more >= band_hz[0]) & (more <= band_hz[1])]
+    if more.size:  # rounded as the grid is: a caller finds them again by their rounded value
+        more = np.round(more[(more >= band_hz[0]) & (more <= band_hz[1])], 6)
         cand = np.unique(np.concatenate([cand, more]))
     freqs = np.concatenate([cand, extra])
     model = coarse.on_frequencies(freqs)

@@ -44,11 +44,26 @@ def stalled(progress, predicted) -> bool:
 
 @dataclass
 class _Measured:
-    """The steps so far: what the fit needs of each (its record) and its stand time."""
+    """The steps so far: what the fit needs of each (its record), their stand time, and
+    each step's AFC point once the signal stage has fitted it (a step is fitted once, not
+    at every batch)."""
 
     records: list = field(default_factory=list)   # StepRecord, in acquisition order
-    record_s: list = field(default_factory=list)
     stand_s: float = 0.0
+    points: dict = field(default_factory=dict)    # step index -> AfcPoint
+
+    @property
+    def record_s(self) -> list[float]:
+        return [r.base.size / r.sample_rate_hz for r in self.records]
+
+    def afc(self):
+        """The AFC of every step so far, sorted by frequency (the new steps fitted now)."""
+        from vibid.signal import afc_from_records
+        from vibid.signal.afc import AfcTable
+
+        new = [r for r in self.records if r.index not in self.points]
+        self.points.update((p.index, p) for p in afc_from_records(new).points)
+        return AfcTable(tuple(self.points[r.index] for r in self.records)).by_frequency()
 
 
 class AdaptiveCampaign:
@@ -138,15 +153,13 @@ class AdaptiveCampaign:
                     self._keep(measured, index, first, last)
                 index += 1
             batch = None
-            yield Pause(f"batch {batch_no} measured")
+            yield Pause()
 
     # -- between batches --------------------------------------------------------------------
     def _decide(self, measured: _Measured, batch_no: int):
         """Fit what is measured; the stop line, or the next :class:`Batch`."""
-        from vibid.signal import afc_from_records
-
         o = self.options
-        afc = afc_from_records(measured.records).by_frequency()
+        afc = measured.afc()
         fit = lambda previous: fit_steps(self.setup, afc, previous, loop=self.loop,  # noqa: E731
                                          candidates=self.candidates, restarts=self.restarts,
                                          seed=self.seed)
@@ -208,9 +221,7 @@ class AdaptiveCampaign:
         status = "overload" if r.overloaded else "ok"  # as the runner writes it
         measured.records.append(StepRecord(cmd.frequency_hz, r.sample_rate_hz, r.base_m_s2,
                                            r.response_m_s2, status=status, index=index))
-        record_s = r.base_m_s2.size / r.sample_rate_hz
-        measured.record_s.append(record_s)
-        measured.stand_s += float(last.settle_s) + record_s
+        measured.stand_s += float(last.settle_s) + r.base_m_s2.size / r.sample_rate_hz
 
 
 def _recorded(step) -> Generator[StepCommand, StepOutcome | None, StepOutcome | None]:
@@ -231,13 +242,7 @@ def _from_file(path: str) -> _Measured:
     from vibid.session import read_session
     from vibid.signal import StepRecord
 
-    out = _Measured()
     with read_session(path) as s:
-        for step in s.steps():
-            attrs = s.step_attributes(step.index)
-            record_s = step.n_samples / step.sample_rate_hz
-            out.records.append(StepRecord(step.frequency_hz, step.sample_rate_hz, step.base,
-                                          step.response, status=step.status, index=step.index))
-            out.record_s.append(record_s)
-            out.stand_s += float(attrs.get("settle_s", 0.0)) + record_s
-    return out
+        records = [StepRecord(step.frequency_hz, step.sample_rate_hz, step.base, step.response,
+                              status=step.status, index=step.index) for step in s.steps()]
+        return _Measured(records, s.driven_s() or 0.0)
