@@ -310,7 +310,8 @@ def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: 
     amp_chi2, h_chi2 = settling_chi2(fit.half_phasors_m_s2, fit.half_cov)
     ringing = [[free_vibration(x[i, c], float(fit.frequency_hz[i]) if np.isfinite(fit.frequency_hz[i])
                                else f[i], fs[i], degree=layout.degree,
-                               n_harmonics=layout.n_harmonics) for c in range(2)]
+                               n_harmonics=layout.n_harmonics, min_decay_z=thr.unsettled_sigma)
+                for c in range(2)]
                for i in range(len(steps))]
     flags = quality_flags(
         status=[s.status for s in steps], flat_top=flat,

@@ -160,7 +160,8 @@ class FreeVibration:
 
 
 def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int = 1,
-                   n_harmonics: int = 3, zero_pad: int = 4) -> FreeVibration:
+                   n_harmonics: int = 3, zero_pad: int = 4,
+                   min_decay_z: float | None = None) -> FreeVibration:
     """Look for a free vibration off the drive frequency in one channel's record ``x``.
 
     The record is fitted as the signal stage does (a polynomial of ``degree``, the harmonics
@@ -171,7 +172,9 @@ def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int
     the record: a decaying envelope) moves the fundamental phasor by ``dX``; ``leak_std`` is
     ``|dX|`` over the phasor's standard deviation per part (residual variance times the
     fit's inverse Gram). A ring within a bin of a harmonic is the ``unsettled`` flag's case
-    (its envelope changes between the halves) and is not looked for here.
+    (its envelope changes between the halves) and is not looked for here. With
+    ``min_decay_z``, a residual that decays less stops there (no ring looked for: such a
+    record is settled whatever its leak, :meth:`FreeVibration.unsettled`).
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
@@ -198,6 +201,8 @@ def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int
     if not (v1 > 0 and v2 > 0):
         return nothing
     decay_z = math.log(v1 / v2) / math.sqrt(2.0 / half + 2.0 / (n - half))
+    if min_decay_z is not None and not decay_z > min_decay_z:
+        return FreeVibration(math.nan, float(decay_z), 0.0)
     # the strongest residual line away from DC and the harmonics
     m = zero_pad * n
     spectrum = np.abs(np.fft.rfft(resid, m))
