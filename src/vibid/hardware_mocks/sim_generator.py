@@ -36,7 +36,7 @@ FAULT_KINDS = ("no_reply", "error", "drop")
 
 
 @dataclass
-class _Fault:
+class ScheduledFault:
     kind: str                 #: one of FAULT_KINDS
     at_step: int              #: the 0-based index of the frequency command it fires at
     at_index: int | None = None  #: or the campaign's step index it fires at (if given)
@@ -44,6 +44,20 @@ class _Fault:
     code: int = -310
     message: str = "System error"
     key: int = -1             #: its place in the stand configuration's list (for sim_fired)
+
+    @classmethod
+    def of(cls, fault: dict, key: int = -1) -> "ScheduledFault":
+        """A fault of the stand configuration (``kind``, ``at_step`` or ``at_index``, ...)."""
+        at_index = fault.get("at_index")
+        return cls(str(fault.get("kind")), int(fault.get("at_step", 0)),
+                   None if at_index is None else int(at_index), int(fault.get("count", 1)),
+                   int(fault.get("code", -310)), str(fault.get("message", "System error")),
+                   int(key))
+
+    def due(self, command: int, step_index: int | None) -> bool:
+        """Whether it fires at an instrument's ``command``-th frequency command (0-based),
+        played for the campaign's step ``step_index``."""
+        return self.at_step == command if self.at_index is None else self.at_index == step_index
 
 
 @dataclass
@@ -79,7 +93,7 @@ class SimulatedGenerator:
     late_replies: list[str] = field(default_factory=list)
     _lost_replies: int = 0
     _late: int = 0
-    _faults: list[_Fault] = field(default_factory=list)
+    _faults: list[ScheduledFault] = field(default_factory=list)
     #: keys of the scheduled faults that have fired (shared with a reopened stand, so that
     #: each fault fires once: see :class:`~vibid.hardware_mocks.virtual_stand.VirtualStand`)
     sim_fired: set[int] = field(default_factory=set)
@@ -138,11 +152,7 @@ class SimulatedGenerator:
         kind = fault.get("kind")
         if kind not in FAULT_KINDS:
             raise ValueError(f"unknown fault kind {kind!r}, expected one of {', '.join(FAULT_KINDS)}")
-        at_index = fault.get("at_index")
-        self._faults.append(_Fault(kind, int(fault.get("at_step", 0)),
-                                   None if at_index is None else int(at_index),
-                                   int(fault.get("count", 1)), int(fault.get("code", -310)),
-                                   str(fault.get("message", "System error")), int(key)))
+        self._faults.append(ScheduledFault.of(fault, key))
 
     # -- the instrument -----------------------------------------------------------------
     def handle(self, line: str) -> str | None:
@@ -206,9 +216,7 @@ class SimulatedGenerator:
     def _set_frequency(self, value: float) -> None:
         step = self.frequency_commands
         self.frequency_commands += 1
-        due = [f for f in self._faults
-               if (f.at_step == step if f.at_index is None else f.at_index == self.sim_step_index)]
-        for fault in due:
+        for fault in [f for f in self._faults if f.due(step, self.sim_step_index)]:
             self._faults.remove(fault)
             self.sim_fired.add(fault.key)
             if fault.kind == "no_reply":

@@ -62,7 +62,7 @@ from vibid.acquisition.stand_config import StandConfig, StandConfigError
 from vibid.errors import VibidError
 from vibid.hardware_mocks.fake_daq import G_M_S2, DeviceLimits, FakeTask
 from vibid.hardware_mocks.records import Transient, synthetic_step
-from vibid.hardware_mocks.sim_generator import FAULT_KINDS, SimulatedGenerator, register
+from vibid.hardware_mocks.sim_generator import FAULT_KINDS, ScheduledFault, SimulatedGenerator, register
 from vibid.hardware_mocks.simulated_session import StandConditions
 from vibid.hardware_mocks.specimen import VirtualSpecimen
 from vibid.setup_model import Setup
@@ -120,8 +120,8 @@ class VirtualStand:
         if fired is not None:
             self.instrument.sim_fired = fired  # shared: a fault that fired stays fired
         known = FAULT_KINDS + DAQ_FAULT_KINDS
-        #: scheduled DAQ faults: (key, at_step, at_index or None)
-        self.daq_faults: list[tuple[int, int, int | None]] = []
+        #: scheduled DAQ faults (the generator's own schedule keeps the rest)
+        self.daq_faults: list[ScheduledFault] = []
         for key, fault in enumerate(sim.faults):
             kind = fault.get("kind") if isinstance(fault, dict) else None
             if kind not in known:
@@ -129,9 +129,7 @@ class VirtualStand:
             if key in self.instrument.sim_fired:
                 continue
             if kind in DAQ_FAULT_KINDS:
-                at_index = fault.get("at_index")
-                self.daq_faults.append((key, int(fault.get("at_step", 0)),
-                                        None if at_index is None else int(at_index)))
+                self.daq_faults.append(ScheduledFault.of(fault, key))
             else:
                 self.instrument.sim_schedule(fault, key=key)
         self.truth = true_parameters(config)
@@ -201,12 +199,11 @@ class VirtualStand:
 
     def _overload_due(self) -> bool:
         """Whether an injected ``overload`` fires in this record (then it has fired)."""
-        step = self.instrument.frequency_commands - 1  # this instrument's frequency command
+        command = self.instrument.frequency_commands - 1  # this instrument's frequency command
         for fault in self.daq_faults:
-            key, at_step, at_index = fault
-            if (at_step == step) if at_index is None else (at_index == self._step):
+            if fault.due(command, self._step):
                 self.daq_faults.remove(fault)
-                self.instrument.sim_fired.add(key)
+                self.instrument.sim_fired.add(fault.key)
                 return True
         return False
 
