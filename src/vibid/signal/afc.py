@@ -24,8 +24,8 @@ from typing import Any, Collection, Iterable, Protocol
 import numpy as np
 
 from vibid.signal.basis import Layout
-from vibid.signal.flags import (CHANNELS, Flag, FlagThresholds, flat_top_fraction, free_vibration,
-                               quality_flags, settling_chi2)
+from vibid.signal.flags import (CHANNELS, Flag, FlagThresholds, FreeVibration, decay_z,
+                               flat_top_fraction, free_vibration, quality_flags, settling_chi2)
 from vibid.signal.harmonic import fit_harmonics, max_harmonics
 from vibid.signal.ratio import phasor_ratio
 
@@ -308,11 +308,7 @@ def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: 
     ppm_std = fit.frequency_std_hz / f * 1e6
     flat = flat_top_fraction(x)
     amp_chi2, h_chi2 = settling_chi2(fit.half_phasors_m_s2, fit.half_cov)
-    ringing = [[free_vibration(x[i, c], float(fit.frequency_hz[i]) if np.isfinite(fit.frequency_hz[i])
-                               else f[i], fs[i], degree=layout.degree,
-                               n_harmonics=layout.n_harmonics, min_decay_z=thr.unsettled_sigma)
-                for c in range(2)]
-               for i in range(len(steps))]
+    ringing = _ringing(x, fit, f, fs, layout, thr)
     flags = quality_flags(
         status=[s.status for s in steps], flat_top=flat,
         amplitude_change_chi2=amp_chi2, h_change_chi2=h_chi2,
@@ -341,6 +337,23 @@ def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: 
             iterations=int(fit.iterations[i]), flags=flags[i], used=used,
         ))
     return points
+
+
+def _ringing(x, fit, f, fs, layout: Layout, thr: FlagThresholds) -> list:
+    """Per step and channel, the free vibration of the record (``ringing``'s evidence). A
+    ring has to die out to matter (:meth:`~vibid.signal.flags.FreeVibration.unsettled`): it
+    is looked for (:func:`~vibid.signal.flags.free_vibration`) only where the fit's residual
+    decays from the first half of the record to the second beyond ``unsettled_sigma``."""
+    h = x.shape[-1] // 2
+    halves = fit.residual_ss_halves
+    z = decay_z(halves[..., 0], h, halves[..., 1], h)
+    out = []
+    for i in range(x.shape[0]):
+        f_i = float(fit.frequency_hz[i]) if np.isfinite(fit.frequency_hz[i]) else f[i]
+        out.append([free_vibration(x[i, c], f_i, fs[i], degree=layout.degree,
+                                   n_harmonics=layout.n_harmonics) if z[i, c] > thr.unsettled_sigma
+                    else FreeVibration(math.nan, float(z[i, c]), 0.0) for c in range(x.shape[1])])
+    return out
 
 
 def _invalid_point(step: _Step) -> AfcPoint:

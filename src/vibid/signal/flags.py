@@ -62,6 +62,7 @@ __all__ = [
     "FlagThresholds",
     "FreeVibration",
     "flat_top_fraction",
+    "decay_z",
     "free_vibration",
     "quality_flags",
     "settling_chi2",
@@ -159,9 +160,20 @@ class FreeVibration:
         return bool(self.decay_z > sigma and self.leak_std > leak_std)
 
 
+def decay_z(ss_first, n_first: int, ss_second, n_second: int):
+    """How much more residual power a record's first half holds than its second, as a
+    z-score under white noise: ``ln(v₁/v₂) / sqrt(2/n₁ + 2/n₂)``, ``v`` the mean square
+    of each half's residual (``ss`` its sum of squares over ``n`` samples); NaN where a
+    half has none. Arrays broadcast."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v1 = np.asarray(ss_first, float) / n_first
+        v2 = np.asarray(ss_second, float) / n_second
+        z = np.log(v1 / v2) / math.sqrt(2.0 / n_first + 2.0 / n_second)
+    return np.where((v1 > 0) & (v2 > 0), z, np.nan)
+
+
 def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int = 1,
-                   n_harmonics: int = 3, zero_pad: int = 4,
-                   min_decay_z: float | None = None) -> FreeVibration:
+                   n_harmonics: int = 3, zero_pad: int = 4) -> FreeVibration:
     """Look for a free vibration off the drive frequency in one channel's record ``x``.
 
     The record is fitted as the signal stage does (a polynomial of ``degree``, the harmonics
@@ -172,9 +184,7 @@ def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int
     the record: a decaying envelope) moves the fundamental phasor by ``dX``; ``leak_std`` is
     ``|dX|`` over the phasor's standard deviation per part (residual variance times the
     fit's inverse Gram). A ring within a bin of a harmonic is the ``unsettled`` flag's case
-    (its envelope changes between the halves) and is not looked for here. With
-    ``min_decay_z``, a residual that decays less stops there (no ring looked for: such a
-    record is settled whatever its leak, :meth:`FreeVibration.unsettled`).
+    (its envelope changes between the halves) and is not looked for here.
     """
     x = np.asarray(x, dtype=np.float64)
     n = x.size
@@ -197,12 +207,9 @@ def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int
     plain = gram_inv @ (a.T @ x)
     resid = x - a @ plain
     half = n // 2
-    v1, v2 = float(np.mean(resid[:half] ** 2)), float(np.mean(resid[half:] ** 2))
-    if not (v1 > 0 and v2 > 0):
+    z = decay_z(float(resid[:half] @ resid[:half]), half, float(resid[half:] @ resid[half:]), n - half)
+    if not math.isfinite(z):
         return nothing
-    decay_z = math.log(v1 / v2) / math.sqrt(2.0 / half + 2.0 / (n - half))
-    if min_decay_z is not None and not decay_z > min_decay_z:
-        return FreeVibration(math.nan, float(decay_z), 0.0)
     # the strongest residual line away from DC and the harmonics
     m = zero_pad * n
     spectrum = np.abs(np.fft.rfft(resid, m))
@@ -232,7 +239,7 @@ def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int
     sigma2 = float(resid @ resid) / (n - a.shape[1])
     var = sigma2 * np.diag(gram_inv)[fund]  # the phasor's variance per part: σ² (AᵀA)⁻¹
     leak = float(math.hypot(*dx) / math.sqrt(0.5 * float(var.sum())))
-    return FreeVibration(ring_hz, float(decay_z), leak)
+    return FreeVibration(ring_hz, float(z), leak)
 
 
 def flat_top_fraction(x: np.ndarray, rel_tol: float = 1e-6) -> np.ndarray:

@@ -79,6 +79,8 @@ class HarmonicFit:
     half_phasors_m_s2 : (S, C, 2) fundamental fitted on the first and on the second half, the
         frequency held at the whole record's.
     half_cov : (S, 2, 2C, 2C) covariance of (Re X_0, Im X_0, Re X_1, ...) on each half.
+    residual_ss_halves : (S, C, 2) the whole record's fit's residual sum of squares over its
+        first and over its second half (the centre sample of an odd record in neither).
     iterations : (S,) Gauss-Newton iterations.
     converged : (S,) the frequency search converged; where it did not, the step is fitted at the
         commanded frequency (taken as known) instead.
@@ -94,6 +96,7 @@ class HarmonicFit:
     noise_std_m_s2: np.ndarray
     half_phasors_m_s2: np.ndarray
     half_cov: np.ndarray
+    residual_ss_halves: np.ndarray
     iterations: np.ndarray
     converged: np.ndarray
 
@@ -284,9 +287,8 @@ def _solve(rec: _Records, nu, layout: Layout, refine: bool, max_iterations: int,
                 ddi=ddi[d], v=v[d], gg=gg[d], gp=gp[d],
                 pp=pp[d] - (dg_even[d] + dg_odd[d]) * t,
                 qn=qn[d] - (dg_even[d] - dg_odd[d]) * t,
-                rss=np.maximum(_residual_ss(theta[d], m[d], after[d], before[d],
-                                            None if rec.centre is None else rec.centre[idx], layout),
-                               floor[idx]),
+                **_residual_ss(theta[d], m[d], after[d], before[d],
+                               None if rec.centre is None else rec.centre[idx], layout, floor[idx]),
                 iterations=it,
                 converged=~bad[d] & (last[d] | (not refine)),
             )
@@ -311,21 +313,26 @@ def _derivative_halves(theta, m, u, layout: Layout):
     return g_even, g_odd
 
 
-def _residual_ss(theta, d_half, after, before, centre, layout: Layout) -> np.ndarray:
-    """Explicit residual sum of squares per channel (no cancellation at high SNR)."""
+def _residual_ss(theta, d_half, after, before, centre, layout: Layout, floor) -> dict:
+    """Explicit residual sums of squares per channel (no cancellation at high SNR): ``rss``
+    over the record (at least ``floor``) and ``rss_halves`` (S, C, 2) over its first half
+    (``before``, mirrored) and its second (``after``)."""
     par = layout.parity[: layout.n_model]
     r_after = after - theta @ d_half
     r_before = before - (theta * par) @ d_half
-    ss = np.einsum("scn,scn->sc", r_after, r_after) + np.einsum("scn,scn->sc", r_before, r_before)
+    halves = np.stack([np.einsum("scn,scn->sc", r_before, r_before),
+                       np.einsum("scn,scn->sc", r_after, r_after)], axis=-1)
+    ss = halves.sum(-1)
     if centre is not None:
         ss += (centre - theta @ layout.centre_row) ** 2
-    return ss
+    return {"rss": np.maximum(ss, floor), "rss_halves": halves}
 
 
 class _Store:
     """Per-step results gathered as steps converge, then turned into the fit's arrays."""
 
-    _PER_STEP = ("nu", "dof", "refined", "theta", "ddi", "v", "gg", "gp", "pp", "qn", "rss", "iterations")
+    _PER_STEP = ("nu", "dof", "refined", "theta", "ddi", "v", "gg", "gp", "pp", "qn", "rss",
+                 "rss_halves", "iterations")
 
     def __init__(self, nu, c: int, layout: Layout, dof: float, refined: bool):
         s, p = len(nu), layout.n_model
@@ -340,6 +347,7 @@ class _Store:
         self.pp = np.zeros((s, c, p))
         self.qn = np.zeros((s, c, p))
         self.rss = np.zeros((s, c))
+        self.rss_halves = np.zeros((s, c, 2))
         self.iterations = np.zeros(s, dtype=int)
         self.converged = np.zeros(s, dtype=bool)
 
@@ -391,6 +399,7 @@ class _Store:
             "noise_std_m_s2": np.sqrt(sig2),
             "half_phasors_m_s2": half_phasors,
             "half_cov": half_cov,
+            "residual_ss_halves": self.rss_halves,
             "iterations": self.iterations,
             "converged": self.converged,
         }
