@@ -192,3 +192,27 @@ def test_reported_uncertainty_matches_the_monte_carlo_scatter():
     amp_chi2, h_chi2 = settling_chi2(fit.half_phasors_m_s2, fit.half_cov)
     assert amp_chi2.mean(axis=0) == pytest.approx([1.0, 1.0], abs=0.2)
     assert h_chi2.mean() == pytest.approx(2.0, abs=0.3)
+
+
+@pytest.mark.parametrize("n", [6400, 6401])
+def test_residual_of_each_half_is_the_plain_least_squares_residual(n):
+    """The fit's residual sums of squares over the first and the second half of the record
+    (the centre sample of an odd record in neither), against numpy's least squares of the
+    same model (offset, drift, 3 harmonics) at the fitted frequency, on the whole record."""
+    fs, f = 25600.0, 210.0
+    base, response = synthetic_step(f, 2.0 - 1.0j, sample_rate_hz=fs, n_samples=n,
+                                    noise_std_m_s2=(1e-3, 1e-3), rng=4)
+    t = np.arange(n) / fs
+    response = response + 0.05 * np.exp(-8.0 * t) * np.cos(2 * np.pi * 251.0 * t)  # a ring
+    x = np.stack([base, response])
+    fit = fit_harmonics(x, f, fs, layout=Layout(1, 3))
+    tc = t - t.mean()
+    w = 2 * np.pi * fit.frequency_hz[0]
+    a = np.stack([np.ones(n), tc] + [g(k * w * tc) for g in (np.cos, np.sin) for k in (1, 2, 3)], 1)
+    h = n // 2
+    for c in range(2):
+        r = x[c] - a @ np.linalg.lstsq(a, x[c], rcond=None)[0]
+        expected = [r[:h] @ r[:h], r[n - h:] @ r[n - h:]]
+        np.testing.assert_allclose(fit.residual_ss_halves[0, c], expected, rtol=2e-3)
+    first, second = fit.residual_ss_halves[0, 1]
+    assert first > 2 * second  # the ring dies out: the first half holds more
