@@ -4,7 +4,7 @@ identify's search on the peaks alone, on the strip's AFC of the loop tests."""
 import numpy as np
 import pytest
 
-from vibid.identify.fit.peaks import measured_peaks, peak_score, peaks_matched
+from vibid.identify.fit.peaks import grid_heights, measured_peaks, peak_score, peaks_matched
 
 F_MODES = np.array([123.4, 456.7])
 BETA = 0.01
@@ -48,6 +48,38 @@ def test_score_is_zero_at_a_match_and_penalises_misses_and_spurious_modes():
         np.min(np.log(300.0 / p.frequency_hz) ** 2), rel=1e-9)  # the nearest peak, 456.7 Hz
     weak = np.array([[100.0, 100.0, 1e-6]])  # the same mode, too weak to be seen: no penalty
     assert float(peak_score(extra, weak, p)[0]) == pytest.approx(0.0, abs=1e-20)
+
+
+def test_a_narrow_mode_between_two_steps_is_not_a_peak_the_data_lack():
+    """A stepped sine 6 Hz apart around a mode of beta 0.0005 (half-power band 0.125 Hz)
+    that lies 3 Hz from both neighbouring steps: its resonance is 48x higher than the grid
+    shows it (1 / sqrt(1 + x^2), x = (1 - (f/f_k)^2) / beta), and the data show no peak
+    there. Judged by its resonance it is a spurious mode; judged by the grid it is not."""
+    f0, beta, a = 250.0, 0.0005, 0.006
+    grid = np.arange(103.0, 400.0, 6.0)  # 247 and 253 Hz: f0 midway
+
+    def afc(f):
+        w2, wj2 = (2 * np.pi * f) ** 2, (2 * np.pi * f0) ** 2
+        return two_mode_afc(f) + a * w2 / (wj2 * (1 + 1j * beta) - w2)
+
+    p = measured_peaks(grid, afc(grid))
+    assert p.count == 1  # 123.4 Hz only (456.7 Hz is beyond the grid)
+    resonance = a / beta  # the mode's own peak |H| above its background (~1.4 near it)
+    x = (1 - (247.0 / f0) ** 2) / beta
+    assert resonance / np.sqrt(1 + x**2) < 0.5 * p.height.min() < resonance
+    modes = np.array([[p.frequency_hz[0], f0]])
+    heights = np.array([[p.height[0], resonance]])
+    shown = grid_heights(modes, heights, [beta], grid)
+    # the mode's own term at 247 Hz, a r² / sqrt((1 - r²)² + beta²), r = 247 / f0: the
+    # formula drops the r² (2.4 % here)
+    r2 = (247.0 / f0) ** 2
+    assert shown[0, 1] == pytest.approx(a * r2 / np.hypot(1 - r2, beta), rel=0.03)
+    assert shown[0, 1] < 0.5 * p.height.min()
+    assert float(peak_score(modes, heights, p)[0]) == pytest.approx(
+        np.log(f0 / p.frequency_hz[0]) ** 2, rel=1e-9)  # counted as spurious
+    assert float(peak_score(modes, heights, p, shown)[0]) == pytest.approx(0.0, abs=1e-20)
+    assert peaks_matched(modes[0], heights[0], p, shown[0])
+    assert not peaks_matched(modes[0], heights[0], p)
 
 
 def test_peaks_matched_to_the_grid_resolution():
