@@ -49,7 +49,7 @@ from vibid.identify.fit.global_search import differential_evolution, robust_scor
 from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_by_continuation
 from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
 from vibid.identify.fit.noise import fits
-from vibid.identify.fit.peaks import measured_peaks, peak_score, peaks_matched
+from vibid.identify.fit.peaks import grid_heights, measured_peaks, peak_score, peaks_matched
 from vibid.identify.fit.problem import (ForwardModel, GivesModes, LeastSquaresProblem,
                                        PlateForwardModel, SplitsModelError)
 from vibid.identify.fit.result import IdentificationResult, LocalResult
@@ -204,8 +204,21 @@ def peaks_already_matched(problem: LeastSquaresProblem, theta) -> bool:
     model = problem.model
     if not gives_modes(model):
         return False
-    f_hz, height = model.modes_batch(np.asarray(theta)[None, :])
-    return peaks_matched(np.asarray(f_hz)[0], np.asarray(height)[0], _measured_peaks(problem))
+    thetas = np.asarray(theta)[None, :]
+    f_hz, height = model.modes_batch(thetas)
+    shown = grid_heights(f_hz, height, _loss_factors(model, thetas), _grid(problem))
+    return peaks_matched(np.asarray(f_hz)[0], np.asarray(height)[0], _measured_peaks(problem),
+                         shown[0])
+
+
+def _grid(problem: LeastSquaresProblem) -> np.ndarray:
+    """The measured frequencies the fit uses, ascending."""
+    return np.sort(problem.data.frequency_hz[problem.data.used])
+
+
+def _loss_factors(model, thetas) -> np.ndarray:
+    """(S,) the common loss factor of a proportional model at each parameter vector."""
+    return np.array([float(model.param.common_loss(np.asarray(t, float), np)) for t in thetas])
 
 
 def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]:
@@ -216,10 +229,10 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
     return [] if result is None else list(result.u)
 
 
-#: The peaks-only search's population per searched parameter and generations: the peak
-#: score's basins are wide, and the polish and the valley walk finish the job.
-PEAKS_ONLY_POPSIZE = 8
-PEAKS_ONLY_GENERATIONS = 40
+#: The peaks-only search's population per searched parameter and generations (a plate's
+#: four stiffnesses: 8 and 40 ended short of the basin in every restart).
+PEAKS_ONLY_POPSIZE = 15
+PEAKS_ONLY_GENERATIONS = 60
 
 
 def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
@@ -236,10 +249,13 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
     if peaks.count == 0:
         return None
     thin = search_problem(problem) if tie_break else None
+    grid = _grid(problem)
 
     def score(U):
-        f_hz, height = model.modes_batch(space.theta(U))
-        s = np.asarray(peak_score(f_hz, height, peaks))
+        thetas = space.theta(U)
+        f_hz, height = model.modes_batch(thetas)
+        shown = grid_heights(f_hz, height, _loss_factors(model, thetas), grid)
+        s = np.asarray(peak_score(f_hz, height, peaks, shown))
         if tie_break:
             s = s + PEAK_CHI2_WEIGHT * np.log(np.maximum(thin.chi2_batch(U), 1e-300))
         return s
@@ -255,9 +271,11 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
 @timed("global search")
 def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     """Search the resonance peaks alone: the parameters that move no stiffness or inertia
-    (the loss factor, a delay, a gain: the peak frequencies do not fix them) held at
-    ``opts.peaks_only``, a small population (the peak score's basins are wide), then the
-    polish of every restart's best. Returns (GlobalResult, fits), or (None, []) when the
+    (a delay, a gain: the peak frequencies do not fix them) held at ``opts.peaks_only``,
+    the loss factor searched with the rest (chi2 breaks the ties among parameter sets that
+    match the peaks equally: four peaks leave an orthotropic plate's D12 open, and with the
+    loss factor held at an isotropic fit's, twice the plate's, chi2 pointed the wrong way),
+    then the polish of every restart's best. Returns (GlobalResult, fits), or (None, []) when the
     model cannot give its modes or the AFC shows no peak.
 
     Where a model with several stiffnesses starts far from its basin (an orthotropic plate
@@ -272,8 +290,9 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
         return None, []
     theta = np.array([float(opts.peaks_only[n]) for n in space.names])
     moving = moving_parameters(model.param, theta)
-    hold = {n: theta[i] for i, n in enumerate(space.names) if i not in moving}
-    result = peak_search(problem, opts, tie_break=False, fixed=hold,
+    hold = {n: theta[i] for i, n in enumerate(space.names)
+            if i not in moving and n != SMOOTHING_PARAMETER}
+    result = peak_search(problem, opts, tie_break=True, fixed=hold,
                          popsize=PEAKS_ONLY_POPSIZE, max_generations=PEAKS_ONLY_GENERATIONS)
     if result is None:
         return None, []
