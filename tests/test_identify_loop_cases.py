@@ -188,11 +188,13 @@ def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
 def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(monkeypatch):
     """A local refit that ran away without converging can carry a chi2 below the noise (the
     model error in its own weights grows with the runaway: the titanium strip's anisotropy
-    refit had chi2_red 7e-5). It must not spare the global search, and is never kept."""
+    refit had chi2_red 7e-5). Asked to search, it must not spare the global search."""
     import dataclasses
 
     import vibid.identify.loop.refit as loop_module
+    from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.result import Status
+    from vibid.identify.loop.candidates import EffectCandidate
 
     H, sd = data({"tau_s": 2e-5}, 7)  # test_identify_loop's undeclared delay
     real = loop_module.identify
@@ -207,8 +209,38 @@ def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(mo
         return r
 
     monkeypatch.setattr(loop_module, "identify", identify)
+    setup = _setup()
+    declared = declared_fit({"tau_s": 2e-5}, 7)
+    loop_module.refit(setup, fit_data(F, H, sd), declared, EffectCandidate("channel_delay"),
+                      dict(setup.identification.bounds), None, "newton", search=True)
+    assert searched, "the non-converged refit spared the global search"
+
+
+def test_the_loop_searches_no_effect_globally_and_keeps_no_runaway(monkeypatch):
+    """An effect's new parameters start at their null in the basin the declared fit's own
+    search found: the loop does not search it over its box (a plate's isotropic fit spent
+    two minutes a round searching stand resonances), and a refit that did not converge is
+    never kept."""
+    import dataclasses
+
+    import vibid.identify.loop.refit as loop_module
+    from vibid.identify.fit.result import Status
+
+    H, sd = data({"tau_s": 2e-5}, 7)
+    real = loop_module.identify
+    searched = []
+
+    def identify(*a, **k):
+        r = real(*a, **k)
+        if k.get("method") == "local":
+            return dataclasses.replace(r, status=Status.MAX_ITERATIONS)
+        searched.append(k)
+        return r
+
+    monkeypatch.setattr(loop_module, "identify", identify)
     loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
                       declared=declared_fit({"tau_s": 2e-5}, 7), candidates=["channel_delay"],
                       max_rounds=1)
-    assert searched, "the non-converged refit spared the global search"
+    assert not searched
+    assert loop.effects == ()
     assert all(stage.result.converged for stage in loop.stages)  # no runaway is kept

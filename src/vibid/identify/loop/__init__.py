@@ -15,8 +15,9 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    resonance needs a diagnosed pole, which also places its frequency and Q) with a score
    test at the current fit (:mod:`~vibid.identify.loop.scoring`).
 4. **Refit** the candidates whose score asks for it, best first
-   (:mod:`~vibid.identify.loop.refit`), and search the top one globally when no local
-   refit explains most of the misfit.
+   (:mod:`~vibid.identify.loop.refit`); when no local refit explains most of the misfit,
+   search the best-scoring new material globally (its basin may lie far from the current
+   fit's; an effect's new parameters start at their null or at the diagnosed feature).
 5. **Judge** each refit (:class:`Verdict`): significant, away from its null, and explaining
    a real share of the misfit; or bringing a parameter the declared model bent out of its
    prior box back inside it.

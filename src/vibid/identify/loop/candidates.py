@@ -31,6 +31,10 @@ class Candidate(Protocol):
     plainness: int
     #: the diagnosis's feature kinds it can explain (:mod:`vibid.identify.diagnosis`)
     explains: tuple[str, ...]
+    #: whether the extended model's best basin may lie away from the current fit's (a new
+    #: material moves every resonance its own way): only such a candidate is searched
+    #: globally over its box
+    moves_basin: bool
     #: whether its global search matches the resonance peaks first
     peaks_first: bool
     #: whether it changes H's phase alone (a fit of |H| cannot see it)
@@ -57,6 +61,7 @@ class EffectCandidate:
 
     name: str
     plainness = 0
+    moves_basin = False
     peaks_first = False
 
     @property
@@ -181,6 +186,7 @@ class MaterialCandidate:
 
     name: str = "anisotropy"
     plainness = 1
+    moves_basin = True
     explains = ("mode_shift",)
     #: the anisotropic material moves every resonance its own way, and the isotropic fit
     #: lies far from the orthotropic basin, where chi2's minima are needles

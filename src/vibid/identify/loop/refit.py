@@ -5,9 +5,11 @@ parameter the diagnosis placed, a resonance's frequency and Q, is not varied), t
 full identification (weights with the model's own error, covariance) from the best. Where
 the current estimate lies outside its prior box (the declared model bent a parameter to
 mimic what it lacks) the starts also move those parameters just inside the box and to
-its centre. With ``search``, when the local refit does not fit the noise, the extended
-model is also searched globally over its box (the current estimate may lie in a wrong
-basin of it: an orthotropic plate fitted as isotropic).
+its centre. With ``search`` (a new material: the loop's rounds decide), when the local
+refit does not fit the noise with the data's own weights, the extended model is also
+searched globally over its box (the current estimate may lie in a wrong basin of it: an
+orthotropic plate fitted as isotropic): on the resonance peaks, then on chi2 unless the
+best's modes already lie on the measured peaks.
 """
 
 from __future__ import annotations
@@ -96,9 +98,11 @@ def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = Fal
 
 
 def _fits(r) -> bool:
-    """A refit that did not converge fits nothing, whatever its chi2 (a runaway's model
-    error can swamp its own weights)."""
-    return r.converged and bool(fits_noise(r.chi2, r.dof, True))
+    """Whether a refit fits the data's noise, with the data's own weights: a refit that did
+    not converge fits nothing, and a model that is far from the data has a large error of
+    its own, which in the weights would swamp the misfit (an orthotropic plate's local
+    refit from an isotropic fit, its basis stretched, "fitted" that way)."""
+    return r.converged and bool(fits_noise(r.chi2_reduced_reported * r.dof, r.dof, True))
 
 
 def _search(setup, data, cand, problem, fm, start, ext_box, local, result, loss):
@@ -108,10 +112,15 @@ def _search(setup, data, cand, problem, fm, start, ext_box, local, result, loss)
     from vibid.identify.model.forward import build_forward_model
 
     space = problem.space
+    log.info("loop: %s searched over its box (local refit chi2 %.6g)", cand.name, loss)
     wide = build_forward_model(setup, data.frequency_hz[data.used], model=fm.param,
                                bounds=ext_box)
     peaks = cand.peaks_first and gives_modes(wide)
     for peaks_only in ([start] if peaks else []) + [None]:
+        if peaks_only is None and peaks and _on_the_peaks(problem, result):
+            log.info("loop: %s's modes lie on the measured peaks: no search on chi2 (its "
+                     "misfit is not a wrong basin)", cand.name)
+            break
         found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                          model=fm.param.model, forward_model=wide, bounds=ext_box,
                          restarts=3, seed=0, local=local, peaks_only=peaks_only,
@@ -125,3 +134,12 @@ def _search(setup, data, cand, problem, fm, start, ext_box, local, result, loss)
         if _fits(result):
             break
     return result, loss
+
+
+def _on_the_peaks(problem, result) -> bool:
+    """Whether ``result``'s modes lie on the measured resonance peaks to the grid's
+    resolution: chi2's search would find this basin again (:func:`identify`'s own rule)."""
+    from vibid.identify.fit.strategy import peaks_already_matched
+
+    at = problem.with_model(problem.model.refresh(result.values))
+    return peaks_already_matched(at, result.values)

@@ -221,12 +221,15 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     """Refit the candidates whose score asks for it, best first, and judge each: name ->
     (verdict, detail, refit or None, parameters it leaves outside the prior box).
 
-    The best few are refitted locally, stopping at one that fits the noise; the top one is
-    also searched globally when no refit explains most of the misfit. While the current
-    estimate lies outside its prior box every candidate is refitted, whatever its score,
-    the top one searched first: the effect behind an excursion scores low at the bent
-    estimate (the bent parameter already mimics it), and its refit starts with the bent
-    parameters back inside the box."""
+    The best few are refitted locally, stopping at one that fits the noise; when no refit
+    explains most of the misfit, the best-scoring candidate whose basin may lie elsewhere
+    (a new material) is also searched globally over its box. An effect is not: its new
+    parameters start at their null or where the diagnosis placed them, in the basin the
+    declared fit's own search found. While the current estimate lies outside its prior
+    box every candidate is refitted, whatever its score (the top one searched first if it
+    is a new material): the effect behind an excursion scores low at the bent estimate
+    (the bent parameter already mimics it), and its refit starts with the bent parameters
+    back inside the box."""
     res = state.current.result
     by_name = {c.name: c for c in todo}
     judged = {}
@@ -247,6 +250,8 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
 
     def attempt(s: Score, search: bool):
         cand = by_name[s.name]
+        log.info("loop: refitting %s (score %.4g%s)", s.name, s.score,
+                 ", searched globally" if search else "")
         try:
             fit = refits.refit(inputs.setup, inputs.data, res, cand, state.box,
                                state.current.diagnosis, inputs.local, search=search)
@@ -255,7 +260,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
         return judge(cand, s, fit, res, state.box, outside, excess)
 
     for k, s in enumerate(ranked):
-        judged[s.name] = attempt(s, bool(outside) and k == 0)
+        judged[s.name] = attempt(s, bool(outside) and k == 0 and by_name[s.name].moves_basin)
         verdict, _, fit, _ = judged[s.name]
         if verdict.passes and Stage.of(s.name, fit.result).fits_noise:
             for rest in ranked[k + 1:]:  # another could at best tie, for a refit's price
@@ -263,11 +268,12 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
             break
     else:
         explained = max((f.gain for v, _, f, _ in judged.values() if v.passes), default=0.0)
-        if ranked and not outside and explained < SEARCH_SHARE * excess:
-            top = ranked[0].name
-            searched, plain = attempt(ranked[0], True), judged[top]
-            if searched[0].passes and (not plain[0].passes or searched[2].gain > plain[2].gain):
-                judged[top] = searched
+        basin = next((s for s in asking if by_name[s.name].moves_basin), None)
+        if basin is not None and not outside and explained < SEARCH_SHARE * excess:
+            searched, plain = attempt(basin, True), judged[basin.name]
+            if searched[0].passes and (plain[2] is None or not plain[0].passes
+                                       or searched[2].gain > plain[2].gain):
+                judged[basin.name] = searched
     return judged
 
 
