@@ -1,0 +1,52 @@
+"""The loop's choice among passing refits (``rounds.choose``), on stand-in refits: a refit
+that explains nearly all the misfit beats one that removes a more significant diagnosed
+feature but leaves most of it (the CFRP plate: a stand resonance took the isotropic fit's
+unmatched torsion peak, 18 % of the misfit, while the orthotropic material explained all
+but 35 000 of 2.25e11)."""
+
+from types import SimpleNamespace
+
+import pytest
+
+from vibid.identify.loop import rounds
+from vibid.identify.loop.verdicts import Score, Verdict
+
+
+CHI2, DOF = 2.25169e11, 233
+
+
+def _refit(gain):
+    return SimpleNamespace(gain=gain, result=SimpleNamespace(chi2=CHI2 - gain))
+
+
+@pytest.fixture
+def stages(monkeypatch):
+    monkeypatch.setattr(rounds.Stage, "of", classmethod(
+        lambda cls, added, result: SimpleNamespace(added=added, result=result)))
+
+
+def _choose(refits, removes):
+    scores = [Score(n, 1e3, 1, 0.0, 0.1) for n in refits]
+    judged = {n: (Verdict.OUTRANKED, (), f, []) for n, f in refits.items()}
+    current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF)
+    plainness = {"stand_resonance": 0, "anisotropy": 1}
+    return rounds.choose(scores, judged, current, plainness, removes)
+
+
+def test_a_refit_that_explains_nearly_all_the_misfit_wins_over_a_larger_feature_removed(
+        stages):
+    pole = SimpleNamespace(significance=900.0, note="a resonance at 164 Hz")
+    shift = SimpleNamespace(significance=300.0, note="mode 3 misplaced")
+    refits = {"stand_resonance": _refit(4.14e10), "anisotropy": _refit(CHI2 - 34943.0)}
+    scores, chosen = _choose(refits, {"stand_resonance": pole, "anisotropy": shift})
+    assert chosen.added == "anisotropy"
+    verdicts = {s.name: s.verdict for s in scores}
+    assert verdicts == {"stand_resonance": Verdict.OUTRANKED, "anisotropy": Verdict.CHOSEN}
+
+
+def test_where_none_explains_nearly_all_the_larger_feature_removed_decides(stages):
+    pole = SimpleNamespace(significance=900.0, note="a resonance at 164 Hz")
+    shift = SimpleNamespace(significance=300.0, note="mode 3 misplaced")
+    refits = {"stand_resonance": _refit(4.14e10), "anisotropy": _refit(0.85 * CHI2)}
+    _, chosen = _choose(refits, {"stand_resonance": pole, "anisotropy": shift})
+    assert chosen.added == "stand_resonance"
