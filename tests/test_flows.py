@@ -223,12 +223,11 @@ def test_the_model_is_drawn_on_a_fine_grid_through_its_resonances(stages_b):
     assert np.max(np.abs(on - fitted) / np.abs(fitted)) < 1e-3
 
 
-def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stages_b):
+def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stages_b,
+                                                                          monkeypatch):
     """The live AFC's last version: the identified model on fine_model's grid (its
     resonance peaks at their height, not straight lines between the steps), computed once
-    by set_identified; drawing it adds little to a publication."""
-    import time
-
+    by set_identified; drawing it computes nothing more."""
     from vibid.flows.live import LiveAfc
     from vibid.report.figures import fine_model
 
@@ -238,10 +237,6 @@ def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stage
     u = np.asarray(result.used, bool)
     for i, (f, H) in enumerate(zip(result.frequency_hz[u], result.H[u])):
         live.points[i] = (float(f), float(abs(H)), float(np.degrees(np.angle(H))), None)
-    live.render_png()  # (the first pays for fonts and caches)
-    t0 = time.perf_counter()
-    live.render_png()
-    points_only = time.perf_counter() - t0
     live.set_identified(result, data.setup)
     assert not live.failed
     grid, H, natural = fine_model(data.setup, result)
@@ -251,10 +246,14 @@ def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stage
     near = np.abs(grid - natural[0]) < 1.0
     assert mag[near].max() > 20 * np.abs(result.H[u][np.abs(result.frequency_hz[u]
                                                               - natural[0]) < 30]).max()
-    t0 = time.perf_counter()
-    live.render_png()
-    with_model = time.perf_counter() - t0
-    assert with_model < 3 * points_only + 0.2, (with_model, points_only)
+    # drawing it computes nothing more (no wall clock: the suite runs under load)
+    import vibid.report.figures as figures
+
+    def no_model(*a, **k):
+        raise AssertionError("render_png computed the model again")
+
+    monkeypatch.setattr(figures, "fine_model", no_model)
+    assert live.render_png().startswith(b"\x89PNG")
 
 
 # -- batch on Dask -------------------------------------------------------------------------------

@@ -142,4 +142,4 @@ def _on_the_peaks(problem, result) -> bool:
     from vibid.identify.fit.strategy import peaks_already_matched
 
     at = problem.with_model(problem.model.refresh(result.values))
-    return peaks_already_matched(at, result.values)
+    return peaks_already_matched(at, result.values, by_grid=True)
