@@ -380,8 +380,9 @@ def choose(scores, judged: dict, res, plainness: dict,
     One that brings the estimate back inside its prior box goes first (an effect that
     leaves it outside is kept back). Among the rest, the refits that explain all but
     :data:`KEEP_SHARE` of the misfit compete where there are any; of those, an effect is
-    chosen for the structure it explains: the ones whose refit removes the most significant diagnosed feature
-    (``removes``: name -> the feature it removed) compete, or all where none removes one;
+    chosen for the structure it explains: the ones whose refit removes the most
+    significant diagnosed feature (``removes``: name -> the feature it removed) compete,
+    or all where none removes one;
     of those whose chi2 the data cannot tell from the best's, the plainest explanation
     wins: one whose feature the diagnosis found before one without, an effect before a
     new material, then the larger likelihood ratio."""
