@@ -98,13 +98,11 @@ def grid_heights(f_model_hz, height_model, beta, grid_hz):
     return np.asarray(height_model, float) / np.sqrt(1 + x**2)
 
 
-def peak_score(f_model_hz, height_model, peaks: Peaks, grid_height=None):
+def peak_score(f_model_hz, height_model, peaks: Peaks):
     """The score of the module docstring for a population: (S, n) model frequencies and
-    peak heights -> (S,) scores, in numpy (the modes arrive as numpy arrays). With
-    ``grid_height`` (:func:`grid_heights`), a mode is visible by how high the measured
-    grid would show it rather than by its resonance peak."""
-    if grid_height is not None:
-        height_model = grid_height
+    peak heights -> (S,) scores, in numpy (the modes arrive as numpy arrays). The heights
+    say which modes are visible: their resonance peaks, or how high the measured grid
+    would show them (:func:`grid_heights`)."""
     F = np.asarray(peaks.frequency_hz, float)
     fm = np.maximum(np.asarray(f_model_hz, float), 1e-12)
     with np.errstate(invalid="ignore"):
@@ -116,14 +114,12 @@ def peak_score(f_model_hz, height_model, peaks: Peaks, grid_height=None):
     return np.where(np.isfinite(score), score, np.inf)
 
 
-def peaks_matched(f_model_hz, height_model, peaks: Peaks, grid_height=None) -> bool:
+def peaks_matched(f_model_hz, height_model, peaks: Peaks) -> bool:
     """Whether one model's modes ((n,) frequencies and peak heights) already reproduce the
     measured peaks to the grid's resolution: every measured peak has a mode within its
     :attr:`Peaks.resolution`, and every visible mode (as in :func:`peak_score`) a measured
-    peak within that peak's (``grid_height``: as in :func:`peak_score`). A search on the
-    peaks would then find this basin again."""
-    if grid_height is not None:
-        height_model = grid_height
+    peak within that peak's (the heights as in :func:`peak_score`). A search on the peaks
+    would then find this basin again."""
     if peaks.count == 0 or peaks.resolution is None:
         return False
     F = np.log(peaks.frequency_hz)

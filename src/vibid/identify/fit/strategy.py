@@ -208,24 +208,21 @@ def peaks_already_matched(problem: LeastSquaresProblem, theta, *, by_grid: bool 
         return False
     thetas = np.asarray(theta)[None, :]
     f_hz, height = model.modes_batch(thetas)
-    shown = _shown(model, thetas, f_hz, height, _grid(problem)) if by_grid else None
-    return peaks_matched(np.asarray(f_hz)[0], np.asarray(height)[0], _measured_peaks(problem),
-                         None if shown is None else shown[0])
+    if by_grid:
+        height = _shown(model, thetas, f_hz, height, _grid(problem))
+    return peaks_matched(np.asarray(f_hz)[0], np.asarray(height)[0], _measured_peaks(problem))
 
 
 def _shown(model, thetas, f_hz, height, grid):
-    """How high the grid shows each mode (:func:`vibid.identify.fit.peaks.grid_heights`)."""
-    return grid_heights(f_hz, height, _loss_factors(model, thetas), grid)
+    """How high the grid shows each mode (:func:`vibid.identify.fit.peaks.grid_heights`),
+    at the proportional model's common loss factor of each parameter vector."""
+    beta = [float(model.param.common_loss(np.asarray(t, float), np)) for t in thetas]
+    return grid_heights(f_hz, height, beta, grid)
 
 
 def _grid(problem: LeastSquaresProblem) -> np.ndarray:
     """The measured frequencies the fit uses, ascending."""
     return np.sort(problem.data.frequency_hz[problem.data.used])
-
-
-def _loss_factors(model, thetas) -> np.ndarray:
-    """(S,) the common loss factor of a proportional model at each parameter vector."""
-    return np.array([float(model.param.common_loss(np.asarray(t, float), np)) for t in thetas])
 
 
 def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]:
@@ -264,13 +261,14 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
     if peaks.count == 0:
         return None
     thin = search_problem(problem) if tie_break else None
-    grid = _grid(problem)
+    grid = _grid(problem) if by_grid else None
 
     def score(U):
         thetas = space.theta(U)
         f_hz, height = model.modes_batch(thetas)
-        shown = _shown(model, thetas, f_hz, height, grid) if by_grid else None
-        s = np.asarray(peak_score(f_hz, height, peaks, shown))
+        if by_grid:
+            height = _shown(model, thetas, f_hz, height, grid)
+        s = np.asarray(peak_score(f_hz, height, peaks))
         if tie_break:
             s = s + PEAK_CHI2_WEIGHT * np.log(np.maximum(thin.chi2_batch(U), 1e-300))
         return s
@@ -318,9 +316,7 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
         if result is None:
             return None, []
         found = _by_loss(found + polish(problem, distinct(list(result.u)), opts))
-        best = found[0]
-        if peaks_already_matched(best.problem, best.run.theta,
-                                 by_grid=True):
+        if wide or peaks_already_matched(found[0].problem, found[0].run.theta, by_grid=True):
             break
         log.info("peaks-only search: the small search's best does not sit on the peaks; "
                  "the wider one follows")

@@ -402,10 +402,10 @@ def choose(scores, judged: dict, res, plainness: dict,
         # resonance, 18 %, that removed the isotropic fit's most significant pole)
         excess = max(float(res.chi2 - res.dof), 0.0)
         whole = [n for n in passing if passing[n][2].gain >= (1 - KEEP_SHARE) * excess]
-        passing_ = {n: passing[n] for n in whole} if whole else passing
-        top = max((f.significance for n, f in removes.items() if n in passing_ and f),
+        competing = {n: passing[n] for n in whole} if whole else passing
+        top = max((f.significance for n, f in removes.items() if n in competing and f),
                   default=None)
-        pool = [n for n in passing_ if top is None or (removes.get(n) and
+        pool = [n for n in competing if top is None or (removes.get(n) and
                                                        removes[n].significance == top)]
         # gains are all under the current fit's weights: comparable
         best = max(passing[n][2].gain for n in pool)
