@@ -93,3 +93,22 @@ def test_the_titanium_strip_fitted_on_its_compressed_problem(titanium):
     assert np.all(np.abs(shift) < 0.1), shift
     assert on_nodes.loss == pytest.approx(problem.chi2(on_nodes.u), rel=1e-12)
     assert on_nodes.loss == pytest.approx(every_bin.loss, rel=1e-6)
+
+
+def test_no_bands_where_the_model_is_not_finite(monkeypatch):
+    """A start where the model has no value (an orthotropic start whose stiffness matrix is
+    not positive definite: the titanium strip's anisotropy refit) keeps the whole problem,
+    where the bands' Fisher matrix used to stop the refit with 'Eigenvalues did not
+    converge'."""
+    from vibid.identify.fit.problem import LeastSquaresProblem
+
+    problem, u0 = titanium_problem()
+    real = LeastSquaresProblem.jacobian_and_residuals_theta
+
+    def with_nan(self, theta):
+        J, r = real(self, theta)
+        return J, np.where(np.arange(r.size) == 7, np.nan, r)
+
+    assert compressed(problem, u0) is not problem
+    monkeypatch.setattr(LeastSquaresProblem, "jacobian_and_residuals_theta", with_nan)
+    assert compressed(problem, u0) is problem

@@ -171,6 +171,8 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
         return problem  # repeated frequencies: no interpolation
     n = f.size
     Jr, r = problem.jacobian_and_residuals_theta(theta)
+    if not (np.all(np.isfinite(Jr)) and np.all(np.isfinite(r))):
+        return problem  # no model there (a stiffness matrix not positive definite): no bands
     J = _values(Jr, n, problem.magnitude)[order] * sigma[:, None]
     H = _values(r, n, problem.magnitude)[order] * sigma + data
     F = Jr.T @ Jr
