@@ -42,6 +42,8 @@ class Candidate(Protocol):
 
     def applies(self, model: PlateModel, diagnosis) -> bool: ...
 
+    def modes_needed(self, model: PlateModel) -> int: ...
+
     def extend(self, model: PlateModel) -> PlateModel: ...
 
     def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict: ...
@@ -87,6 +89,10 @@ class EffectCandidate:
         if term.instance is not None:
             return model.effect_names.count(self.name) < MAX_INSTANCES
         return self.name not in model.effect_names
+
+    def modes_needed(self, model: PlateModel) -> int:
+        """An effect asks nothing of the modes' pattern."""
+        return 0
 
     def feature(self, diagnosis):
         """The diagnosed feature that places its new parameters (the strongest pole the
@@ -195,6 +201,13 @@ class MaterialCandidate:
 
     def applies(self, model: PlateModel, diagnosis) -> bool:
         return model.material.model == "isotropic"
+
+    def modes_needed(self, model: PlateModel) -> int:
+        """The plate's modes the band must hold for the modes' pattern to ask for a new
+        material: one more than the current material's stiffnesses (an isotropic plate's
+        D and nu can place any two; the first two bending modes of a strip cannot tell an
+        orthotropic plate from an isotropic one, and a shifted one is no anisotropy)."""
+        return len(model.material.stiffness_names) + 1
 
     def extend(self, model: PlateModel) -> PlateModel:
         return model.with_material(Material("orthotropic", model.material.per_modulus_loss))

@@ -201,6 +201,15 @@ def model_resonances(setup, result, n: int = 12) -> tuple[np.ndarray, np.ndarray
     return np.asarray(f_hz, float), np.asarray(q, float)
 
 
+def plate_modes_in_band(setup, result, n: int = 12) -> int:
+    """How many of the fitted plate's modes lie within the band its data cover."""
+    from vibid.identify.model.forward import natural_frequencies
+
+    f = np.asarray(result.frequency_hz)[np.asarray(result.used)]
+    f_hz, _ = natural_frequencies(setup, result.parameters, n)
+    return int(np.count_nonzero((np.asarray(f_hz) >= f.min()) & (np.asarray(f_hz) <= f.max())))
+
+
 # -- score ----------------------------------------------------------------------------------
 def scored(inputs: Inputs, current: Stage, cand, box) -> Score:
     """``cand``'s score test at the current fit (a failure is its verdict, not fatal)."""
@@ -239,6 +248,13 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
         if s.verdict is Verdict.BELOW_SCORE and n >= n_residuals:
             judged[s.name] = (Verdict.TOO_FEW_POINTS, (("n", n), ("residuals", n_residuals)),
                               None, [])
+    for s in scores:
+        needed = by_name[s.name].modes_needed(res.plate_model)
+        if s.name not in judged and needed:
+            modes = plate_modes_in_band(inputs.setup, res)
+            if modes < needed:
+                judged[s.name] = (Verdict.NO_MODE_PATTERN, (("modes", modes),
+                                                            ("needed", needed)), None, [])
     outside = outside_prior(res, state.box)
     asking = sorted((s for s in scores if s.name not in judged and np.isfinite(s.score)
                      and (outside or s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof))),

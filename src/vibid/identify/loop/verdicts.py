@@ -24,6 +24,7 @@ class Verdict(enum.Enum):
     NOT_SCORED = "not_scored"
     BELOW_SCORE = "below_score"
     TOO_FEW_POINTS = "too_few_points"
+    NO_MODE_PATTERN = "no_mode_pattern"
     NOT_REFITTED = "not_refitted"
     REFIT_FAILED = "refit_failed"
     NOT_CONVERGED = "not_converged"
@@ -58,6 +59,10 @@ class Verdict(enum.Enum):
             Verdict.TOO_FEW_POINTS: (
                 f"not refitted: too few points for its {d.get('n', '?')} parameters "
                 f"({d.get('residuals', '?')} real residuals)"),
+            Verdict.NO_MODE_PATTERN: (
+                f"not refitted: the band holds {d.get('modes', '?')} of the plate's modes, "
+                f"which the current material places; a new material needs "
+                f"{d.get('needed', '?')} for their pattern to ask for it"),
             Verdict.NOT_REFITTED: (
                 f"not refitted: {d.get('by', 'another candidate')} already fits the residual "
                 "to the noise level" if d.get("by") else
