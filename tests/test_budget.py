@@ -105,3 +105,31 @@ def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_val
     assert said[0] in report["identification"]["warnings"]
     assert "**not physical**" in summary_markdown(report)
     assert "NOT PHYSICAL" in console_summary(report)
+
+
+def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_models(
+        monkeypatch):
+    """A residual whose autocorrelation time is tau makes tau points one: the same two
+    models, tau = 5 and a chi2 gap five times wider, weigh 3 : 1 again. A model that leaves
+    a parameter outside its prior box is no defensible model: it has no weight."""
+    from vibid.identify.loop import rounds
+
+    def fit(D, chi2_red, name):
+        return SimpleNamespace(plate_model=SimpleNamespace(model="isotropic"), dof=100,
+                               chi2_reduced_reported=chi2_red, parameters={"D": D, "nu": 0.3},
+                               parameter_names=("D", "nu", "beta", "x"), name=name)
+    final = fit(18.0, 4.0, "final")
+    other = fit(17.0, 4.0 + 5 * 4 * 2 * math.log(3) / 100, "other")
+    loop = SimpleNamespace(unexplained_residual=True, final=final,
+                           stages=[SimpleNamespace(result=final)], alternatives=(other,))
+    h = 0.001
+    E = [12 * D * (1 - 0.09) / h**3 for D in (18.0, 17.0)]
+    spread = model_spread(loop, "isotropic", h, tau=5.0)
+    assert spread["E_Pa"] == pytest.approx(math.sqrt(3) / 4 * abs(E[0] - E[1]), rel=1e-9)
+    # without tau the gap is five times wider in QAIC: the other weighs 3^-5 of the final
+    w = 3.0**-5 / (1 + 3.0**-5)
+    assert model_spread(loop, "isotropic", h)["E_Pa"] == pytest.approx(
+        math.sqrt(w * (1 - w)) * abs(E[0] - E[1]), rel=1e-9)
+    monkeypatch.setattr(rounds, "outside_prior",
+                        lambda r, box: ["nu"] if r.name == "other" else [])
+    assert model_spread(loop, "isotropic", h, tau=5.0, box={})["E_Pa"] == 0.0

@@ -18,8 +18,12 @@ root sum of squares of independent parts:
   the conversion alone (h⁻³) would overstate;
 * ``model``, where a residual remains (the loop's ``unexplained_residual``): the spread of
   the constant across the models the loop compared (its stages and the refits that passed
-  its judge), weighted as Burnham & Anderson average models, by exp(−ΔQAIC/2), QAIC =
-  χ²/ĉ + 2p with ĉ the final model's reduced χ² (the data's weights).
+  its judge) whose parameters lie inside their prior box (a model that bends a parameter
+  out of it is no defensible one), weighted as Burnham & Anderson average models, by
+  exp(−ΔQAIC/2), QAIC = χ²/ĉ + 2p with ĉ the final model's reduced χ² (the data's
+  weights) times its residual's autocorrelation time along frequency (a smooth misfit
+  spans many points, which then count as one: :func:`vibid.identify.fit.noise.
+  residual_correlation`).
 
 The parts are independent by construction (different sources), so they add in quadrature.
 """
@@ -32,6 +36,7 @@ import math
 import numpy as np
 
 from vibid.identify.engineering import constants, sensitivities
+from vibid.identify.fit.noise import residual_correlation
 from vibid.setup_model import RESPONSE_STD, SPECIMEN_STD
 
 #: The declared quantities a setup may give a standard uncertainty (the setup's own list of
@@ -114,17 +119,22 @@ def estimate_shifts(setup, result, names) -> dict[str, np.ndarray]:
     return out
 
 
-def model_spread(loop, model: str, thickness_m: float) -> dict[str, float]:
+def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
+                 box: dict | None = None) -> dict[str, float]:
     """constant -> the between-model standard deviation across the loop's models of the
     final material (module doc); empty without a loop or where the final model explains
-    the data."""
+    the data. ``tau``: the final residual's autocorrelation time; ``box``: the prior box
+    (the setup's bounds) outside which a model is not defensible (None: every model)."""
     if loop is None or not loop.unexplained_residual:
         return {}
+    from vibid.identify.loop.rounds import outside_prior
+
     final = loop.final
     fits = [st.result for st in loop.stages] + list(loop.alternatives)
     fits = [r for r in fits if getattr(r.plate_model, "model", None) == model
-            and math.isfinite(r.chi2_reduced_reported) and r.dof > 0]
-    c_hat = max(1.0, float(final.chi2_reduced_reported))
+            and math.isfinite(r.chi2_reduced_reported) and r.dof > 0
+            and (r is final or box is None or not outside_prior(r, box))]
+    c_hat = max(1.0, float(final.chi2_reduced_reported)) * max(1.0, float(tau))
     qaic = np.array([r.chi2_reduced_reported * r.dof / c_hat + 2 * len(r.parameter_names)
                      for r in fits])
     w = np.exp(-(qaic - qaic.min()) / 2.0)
@@ -166,7 +176,9 @@ def engineering_budget(setup, result, loop=None) -> dict:
             continue
         for k, v in zip(keys, moved):
             parts[k][name] = float(abs(v))
-    for k, v in model_spread(loop, model, h).items():
+    tau = residual_correlation(loop.final) if loop is not None else 1.0
+    box = dict(setup.identification.bounds)
+    for k, v in model_spread(loop, model, h, tau=tau, box=box).items():
         parts[k]["model"] = v
     block = {}
     for k in keys:

@@ -93,6 +93,48 @@ def whiteness_p(result) -> float:
     return ljung_box_p(r.real if result.magnitude else np.concatenate([r.real, r.imag]))
 
 
+#: The window of the integrated autocorrelation time: the sum stops at the first lag M
+#: with M >= WINDOW_C tau(M) (Sokal's automatic windowing).
+WINDOW_C = 5.0
+
+
+def autocorrelation_time(residual) -> float:
+    """The integrated autocorrelation time ``tau = 1 + 2 sum_k rho_k`` of ``residual``
+    (real, ordered by frequency), summed up to Sokal's automatic window (the first lag
+    ``M >= 5 tau(M)``; A. Sokal, "Monte Carlo methods in statistical mechanics", 1996,
+    and emcee's ``integrated_time``): how many neighbouring residuals carry one
+    independent one. 1 for white noise; a smooth model-form error spans many points.
+    Floored at 1."""
+    r = np.asarray(residual, float).ravel()
+    r = r[np.isfinite(r)]
+    n = r.size
+    if n < 3:
+        return 1.0
+    r = r - r.mean()
+    size = 1 << (2 * n - 1).bit_length()
+    spectrum = np.fft.rfft(r, size)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum), size)[:n]
+    if acf[0] <= 0:
+        return 1.0
+    tau = 2.0 * np.cumsum(acf / acf[0]) - 1.0
+    lags = np.arange(n)
+    window = np.flatnonzero(lags >= WINDOW_C * tau)
+    return float(max(tau[window[0]] if window.size else tau[-1], 1.0))
+
+
+def residual_correlation(result) -> float:
+    """``result``'s normalised residual's autocorrelation time along frequency
+    (:func:`autocorrelation_time`; the real parts' and the imaginary parts' mean, each
+    ordered by frequency): the factor by which a residual that is not white inflates the
+    variance of the estimates, beyond what chi2 says (an estimate is a weighted sum of
+    residuals, and ``tau`` neighbouring ones count as one)."""
+    u = np.asarray(result.used)
+    order = np.argsort(np.asarray(result.frequency_hz)[u], kind="stable")
+    r = ((result.model_afc[u] - result.H[u]) / result.weights)[order]
+    parts = (r.real,) if result.magnitude else (r.real, r.imag)
+    return float(np.mean([autocorrelation_time(x) for x in parts]))
+
+
 def fits(chi2: float, dof: int, n_residuals: int, noise_known: bool) -> bool:
     """The strategy's verdict on a polished minimum: :func:`fits_noise` with a known noise;
     without one (every weight the RMS |H|, so chi2 / m, m the real numbers fitted, is about

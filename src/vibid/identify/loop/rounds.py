@@ -14,6 +14,7 @@ from scipy.stats import chi2 as chi2_dist
 from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.minima import indistinct_chi2
+from vibid.identify.fit.noise import residual_correlation
 from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
@@ -451,13 +452,20 @@ def choose(scores, judged: dict, res, plainness: dict,
 
 def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:
     """``result`` with its covariance scaled by its reduced chi2 when that exceeds 1 (the
-    standard deviations by the Birge ratio ``√chi2_red``), the warning saying so in place of
-    the one that they understate the error."""
-    k = float(result.chi2_reduced)
-    if not (result.noise_known and np.isfinite(k) and k > 1.0):
+    standard deviations by the Birge ratio ``√chi2_red``), and by the residual's
+    autocorrelation time along frequency ``tau``
+    (:func:`~vibid.identify.fit.noise.residual_correlation`: a misfit that is a smooth
+    model-form error spans ``tau`` neighbouring points, which then count as one), the
+    warning saying so in place of the one that they understate the error."""
+    birge = float(result.chi2_reduced)
+    if not (result.noise_known and np.isfinite(birge) and birge > 1.0):
         return result
-    note = (f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(k):.3g}: "
-            "the residual holds more than the noise, and the misfit measures the error")
+    tau = residual_correlation(result)
+    k = birge * tau
+    note = (f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(birge):.3g}"
+            f" and by sqrt(tau) = {math.sqrt(tau):.3g} for the residual's correlation along "
+            f"frequency (about {tau:.3g} neighbouring points per independent one): the "
+            "residual holds more than the noise, and the misfit measures the error")
     kept = tuple(w for w in result.warnings if "understate the error" not in w)
     std = result.std * math.sqrt(k)
     poor = tuple(
