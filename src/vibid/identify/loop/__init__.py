@@ -13,7 +13,9 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
 3. **Score** every candidate (:mod:`~vibid.identify.loop.candidates`: an effect or a new
    material, behind one protocol) that applies to the model and the diagnosis (a stand
    resonance needs a diagnosed pole, which also places its frequency and Q) with a score
-   test at the current fit (:mod:`~vibid.identify.loop.scoring`).
+   test at the current fit (:mod:`~vibid.identify.loop.scoring`). A new material also
+   needs the modes' pattern to ask for it: more of the plate's modes in the band than the
+   current material has stiffnesses (which place any fewer).
 4. **Refit** the candidates whose score asks for it, best first
    (:mod:`~vibid.identify.loop.refit`); when no local refit explains most of the misfit,
    search the best-scoring new material globally (its basin may lie far from the current
@@ -29,8 +31,9 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
 
 The loop ends when the fit explains the data, when no candidate passes, or after
 ``max_rounds``. A residual that remains is reported (``unexplained_residual``) and the
-final covariance is scaled by its reduced chi2 (the Birge ratio squared): the misfit then
-measures how far the model is from the data.
+final covariance is scaled by its reduced chi2 (the Birge ratio squared) and by the
+residual's autocorrelation time along frequency (a smooth misfit spans many points, which
+then count as one): the misfit then measures how far the model is from the data.
 """
 
 from vibid.identify.loop.candidates import (MAX_INSTANCES, ON_REQUEST, Candidate, EffectCandidate,
