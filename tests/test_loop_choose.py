@@ -50,3 +50,13 @@ def test_where_none_explains_nearly_all_the_larger_feature_removed_decides(stage
     refits = {"stand_resonance": _refit(4.14e10), "anisotropy": _refit(0.85 * CHI2)}
     _, chosen = _choose(refits, {"stand_resonance": pole, "anisotropy": shift})
     assert chosen.added == "stand_resonance"
+
+
+def test_the_models_compared_are_the_refits_the_data_support_kept_or_not():
+    """The budget's model spread runs over every refit the data support: passing ones and
+    significant ones that explain too small a share to be kept (the titanium strip's stand
+    resonance, 9 % of its misfit); not over one that failed, stayed at its null or did not
+    improve chi2 significantly."""
+    compared = {v for v in Verdict if v.compared}
+    assert compared == {Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
+                        Verdict.OUTRANKED, Verdict.SMALL_SHARE}

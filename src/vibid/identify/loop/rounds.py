@@ -61,7 +61,7 @@ class State:
     stages: tuple[Stage, ...]
     box: dict
     rounds: tuple[tuple[Score, ...], ...] = ()
-    #: the refits that passed the judge but were not chosen (the models the loop compared)
+    #: the refits the data support that were not chosen (the models the loop compared)
     alternatives: tuple[IdentificationResult, ...] = ()
 
     @property
@@ -131,7 +131,7 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     rounds = state.rounds + (tuple(scores),)
     alternatives = state.alternatives + tuple(
         j[2].result for n, j in judged.items()
-        if j[0].passes and (chosen is None or n != chosen.added))
+        if j[0].compared and (chosen is None or n != chosen.added))
     state = replace(state, alternatives=alternatives)
     if chosen is None:
         return replace(state, rounds=rounds), False

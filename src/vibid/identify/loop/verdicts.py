@@ -39,6 +39,13 @@ class Verdict(enum.Enum):
         return self in (Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
                         Verdict.OUTRANKED)
 
+    @property
+    def compared(self) -> bool:
+        """Whether the refit is a model the data support (converged, away from its null,
+        significant), kept or not: the budget's spread is over these
+        (:func:`vibid.identify.budget.model_spread`)."""
+        return self.passes or self is Verdict.SMALL_SHARE
+
     def sentence(self, **d) -> str:
         """The report's note; ``d`` holds the numbers it quotes."""
         return {
@@ -134,8 +141,9 @@ class LoopResult:
     unexplained_residual: bool
     warnings: tuple[str, ...] = field(default=())
     seconds: float = math.nan
-    #: the refits that passed the judge but were not chosen: with the stages, the models
-    #: the loop compared (the uncertainty budget's model part, :mod:`vibid.identify.budget`)
+    #: the refits the data support (:attr:`Verdict.compared`) that were not chosen: with
+    #: the stages, the models the loop compared (the uncertainty budget's model part,
+    #: :mod:`vibid.identify.budget`)
     alternatives: tuple = ()
 
     @property
