@@ -4,8 +4,8 @@ The combined standard uncertainty of each constant c (E, ν, G or E1, E2, G12, �
 root sum of squares of independent parts:
 
 * ``fit``: the estimate's covariance C (Fisher information, widened by rival minima and the
-  model's discretisation error, scaled by the misfit where a residual remains), through
-  the conversion: u² = gᵀ C g, g = ∂c/∂θ;
+  model's discretisation error, scaled by the misfit and by its correlation along
+  frequency where a residual remains), through the conversion: u² = gᵀ C g, g = ∂c/∂θ;
 * one part per declared quantity with a standard uncertainty in the setup (the optional
   ``*_std`` fields: thickness, length, width, density, the sensor's position and mass):
   a declared value off by one standard uncertainty s moves the estimate too, since the
@@ -17,8 +17,9 @@ root sum of squares of independent parts:
   conversion's h⁻³). A thicker plate is heavier: D grows with h and E goes as h⁻², which
   the conversion alone (h⁻³) would overstate;
 * ``model``, where a residual remains (the loop's ``unexplained_residual``): the spread of
-  the constant across the models the loop compared (its stages and the refits that passed
-  its judge) whose parameters lie inside their prior box (a model that bends a parameter
+  the constant across the models the loop compared (its stages and the refits the data
+  support, :attr:`~vibid.identify.loop.verdicts.Verdict.compared`) whose parameters lie
+  inside their prior box (a model that bends a parameter
   out of it is no defensible one), weighted as Burnham & Anderson average models, by
   exp(−ΔQAIC/2), QAIC = χ²/ĉ + 2p with ĉ the final model's reduced χ² (the data's
   weights) times its residual's autocorrelation time along frequency (a smooth misfit
