@@ -7,7 +7,9 @@ Poisson's ratio box reaches below 0, so that the truth lies inside it.
 Effects enter the beam as their physics, not as vibid's terms: a stand resonance as the
 base's rotation theta(f), a clamp as a root spring k_r = k_theta W (complex with its own
 loss), a free length as a longer beam with the sensor further out, the sensor's height as
-its rotary inertia m (h e + e²)."""
+its rotary inertia m (h e + e²), an added mass as more mass on the sensor's body, a loss
+factor that varies with frequency as the beam's complex EI at each frequency, a channel
+delay and a gain as what they do to the measured ratio (exp(-i omega tau), g)."""
 
 from __future__ import annotations
 
@@ -51,7 +53,14 @@ def _beam(effects: dict) -> dict:
     if "height_m" in effects:
         e = effects["height_m"]
         kw["J"] += r.mass_kg * (H_M * e + e**2)
+    if "mass_kg" in effects:
+        kw["m"] += effects["mass_kg"]
     return kw
+
+
+def _loss_at(effects: dict, f_hz: float) -> float:
+    """The beam's loss factor at ``f_hz``: beta (f / 1 kHz)^alpha."""
+    return TRUTH["beta"] * (f_hz / 1000.0) ** effects.get("alpha", 0.0)
 
 
 @functools.lru_cache(maxsize=None)
@@ -62,7 +71,14 @@ def _afc(key: tuple) -> np.ndarray:
     if "f_hz_1" in effects:
         f0, q, t0 = effects["f_hz_1"], effects["q_1"], effects["theta_rad_per_m_1"]
         theta = t0 / (1 - (F / f0) ** 2 + 1j * F / (f0 * q))
-    H = beam.afc(omega, **_beam(effects), rotation_per_translation=theta)
+    if "alpha" in effects:  # EI (1 + i beta(f)) at each frequency
+        kw = _beam(effects)
+        H = np.array([beam.afc(np.array([w]), **(kw | {"EI": kw["EI"].real * (
+            1 + 1j * _loss_at(effects, f))}), rotation_per_translation=t)[0]
+            for w, f, t in zip(omega, F, np.broadcast_to(theta, omega.shape))])
+    else:
+        H = beam.afc(omega, **_beam(effects), rotation_per_translation=theta)
+    H = H * effects.get("gain", 1.0) * np.exp(-1j * omega * effects.get("tau_s", 0.0))
     H.setflags(write=False)
     return H
 

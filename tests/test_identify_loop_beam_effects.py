@@ -1,0 +1,33 @@
+"""The library's plainer effects, each alone, on sessions vibid did not simulate (the exact
+beam of tests/beam_reference.py, tests/beam_sessions.py) with every default candidate in
+play: a channel delay, a sensor gain, an added mass at the sensor, a loss factor that
+varies with frequency. Each is named with no companion, and the effect and the declared
+D and beta come back within 3 std; nu within the beam's model-form offset
+(test_identify_loop_diagnosed.NU_ON_BEAM_DATA: a rigid sensor body against vibid's disc
+on a plate)."""
+
+import beam_sessions as bs
+import pytest
+from test_identify_loop_diagnosed import NU_ON_BEAM_DATA, _named_with_truth
+
+from vibid.identify.loop import close_loop
+
+CASES = {
+    "channel_delay": {"tau_s": 2e-5},
+    "sensor_gain": {"gain": 1.02},
+    "added_mass": {"mass_kg": 3e-4},
+    "frequency_dependent_loss": {"alpha": 0.3},
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effect", list(CASES))
+def test_an_effect_alone_is_named_on_beam_data(effect):
+    effects = CASES[effect]
+    H, sd = bs.data(effects, seed=2)
+    loop = close_loop(bs.setup(), bs.F, H, sd, seed=0, restarts=1)
+    assert not loop.stages[0].fits_noise  # the declared model cannot explain it
+    assert loop.effects == (effect,), loop.effects
+    assert not loop.unexplained_residual
+    _named_with_truth(loop, effects, but=("nu",))
+    assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
