@@ -1,8 +1,8 @@
 """The library's plainer effects, each alone, on sessions vibid did not simulate (the exact
 beam of tests/beam_reference.py, tests/beam_sessions.py) with every default candidate in
 play: a channel delay, a sensor gain, an added mass at the sensor, a loss factor that
-varies with frequency. Each is named with no companion, and the effect and the declared
-D and beta come back within 3 std; nu within the beam's model-form offset
+varies with frequency; and two of them at once. Each is named with no companion, and the
+effects and the declared D and beta come back within 3 std; nu within the beam's model-form offset
 (test_identify_loop_diagnosed.NU_ON_BEAM_DATA: a rigid sensor body against vibid's disc
 on a plate)."""
 
@@ -28,6 +28,19 @@ def test_an_effect_alone_is_named_on_beam_data(effect):
     loop = close_loop(bs.setup(), bs.F, H, sd, seed=0, restarts=1)
     assert not loop.stages[0].fits_noise  # the declared model cannot explain it
     assert loop.effects == (effect,), loop.effects
+    assert not loop.unexplained_residual
+    _named_with_truth(loop, effects, but=("nu",))
+    assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pair", [("sensor_gain", "added_mass"),
+                                  ("channel_delay", "frequency_dependent_loss")])
+def test_two_effects_at_once_are_both_named_on_beam_data(pair):
+    effects = CASES[pair[0]] | CASES[pair[1]]
+    H, sd = bs.data(effects, seed=2)
+    loop = close_loop(bs.setup(), bs.F, H, sd, seed=0, restarts=1)
+    assert set(loop.effects) == set(pair), loop.effects
     assert not loop.unexplained_residual
     _named_with_truth(loop, effects, but=("nu",))
     assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
