@@ -86,3 +86,22 @@ def _afc(key: tuple) -> np.ndarray:
 def data(effects: dict, seed: int = 0):
     """(H, std) of the beam with ``effects`` on :data:`F`, 0.3 % noise drawn with ``seed``."""
     return noisy(_afc(tuple(sorted(effects.items()))).copy(), seed)
+
+
+#: On these beam sessions (seed 1) nu comes back 0.027 to 0.036 below the beam's 0, 4 to
+#: 4.6 std, with a clamp or without one (benchmarks/loop_beam.json's clean case too): a
+#: model-form difference between the exact beam (a rigid sensor body) and vibid's plate (a
+#: sensor disc on a plate that deforms under it) that the strip's weakly determined nu
+#: takes up. D, beta and the effects' constants come back within 3 std.
+NU_ON_BEAM_DATA = 0.04  # the declared fit bends nu to 0.17-0.19
+
+
+def named_with_truth(loop, effects: dict, but=()) -> None:
+    """Assert that the loop's final fit has the beam's truth and ``effects``' values (but
+    those named in ``but``) within 3 std."""
+    r = loop.final
+    for n, v in (TRUTH | effects).items():
+        if n in but:
+            continue
+        assert abs(r.parameters[n] - v) < 3 * r.parameter_std[n], (n, r.parameters[n],
+                                                                  r.parameter_std[n])

@@ -3,12 +3,11 @@ beam of tests/beam_reference.py, tests/beam_sessions.py) with every default cand
 play: a channel delay, a sensor gain, an added mass at the sensor, a loss factor that
 varies with frequency; and two of them at once. Each is named with no companion, and the
 effects and the declared D and beta come back within 3 std; nu within the beam's model-form offset
-(test_identify_loop_diagnosed.NU_ON_BEAM_DATA: a rigid sensor body against vibid's disc
+(beam_sessions.NU_ON_BEAM_DATA: a rigid sensor body against vibid's disc
 on a plate)."""
 
 import beam_sessions as bs
 import pytest
-from test_identify_loop_diagnosed import NU_ON_BEAM_DATA, _named_with_truth
 
 from vibid.identify.loop import close_loop
 
@@ -29,8 +28,8 @@ def test_an_effect_alone_is_named_on_beam_data(effect):
     assert not loop.stages[0].fits_noise  # the declared model cannot explain it
     assert loop.effects == (effect,), loop.effects
     assert not loop.unexplained_residual
-    _named_with_truth(loop, effects, but=("nu",))
-    assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
+    bs.named_with_truth(loop, effects, but=("nu",))
+    assert abs(loop.final.parameters["nu"]) < bs.NU_ON_BEAM_DATA
 
 
 @pytest.mark.slow
@@ -42,5 +41,5 @@ def test_two_effects_at_once_are_both_named_on_beam_data(pair):
     loop = close_loop(bs.setup(), bs.F, H, sd, seed=0, restarts=1)
     assert set(loop.effects) == set(pair), loop.effects
     assert not loop.unexplained_residual
-    _named_with_truth(loop, effects, but=("nu",))
-    assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
+    bs.named_with_truth(loop, effects, but=("nu",))
+    assert abs(loop.final.parameters["nu"]) < bs.NU_ON_BEAM_DATA

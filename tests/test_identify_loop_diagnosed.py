@@ -7,7 +7,6 @@ is named with its own loss; clean beam data are left untouched."""
 import dataclasses
 
 import beam_sessions as bs
-import numpy as np
 import pytest
 
 from vibid.identify.loop import close_loop
@@ -16,29 +15,12 @@ from vibid.report import build_report
 RESONANCE = {"f_hz_1": 660.0, "q_1": 30.0, "theta_rad_per_m_1": 0.3}
 
 
-def _named_with_truth(loop, effects, but=()):
-    r = loop.final
-    for n, v in (bs.TRUTH | effects).items():
-        if n in but:
-            continue
-        assert abs(r.parameters[n] - v) < 3 * r.parameter_std[n], (n, r.parameters[n],
-                                                                  r.parameter_std[n])
-
-
 def _nu_boxed(setup):
     """``setup`` with the declared box of nu the lab's knowledge of its material (near 0,
     as the beam's): an elastic clamp softens every mode of a beam, which a free nu mimics
     (the declared fit bends nu to 0.19 and the clamp's score drops below its test)."""
     return dataclasses.replace(setup, identification=dataclasses.replace(
         setup.identification, bounds=dict(setup.identification.bounds) | {"nu": (-0.05, 0.05)}))
-
-
-#: On these beam sessions (seed 1) nu comes back 0.027 to 0.036 below the beam's 0, 4 to
-#: 4.6 std, with a clamp or without one (benchmarks/loop_beam.json's clean case too): a
-#: model-form difference between the exact beam (a rigid sensor body) and vibid's plate (a
-#: sensor disc on a plate that deforms under it) that the strip's weakly determined nu
-#: takes up. D, beta and the effects' constants come back within 3 std.
-NU_ON_BEAM_DATA = 0.04  # the declared fit bends nu to 0.17-0.19
 
 
 def test_clean_beam_data_get_nothing_added():
@@ -56,7 +38,7 @@ def test_a_stand_resonance_is_named_at_its_frequency_among_every_candidate():
     assert poles and abs(poles[0].f_hz - 660.0) < 25.0  # within a step of the grid
     assert loop.effects == ("stand_resonance",)
     assert not loop.unexplained_residual
-    _named_with_truth(loop, RESONANCE)
+    bs.named_with_truth(loop, RESONANCE)
     doc = build_report(loop.final, session_id="beam-stand", loop=loop, setup=bs.setup())
     first = doc["loop"]["diagnosis"][0]
     assert any(f["kind"] == "extra_pole" and abs(f["f_hz"] - 660) < 25 for f in first)
@@ -69,8 +51,8 @@ def test_a_stand_resonance_and_an_elastic_clamp_are_both_named():
     loop = close_loop(_nu_boxed(bs.setup()), bs.F, H, sd, seed=0, restarts=1)
     assert set(loop.effects) == {"stand_resonance", "clamp_compliance"}, loop.effects
     assert not loop.unexplained_residual
-    _named_with_truth(loop, effects, but=("nu",))
-    assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
+    bs.named_with_truth(loop, effects, but=("nu",))
+    assert abs(loop.final.parameters["nu"]) < bs.NU_ON_BEAM_DATA
 
 
 @pytest.mark.slow
@@ -83,5 +65,5 @@ def test_a_frictional_clamp_is_named_with_its_own_loss():
     assert loop.effects == ("clamp_compliance", "clamp_loss")
     assert not loop.unexplained_residual
     assert loop.stages[0].result.parameters["beta"] > 3 * bs.TRUTH["beta"]
-    _named_with_truth(loop, effects, but=("nu",))
-    assert abs(loop.final.parameters["nu"]) < NU_ON_BEAM_DATA
+    bs.named_with_truth(loop, effects, but=("nu",))
+    assert abs(loop.final.parameters["nu"]) < bs.NU_ON_BEAM_DATA
