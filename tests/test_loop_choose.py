@@ -60,3 +60,29 @@ def test_the_models_compared_are_the_refits_the_data_support_kept_or_not():
     compared = {v for v in Verdict if v.compared}
     assert compared == {Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
                         Verdict.OUTRANKED, Verdict.SMALL_SHARE}
+
+
+def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():
+    """A stand resonance is started at the pole the diagnosis found; a refit that slides it
+    beyond 10 % of the pole (the titanium strip's, from 661 Hz to 190 Hz, standing in for
+    the first mode's flat top) explains another structure and does not pass the judge.
+    Within 10 % it is judged on as usual."""
+    from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
+
+    pole = SimpleNamespace(kind="extra_pole", f_hz=661.0, q=50.0, significance=900.0)
+    diagnosis = SimpleNamespace(features=(pole,))
+    cand = EffectCandidate("stand_resonance")
+    current = {"D": 216.0, "nu": 0.3, "beta": 0.009}
+    assert cand.strayed({"f_hz_1": 190.2}, current, diagnosis) == (
+        "its resonance moved from the diagnosed pole at 661 Hz to 190.2 Hz")
+    assert cand.strayed({"f_hz_1": 700.0}, current, diagnosis) is None
+    assert MaterialCandidate().strayed({"f_hz_1": 190.2}, current, diagnosis) is None
+
+    refit = SimpleNamespace(gain=1e6, searched=False, result=SimpleNamespace(
+        converged=True, parameters=current | {"f_hz_1": 190.2}))
+    res = SimpleNamespace(parameters=current, chi2=2e7)
+    verdict, detail, _, _ = rounds.judge(cand, Score("stand_resonance", 1e3, 3, 0.0, 0.1),
+                                         refit, res, {}, [], 1e7, diagnosis)
+    assert verdict is Verdict.LEFT_ITS_FEATURE
+    assert verdict.sentence(**dict(detail)).startswith("its resonance moved from")
+    assert not verdict.passes and not verdict.compared

@@ -20,6 +20,11 @@ from vibid.identify.model.terms import PlateModel
 
 #: How many instances of an effect that may occur more than once the loop adds.
 MAX_INSTANCES = 2
+#: A resonance the diagnosis placed stays within this factor of the pole's frequency: one
+#: that slides further explains another structure than the pole it was added for (the
+#: titanium strip's stand resonance, started at its 661 Hz pole, slid to 190 Hz to stand
+#: in for the first mode's flat top).
+POLE_SPAN = 1.1
 
 
 class Candidate(Protocol):
@@ -51,6 +56,8 @@ class Candidate(Protocol):
     def bounds(self, box: dict, values: dict) -> dict: ...
 
     def placed(self, values: dict) -> set[str]: ...
+
+    def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None: ...
 
     def directions(self, J, names, values: dict, current_names): ...
 
@@ -148,6 +155,23 @@ class EffectCandidate:
         term = self.term_after(values)
         return set(term.names) - set(term.null_values(values))
 
+    def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
+        """Where a refit (``fitted``, from the current ``values``) moved a resonance the
+        diagnosed pole placed beyond :data:`POLE_SPAN` of it, in words; None if it did
+        not."""
+        from vibid.parameters import split_instance
+
+        feature = self.feature(diagnosis)
+        if feature is None or not np.isfinite(feature.f_hz):
+            return None
+        for name in self.placed(values):
+            f = fitted.get(name)
+            if (split_instance(name)[0] == "f_hz" and f is not None
+                    and not feature.f_hz / POLE_SPAN <= f <= feature.f_hz * POLE_SPAN):
+                return f"its resonance moved from the diagnosed pole at {feature.f_hz:.4g} Hz " \
+                       f"to {f:.4g} Hz"
+        return None
+
     def directions(self, J, names, values: dict, current_names):
         """The current model's sensitivities inside the extended model's (its tangent space
         at the null), and the indices of the new directions."""
@@ -226,6 +250,9 @@ class MaterialCandidate:
 
     def placed(self, values: dict) -> set[str]:
         return set()
+
+    def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
+        return None
 
     def directions(self, J, names, values: dict, current_names):
         """d(D11, D12, D22, D66)/d(D, ν) at the null span the isotropic directions; D22

@@ -274,7 +274,8 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                                state.current.diagnosis, inputs.local, search=search)
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Verdict.REFIT_FAILED, (("error", str(exc)),), None, []
-        return judge(cand, s, fit, res, state.box, outside, excess)
+        return judge(cand, s, fit, res, state.box, outside, excess,
+                     state.current.diagnosis)
 
     for k, s in enumerate(ranked):
         judged[s.name] = attempt(s, bool(outside) and k == 0 and by_name[s.name].moves_basin)
@@ -294,19 +295,24 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     return judged
 
 
-def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess):
-    """The verdict on one refit: significant under the current weights (likelihood ratio
-    past :data:`KEEP_QUANTILE`), converged, lower in chi2 under its own weights, its effect
-    :data:`KEEP_Z` std from its null, and :data:`KEEP_SHARE` of the misfit explained; or,
+def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosis=None):
+    """The verdict on one refit: converged, a resonance the diagnosis placed still at its
+    pole (:data:`~vibid.identify.loop.candidates.POLE_SPAN`), significant under the current
+    weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its own
+    weights, its effect :data:`KEEP_Z` std from its null, and :data:`KEEP_SHARE` of the
+    misfit explained; or,
     while the estimate is outside its prior box, one that brings it back inside at a chi2
     the data cannot tell from the current one (the excursion was this effect)."""
     r, gain = fit.result, fit.gain
-    z = cand.distance_from_null(r)
-    significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
     left = outside_prior(r, box | cand.bounds(box, res.parameters)) if outside else []
     detail = (("searched", fit.searched),)
     if not r.converged:
         return Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit, left
+    moved = cand.strayed(r.parameters, res.parameters, diagnosis)
+    if moved:
+        return Verdict.LEFT_ITS_FEATURE, detail + (("moved", moved),), fit, left
+    z = cand.distance_from_null(r)
+    significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
     if z <= KEEP_Z:
         return Verdict.AT_NULL, detail + (("z", z),), fit, left
     if significant and gain >= KEEP_SHARE * excess:

@@ -29,6 +29,7 @@ class Verdict(enum.Enum):
     REFIT_FAILED = "refit_failed"
     NOT_CONVERGED = "not_converged"
     AT_NULL = "at_null"
+    LEFT_ITS_FEATURE = "left_its_feature"
     SMALL_SHARE = "small_share"
     NOT_SIGNIFICANT = "not_significant"
     WITHDRAWN = "withdrawn"
@@ -78,6 +79,9 @@ class Verdict(enum.Enum):
             Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
             Verdict.AT_NULL: f"the refit leaves it at its null value ({d.get('z', math.nan):.2g} "
                              "std from it)",
+            Verdict.LEFT_ITS_FEATURE: (
+                f"{d.get('moved', 'it left the feature it was added for')}: it explains "
+                "another structure than the one the diagnosis found"),
             Verdict.SMALL_SHARE: (
                 f"it explains only {d.get('share', math.nan):.2g} % of the chi2 above the "
                 f"noise (an effect must explain {d.get('need', math.nan):.0f} %)"),
