@@ -57,17 +57,10 @@ def main() -> None:
 
     from vibid.identify.fit.noise import autocorrelation_time
     from vibid.identify.model.forward import build_forward_model, plate_model
-    from vibid.setup_model import parse_setup
-    from vibid.signal.imported import read_afc_csv
+    from titanium_subset import titanium_subset
 
-    setup = parse_setup(open(f"{args.data}/setup.json").read())
+    setup, f_all, f, H, s = titanium_subset(args.data)
     h = setup.specimen.thickness_m
-    afc = read_afc_csv(f"{args.data}/afc.csv")
-    f_all = afc.frequency_hz
-    keep = np.zeros(f_all.size, bool)
-    keep[::5] = True
-    keep |= ((f_all > 180) & (f_all < 215)) | ((f_all > 1255) & (f_all < 1300))
-    f, H, s = f_all[keep], afc.H[keep], afc.std[keep]
 
     def base(n):
         return n.removesuffix("_1")
