@@ -9,7 +9,10 @@ base's rotation theta(f), a clamp as a root spring k_r = k_theta W (complex with
 loss), a free length as a longer beam with the sensor further out, the sensor's height as
 its rotary inertia m (h e + e²), an added mass as more mass on the sensor's body, a loss
 factor that varies with frequency as the beam's complex EI at each frequency, a channel
-delay and a gain as what they do to the measured ratio (exp(-i omega tau), g)."""
+delay and a gain as what they do to the measured ratio (exp(-i omega tau), g). One effect
+outside vibid's library: a ``crosstalk`` c of the base channel into the response channel
+(the response sensor's signal plus c times the base's, as a shared ground gives), which
+adds c to the measured ratio."""
 
 from __future__ import annotations
 
@@ -79,6 +82,7 @@ def _afc(key: tuple) -> np.ndarray:
     else:
         H = beam.afc(omega, **_beam(effects), rotation_per_translation=theta)
     H = H * effects.get("gain", 1.0) * np.exp(-1j * omega * effects.get("tau_s", 0.0))
+    H = H + effects.get("crosstalk", 0.0)
     H.setflags(write=False)
     return H
 

@@ -43,3 +43,19 @@ def test_two_effects_at_once_are_both_named_on_beam_data(pair):
     assert not loop.unexplained_residual
     bs.named_with_truth(loop, effects, but=("nu",))
     assert abs(loop.final.parameters["nu"]) < bs.NU_ON_BEAM_DATA
+
+
+@pytest.mark.slow
+def test_an_effect_outside_the_library_leaves_the_constants_in_place():
+    """A crosstalk of 2 % of the base channel into the response channel (the measured ratio
+    plus 0.02) is no effect of the library. The loop claims no fit: unexplained_residual,
+    no new material (its orthotropic refit reached the residual only with D22 at 1e-10 of
+    D11, outside its prior box), and D, nu and beta within 3 of their honest std of the
+    beam's."""
+    H, sd = bs.data({"crosstalk": 0.02}, seed=2)
+    loop = close_loop(bs.setup(), bs.F, H, sd, seed=0, restarts=1)
+    assert not loop.stages[0].fits_noise
+    assert loop.unexplained_residual
+    assert "anisotropy" not in loop.effects, loop.effects
+    assert loop.final.plate_model.material.model == "isotropic"
+    bs.named_with_truth(loop, {})

@@ -86,3 +86,53 @@ def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():
     assert verdict is Verdict.LEFT_ITS_FEATURE
     assert verdict.sentence(**dict(detail)).startswith("its resonance moved from")
     assert not verdict.passes and not verdict.compared
+
+
+def test_a_resonance_placed_at_a_pole_is_refitted_within_its_span():
+    """The refit of a stand resonance placed at a diagnosed pole searches its frequency
+    within 10 % of the pole only: a logit over that span, which no step can leave (the
+    titanium strip's slid from 661 Hz to 1755 Hz and was then judged elsewhere than at the
+    pole it was added for)."""
+    from vibid.identify.fit.space import ParameterSpace
+    from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
+
+    pole = SimpleNamespace(kind="extra_pole", f_hz=661.0, q=50.0, significance=900.0)
+    diagnosis = SimpleNamespace(features=(pole,))
+    cand = EffectCandidate("stand_resonance")
+    current = {"D": 216.0, "nu": 0.3, "beta": 0.009}
+    box = cand.bounds({}, current, diagnosis)
+    assert box["f_hz_1"] == pytest.approx((661.0 / 1.1, 661.0 * 1.1))
+    assert box["q_1"] == (2.0, 500.0)  # its Q is started at the pole's, not held
+    held = cand.held(current, diagnosis)
+    assert held == {"f_hz_1": ("logit", *box["f_hz_1"])}
+    space = ParameterSpace.from_bounds(["f_hz_1"], box, held)
+    f = space.theta([[-40.0], [0.0], [40.0]])[:, 0]  # far beyond the box's faces u = ±1
+    lo, hi = box["f_hz_1"]
+    assert lo <= f[0] < lo + 0.2 and hi - 0.2 < f[2] <= hi and f[1] == pytest.approx(664.0, abs=0.1)
+    # without a diagnosed pole, the catalogue's box; a material holds nothing
+    assert cand.bounds({}, current)["f_hz_1"] == (5.0, 5000.0)
+    assert cand.held(current, None) == {} and MaterialCandidate().held(current, diagnosis) == {}
+
+
+def test_a_refit_that_leaves_the_prior_box_explains_nothing(monkeypatch):
+    """A refit that explains the residual only with a parameter outside its prior box,
+    which the current fit kept inside (the beam with a crosstalk: an orthotropic refit with
+    D22 at 1e-10 of D11), is judged outside_prior: it does not pass. One that brings a
+    parameter the current fit had outside back in is judged as before."""
+    monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["D22"])
+    cand = SimpleNamespace(name="anisotropy", strayed=lambda *a: None,
+                           distance_from_null=lambda r: 50.0,
+                           bounds=lambda box, values, diagnosis=None: {"D22": (1.0, 100.0)})
+    result = SimpleNamespace(converged=True, chi2=1e3, values=(1.0, 1e-10),
+                             parameters={"D11": 18.0, "D22": 1e-10},
+                             plate_model=SimpleNamespace(default_bounds=lambda box: box, effects=()))
+    refit = SimpleNamespace(gain=1e4, searched=True, result=result)
+    res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.1}, chi2=1.1e4, chi2_reduced=40.0)
+    verdict, detail, _, _ = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit,
+                                         res, {}, [], 1.08e4)
+    assert verdict is Verdict.OUTSIDE_PRIOR and not verdict.passes and not verdict.compared
+    assert verdict.sentence(**dict(detail)).startswith(
+        "its refit explains the residual only with D22 1e-10 (box 1 to 100) outside")
+    verdict, _, _, _ = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit,
+                                    res, {}, ["D22"], 1.08e4)
+    assert verdict is Verdict.OUTRANKED

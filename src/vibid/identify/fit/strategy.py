@@ -422,6 +422,7 @@ def identify(
     throw: bool = False,
     peaks_only: dict | None = None,
     magnitude: bool = False,
+    kinds: dict | None = None,
 ) -> IdentificationResult:
     """Identify the parameters of a material model from a measured AFC.
 
@@ -464,6 +465,9 @@ def identify(
         degrees of freedom (:class:`~vibid.identify.fit.data.FitData`); the result carries
         ``magnitude_only_std_ratio``, how much each standard deviation grows against the
         complex fit of the same points.
+    kinds: transforms by parameter name that replace the catalogue's
+        (:func:`~vibid.identify.fit.space.make_transform`'s ``kind``): the closed loop holds
+        a resonance it placed at a diagnosed pole inside the pole's span with a logit.
     """
     t0 = time.perf_counter()
     model = model or setup.identification.model
@@ -487,7 +491,7 @@ def identify(
     if isinstance(forward_model, PlateForwardModel):  # a PlateModel fills derived boxes
         box = forward_model.param.default_bounds(box)
     _check_basis_covers(forward_model, box, names)
-    space = ParameterSpace.from_bounds(names, box)
+    space = ParameterSpace.from_bounds(names, box, kinds)
     problem = LeastSquaresProblem(forward_model, data, space)
     opts = Options(local, restarts, refresh, np.random.default_rng(seed), progress,
                    None if peaks_only is None else dict(peaks_only))

@@ -53,7 +53,9 @@ class Candidate(Protocol):
 
     def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict: ...
 
-    def bounds(self, box: dict, values: dict) -> dict: ...
+    def bounds(self, box: dict, values: dict, diagnosis=None) -> dict: ...
+
+    def held(self, values: dict, diagnosis) -> dict: ...
 
     def placed(self, values: dict) -> set[str]: ...
 
@@ -123,10 +125,27 @@ class EffectCandidate:
             k += 1
         return replace(term, instance=k)
 
-    def bounds(self, box: dict, values: dict) -> dict:
-        """The prior box of its new parameters (the setup's where it names them)."""
+    def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
+        """The prior box of its new parameters (the setup's where it names them); a
+        resonance the diagnosis placed, within :data:`POLE_SPAN` of its pole."""
         term = self.term_after(values)
-        return {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
+        out = {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
+        return out | self._pole_span(values, diagnosis)
+
+    def held(self, values: dict, diagnosis) -> dict:
+        """The transforms (:func:`~vibid.identify.fit.space.make_transform`'s ``kind``) that
+        hold a resonance the diagnosis placed inside its pole's span, so that a refit finds
+        the best resonance near the pole rather than sliding to another structure."""
+        return {n: ("logit", *span) for n, span in self._pole_span(values, diagnosis).items()}
+
+    def _pole_span(self, values: dict, diagnosis) -> dict:
+        feature = self.feature(diagnosis)
+        if feature is None or not np.isfinite(feature.f_hz):
+            return {}
+        from vibid.parameters import split_instance
+
+        return {n: (feature.f_hz / POLE_SPAN, feature.f_hz * POLE_SPAN)
+                for n in self.placed(values) if split_instance(n)[0] == "f_hz"}
 
     def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict:
         """The extended model's parameters where it equals the current one: each new
@@ -135,7 +154,7 @@ class EffectCandidate:
         feature places it."""
         out = dict(values)
         term = self.term_after(values)
-        own = self.bounds(box, values)
+        own = self.bounds(box, values, diagnosis)
         nulls = term.null_values(values)
         feature = self.feature(diagnosis)
         for q in term.parameters:
@@ -236,7 +255,7 @@ class MaterialCandidate:
     def extend(self, model: PlateModel) -> PlateModel:
         return model.with_material(Material("orthotropic", model.material.per_modulus_loss))
 
-    def bounds(self, box: dict, values: dict) -> dict:
+    def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
         lo, hi = box["D"]
         return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
                 "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
@@ -250,6 +269,9 @@ class MaterialCandidate:
 
     def placed(self, values: dict) -> set[str]:
         return set()
+
+    def held(self, values: dict, diagnosis) -> dict:
+        return {}
 
     def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
         return None

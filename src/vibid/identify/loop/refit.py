@@ -88,7 +88,7 @@ def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = Fal
     result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
                       model=fm.param.model, forward_model=fm, method="local",
                       start=dict(zip(names, best.theta)), bounds=ext_box, local=local,
-                      magnitude=data.magnitude)
+                      magnitude=data.magnitude, kinds=cand.held(res.parameters, diagnosis))
     loss = best.loss
     if search and not _fits(result):
         result, loss = _search(setup, data, cand, problem, fm, start, ext_box, local,

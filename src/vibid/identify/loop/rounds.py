@@ -136,7 +136,7 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     if chosen is None:
         return replace(state, rounds=rounds), False
     cand = next(c for c in todo if c.name == chosen.added)
-    box = state.box | cand.bounds(state.box, current.result.parameters)
+    box = state.box | cand.bounds(state.box, current.result.parameters, current.diagnosis)
     chosen, gone = withdraw(inputs, chosen, box, [s.added for s in state.stages[1:]])
     if gone:  # a new fit: its residual read again
         rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
@@ -299,22 +299,29 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosi
     """The verdict on one refit: converged, a resonance the diagnosis placed still at its
     pole (:data:`~vibid.identify.loop.candidates.POLE_SPAN`), significant under the current
     weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its own
-    weights, its effect :data:`KEEP_Z` std from its null, and :data:`KEEP_SHARE` of the
-    misfit explained; or,
+    weights, its effect :data:`KEEP_Z` std from its null, every parameter the current fit
+    had inside its prior box still inside it (an orthotropic refit of a steel strip whose
+    D22 fell to 2 % of D11 explains a residual with no physical material), and
+    :data:`KEEP_SHARE` of the misfit explained; or,
     while the estimate is outside its prior box, one that brings it back inside at a chi2
     the data cannot tell from the current one (the excursion was this effect)."""
     r, gain = fit.result, fit.gain
-    left = outside_prior(r, box | cand.bounds(box, res.parameters)) if outside else []
     detail = (("searched", fit.searched),)
     if not r.converged:
-        return Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit, left
+        return Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit, []
     moved = cand.strayed(r.parameters, res.parameters, diagnosis)
     if moved:
-        return Verdict.LEFT_ITS_FEATURE, detail + (("moved", moved),), fit, left
+        return Verdict.LEFT_ITS_FEATURE, detail + (("moved", moved),), fit, []
     z = cand.distance_from_null(r)
-    significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
     if z <= KEEP_Z:
-        return Verdict.AT_NULL, detail + (("z", z),), fit, left
+        return Verdict.AT_NULL, detail + (("z", z),), fit, []
+    significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
+    own = box | cand.bounds(box, res.parameters, diagnosis)
+    left = [n for n in outside_prior(r, own) if n not in idle_parameters(r, cand.name)]
+    strayed = [n for n in left if n not in outside]
+    if strayed:
+        return (Verdict.OUTSIDE_PRIOR, detail + (("left", _values(r, strayed, own)),), fit,
+                left)
     if significant and gain >= KEEP_SHARE * excess:
         return Verdict.OUTRANKED, detail, fit, left  # passes; :func:`choose` decides
     if outside and not left and gain >= -indistinct_chi2(len(r.values),
@@ -325,6 +332,23 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosi
         return (Verdict.SMALL_SHARE, detail + (("share", 100 * gain / excess),
                                                ("need", 100 * KEEP_SHARE)), fit, left)
     return Verdict.NOT_SIGNIFICANT, detail, fit, left
+
+
+def idle_parameters(result, but: str) -> set[str]:
+    """The parameters of ``result``'s effects (but ``but``) that it leaves at their null:
+    where such an effect has nothing left to explain, its parameters may wander outside
+    their box (a stand resonance's frequency, once a new material places the peak it stood
+    in for), and the withdrawal removes it."""
+    return {n for t in result.plate_model.effects
+            if t.name != but and t.parameters and distance_from_null(t, result) <= KEEP_Z
+            for n in t.names}
+
+
+def _values(result, names, box) -> str:
+    """``names``' values in ``result`` beside their prior boxes, in words."""
+    bounds = result.plate_model.default_bounds(box)
+    return ", ".join(f"{n} {result.parameters[n]:.3g} (box {bounds[n][0]:.3g} to "
+                     f"{bounds[n][1]:.3g})" for n in names)
 
 
 # -- withdraw ---------------------------------------------------------------------------------

@@ -26,11 +26,12 @@ def extended_problem(setup, data, res, cand, box, diagnosis):
     values = res.parameters
     model = cand.extend(res.plate_model)
     start = cand.at_null(values, box, setup.specimen.thickness_m, diagnosis)
-    ext_box = model.default_bounds(box | cand.bounds(box, values))
+    ext_box = model.default_bounds(box | cand.bounds(box, values, diagnosis))
     fm = build_forward_model(setup, data.frequency_hz[data.used], model=model, theta0=start,
                              bounds=ext_box)
     space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
-                                       {q.name: q.kind for q in model.parameters})
+                                       {q.name: q.kind for q in model.parameters}
+                                       | cand.held(values, diagnosis))
     return LeastSquaresProblem(fm, data, space, res.weights), start, ext_box
 
 

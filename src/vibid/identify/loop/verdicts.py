@@ -30,6 +30,7 @@ class Verdict(enum.Enum):
     NOT_CONVERGED = "not_converged"
     AT_NULL = "at_null"
     LEFT_ITS_FEATURE = "left_its_feature"
+    OUTSIDE_PRIOR = "outside_prior"
     SMALL_SHARE = "small_share"
     NOT_SIGNIFICANT = "not_significant"
     WITHDRAWN = "withdrawn"
@@ -82,6 +83,10 @@ class Verdict(enum.Enum):
             Verdict.LEFT_ITS_FEATURE: (
                 f"{d.get('moved', 'it left the feature it was added for')}: it explains "
                 "another structure than the one the diagnosis found"),
+            Verdict.OUTSIDE_PRIOR: (
+                f"its refit explains the residual only with {d.get('left', 'a parameter')} "
+                "outside the prior box, which the current fit kept inside: no physical "
+                "explanation"),
             Verdict.SMALL_SHARE: (
                 f"it explains only {d.get('share', math.nan):.2g} % of the chi2 above the "
                 f"noise (an effect must explain {d.get('need', math.nan):.0f} %)"),
