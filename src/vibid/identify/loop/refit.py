@@ -48,8 +48,10 @@ class Refit:
 
 def starts(space, u0, new, current_names) -> list[np.ndarray]:
     """The current estimate, and it with the new parameters at :data:`STARTS_U`; where
-    current parameters lie outside their prior box, the same again with those moved just
-    inside it and to its centre (a physical value, far from the bent one)."""
+    current parameters lie outside their prior box, also those moved just inside it and to
+    its centre (a physical value, far from the bent one), the new parameters at their
+    null there (the local run moves them; their spread of starts is the current
+    estimate's)."""
     out = set(space.out_of_bounds(space.theta(u0))) & set(current_names)
     outside = [i for i, n in enumerate(space.names) if n in out]
     bases = [u0]
@@ -58,14 +60,12 @@ def starts(space, u0, new, current_names) -> list[np.ndarray]:
         moved[outside] = np.clip(moved[outside], -INSIDE_U, INSIDE_U)
         centred[outside] = 0.0
         bases += [moved, centred]
-    found = []
-    for base in bases:
-        found.append(base)
-        for v in STARTS_U if new else ():
-            u = base.copy()
-            u[new] = v
-            found.append(u)
-    return found
+    found = [u0]
+    for v in STARTS_U if new else ():
+        u = u0.copy()
+        u[new] = v
+        found.append(u)
+    return found + bases[1:]
 
 
 @timed("loop refits")
