@@ -221,7 +221,7 @@ class _AllDofs:
     sensor_area_m2: float
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=16)
 @timed("matrices")
 def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs:
     """Assemble the plate's bending and inertia matrices on all degrees of freedom."""
@@ -282,7 +282,7 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
     return _model_matrices(geometry, discretisation, own)
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=32)
 @timed("matrices")
 def _model_matrices(geometry: Geometry, discretisation: Discretisation,
                     effects: tuple) -> PlateMatrices:
