@@ -221,6 +221,8 @@ class _AllDofs:
     sensor_area_m2: float
 
 
+#: a loop's refits visit a dozen effect structures, each on its mesh and on the model
+#: error's finer one: caches that hold them all keep each assembled once per run
 @functools.lru_cache(maxsize=16)
 @timed("matrices")
 def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs:
