@@ -90,9 +90,10 @@ def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():
 
 def test_a_resonance_placed_at_a_pole_is_refitted_within_its_span():
     """The refit of a stand resonance placed at a diagnosed pole searches its frequency
-    within 10 % of the pole only: a logit over that span, which no step can leave (the
-    titanium strip's slid from 661 Hz to 1755 Hz and was then judged elsewhere than at the
-    pole it was added for)."""
+    within 10 % of the pole only, its Q within 3 times the pole's: a logit over each span,
+    which no step can leave (the titanium strip's slid from 661 Hz to 1755 Hz, and within
+    10 % of the pole widened to Q 1: judged elsewhere than at the pole it was added
+    for)."""
     from vibid.identify.fit.space import ParameterSpace
     from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
 
@@ -102,13 +103,17 @@ def test_a_resonance_placed_at_a_pole_is_refitted_within_its_span():
     current = {"D": 216.0, "nu": 0.3, "beta": 0.009}
     box = cand.bounds({}, current, diagnosis)
     assert box["f_hz_1"] == pytest.approx((661.0 / 1.1, 661.0 * 1.1))
-    assert box["q_1"] == (2.0, 500.0)  # its Q is started at the pole's, not held
+    assert box["q_1"] == pytest.approx((50.0 / 3, 150.0))  # Q within 3x the pole's
     held = cand.held(current, diagnosis)
-    assert held == {"f_hz_1": ("logit", *box["f_hz_1"])}
+    assert held == {"f_hz_1": ("logit", *box["f_hz_1"]), "q_1": ("logit", *box["q_1"])}
     space = ParameterSpace.from_bounds(["f_hz_1"], box, held)
     f = space.theta([[-40.0], [0.0], [40.0]])[:, 0]  # far beyond the box's faces u = ±1
     lo, hi = box["f_hz_1"]
     assert lo <= f[0] < lo + 0.2 and hi - 0.2 < f[2] <= hi and f[1] == pytest.approx(664.0, abs=0.1)
+    # a refit on a span's face found the best resonance near the pole another structure
+    assert cand.strayed({"f_hz_1": 700.0, "q_1": 50.0}, current, diagnosis) is None
+    assert cand.strayed({"f_hz_1": 700.0, "q_1": 50.0 / 3}, current, diagnosis) == (
+        "its Q ran to the face of the span around the diagnosed pole's Q 50 (16.7)")
     # without a diagnosed pole, the catalogue's box; a material holds nothing
     assert cand.bounds({}, current)["f_hz_1"] == (5.0, 5000.0)
     assert cand.held(current, None) == {} and MaterialCandidate().held(current, diagnosis) == {}

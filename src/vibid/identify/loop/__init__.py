@@ -20,12 +20,14 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    (:mod:`~vibid.identify.loop.refit`); when no local refit explains most of the misfit,
    search the best-scoring new material globally (its basin may lie far from the current
    fit's; an effect's new parameters start at their null or at the diagnosed feature, and
-   a resonance the diagnosis placed is searched within 10 % of its pole only).
-5. **Judge** each refit (:class:`Verdict`): significant, away from its null, every
-   parameter the current fit had inside its prior box still inside it (a refit that
-   reaches the data only with a non-physical value explains nothing), and explaining a
-   real share of the misfit; or bringing a parameter the declared model bent out of its
-   prior box back inside it.
+   a resonance the diagnosis placed is searched near its pole only: its frequency within
+   10 %, its Q within 3 times the pole's).
+5. **Judge** each refit (:class:`Verdict`): a placed resonance inside the spans around
+   its pole, not on their faces; significant, away from its null, every parameter the
+   current fit had inside its prior box still inside it (a refit that reaches the data
+   only with a non-physical value explains nothing), and explaining a real share of the
+   misfit; or bringing a parameter the declared model bent out of its prior box back
+   inside it.
 6. **Choose** among the passing refits one for the structure it explains: those that
    explain nearly all the misfit where there are any; of them, those whose refit
    removes the most significant diagnosed feature compete, and of them the plainest

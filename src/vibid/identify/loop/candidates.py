@@ -25,6 +25,10 @@ MAX_INSTANCES = 2
 #: titanium strip's stand resonance, started at its 661 Hz pole, slid to 190 Hz to stand
 #: in for the first mode's flat top).
 POLE_SPAN = 1.1
+#: ... and its quality factor within this factor of the pole's: a refit that widens it to
+#: a broad bump (the titanium strip's, from the pole's Q 324 to Q 1) stands in for a
+#: smooth misfit, not for the pole.
+Q_SPAN = 3.0
 
 
 class Candidate(Protocol):
@@ -127,7 +131,8 @@ class EffectCandidate:
 
     def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
         """The prior box of its new parameters (the setup's where it names them); a
-        resonance the diagnosis placed, within :data:`POLE_SPAN` of its pole."""
+        resonance the diagnosis placed, within :data:`POLE_SPAN` of its pole's frequency
+        and :data:`Q_SPAN` of its Q."""
         term = self.term_after(values)
         out = {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
         return out | self._pole_span(values, diagnosis)
@@ -144,8 +149,13 @@ class EffectCandidate:
             return {}
         from vibid.parameters import split_instance
 
-        return {n: (feature.f_hz / POLE_SPAN, feature.f_hz * POLE_SPAN)
-                for n in self.placed(values) if split_instance(n)[0] == "f_hz"}
+        spans = {"f_hz": (feature.f_hz, POLE_SPAN), "q": (feature.q, Q_SPAN)}
+        out = {}
+        for name in self.placed(values):
+            centre, factor = spans.get(split_instance(name)[0], (math.nan, 1.0))
+            if np.isfinite(centre) and centre > 0:
+                out[name] = (centre / factor, centre * factor)
+        return out
 
     def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict:
         """The extended model's parameters where it equals the current one: each new
@@ -175,20 +185,25 @@ class EffectCandidate:
         return set(term.names) - set(term.null_values(values))
 
     def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
-        """Where a refit (``fitted``, from the current ``values``) moved a resonance the
-        diagnosed pole placed beyond :data:`POLE_SPAN` of it, in words; None if it did
-        not."""
+        """Where a refit (``fitted``, from the current ``values``) took a resonance the
+        diagnosed pole placed: beyond its span, or onto the span's face (the best
+        resonance near the pole is another structure than the pole), in words; None if it
+        stayed inside."""
         from vibid.parameters import split_instance
 
         feature = self.feature(diagnosis)
-        if feature is None or not np.isfinite(feature.f_hz):
-            return None
-        for name in self.placed(values):
-            f = fitted.get(name)
-            if (split_instance(name)[0] == "f_hz" and f is not None
-                    and not feature.f_hz / POLE_SPAN <= f <= feature.f_hz * POLE_SPAN):
-                return f"its resonance moved from the diagnosed pole at {feature.f_hz:.4g} Hz " \
-                       f"to {f:.4g} Hz"
+        for name, (lo, hi) in self._pole_span(values, diagnosis).items():
+            v = fitted.get(name)
+            if v is None:
+                continue
+            what = ("its resonance", f"{v:.4g} Hz", f"the diagnosed pole at {feature.f_hz:.4g} Hz")
+            if split_instance(name)[0] == "q":
+                what = ("its Q", f"{v:.3g}", f"the diagnosed pole's Q {feature.q:.3g}")
+            if not lo <= v <= hi:
+                return f"{what[0]} moved from {what[2]} to {what[1]}"
+            edge = 1e-3 * (hi - lo)
+            if v < lo + edge or v > hi - edge:
+                return f"{what[0]} ran to the face of the span around {what[2]} ({what[1]})"
         return None
 
     def directions(self, J, names, values: dict, current_names):

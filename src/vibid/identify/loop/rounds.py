@@ -297,7 +297,9 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
 
 def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosis=None):
     """The verdict on one refit: converged, a resonance the diagnosis placed still at its
-    pole (:data:`~vibid.identify.loop.candidates.POLE_SPAN`), significant under the current
+    pole (inside the spans :data:`~vibid.identify.loop.candidates.POLE_SPAN` and
+    :data:`~vibid.identify.loop.candidates.Q_SPAN` around it, not on their faces),
+    significant under the current
     weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its own
     weights, its effect :data:`KEEP_Z` std from its null, every parameter the current fit
     had inside its prior box still inside it (an orthotropic refit of a steel strip whose
