@@ -196,14 +196,16 @@ class EffectCandidate:
             v = fitted.get(name)
             if v is None:
                 continue
-            what = ("its resonance", f"{v:.4g} Hz", f"the diagnosed pole at {feature.f_hz:.4g} Hz")
             if split_instance(name)[0] == "q":
-                what = ("its Q", f"{v:.3g}", f"the diagnosed pole's Q {feature.q:.3g}")
-            if not lo <= v <= hi:
-                return f"{what[0]} moved from {what[2]} to {what[1]}"
+                its, value, pole = "its Q", f"{v:.3g}", f"the diagnosed pole's Q {feature.q:.3g}"
+            else:
+                its, value, pole = ("its resonance", f"{v:.4g} Hz",
+                                    f"the diagnosed pole at {feature.f_hz:.4g} Hz")
             edge = 1e-3 * (hi - lo)
+            if not lo <= v <= hi:
+                return f"{its} moved from {pole} to {value}"
             if v < lo + edge or v > hi - edge:
-                return f"{what[0]} ran to the face of the span around {what[2]} ({what[1]})"
+                return f"{its} ran to the face of the span around {pole} ({value})"
         return None
 
     def directions(self, J, names, values: dict, current_names):

@@ -298,13 +298,12 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
 def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosis=None):
     """The verdict on one refit: converged, a resonance the diagnosis placed still at its
     pole (inside the spans :data:`~vibid.identify.loop.candidates.POLE_SPAN` and
-    :data:`~vibid.identify.loop.candidates.Q_SPAN` around it, not on their faces),
-    significant under the current
-    weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its own
-    weights, its effect :data:`KEEP_Z` std from its null, every parameter the current fit
-    had inside its prior box still inside it (an orthotropic refit of a steel strip whose
-    D22 fell to 2 % of D11 explains a residual with no physical material), and
-    :data:`KEEP_SHARE` of the misfit explained; or,
+    :data:`~vibid.identify.loop.candidates.Q_SPAN` around it, not on their faces), its
+    effect :data:`KEEP_Z` std from its null, every parameter the current fit had inside
+    its prior box still inside it (an orthotropic refit of a steel beam whose D22 fell to
+    2 % of D11 explains a residual with no physical material), significant under the
+    current weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its
+    own weights, and :data:`KEEP_SHARE` of the misfit explained; or,
     while the estimate is outside its prior box, one that brings it back inside at a chi2
     the data cannot tell from the current one (the excursion was this effect)."""
     r, gain = fit.result, fit.gain
