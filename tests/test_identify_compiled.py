@@ -98,3 +98,22 @@ def test_space_coefficients_map_like_the_space():
     got = np.asarray(from_u_coefficients(space.coefficients(5), np.pad(u, [(0, 0), (0, 2)])))
     np.testing.assert_allclose(got[:, :3], space.from_u(u), rtol=1e-14)
     np.testing.assert_array_equal(got[:, 3:], 0.0)  # the padding's identity maps at u = 0
+
+
+def test_modes_and_chi2_from_one_decomposition_equal_the_separate_calls():
+    """The peak search's tie-break reads the modes and chi2 off one modal decomposition
+    per member: the same numbers as the two calls it replaces (modes, chi2_batch), with
+    an effect that rocks the base too (a second load vector)."""
+    problem, theta = _problem(("stand_resonance",), {"f_hz_1": 660.0, "q_1": 30.0,
+                                                     "theta_rad_per_m_1": 0.3})
+    fm = problem.model
+    thetas = np.stack([theta, theta * np.r_[1.05, 0.9, 2.0, np.ones(theta.size - 3)]])
+    f_hz, height = fm.modes_batch(thetas)
+    f2, h2, H = fm.modes_afc_batch(thetas)
+    np.testing.assert_allclose(f2, f_hz, rtol=1e-12)
+    np.testing.assert_allclose(h2, height, rtol=1e-10)
+    np.testing.assert_allclose(H, np.asarray(fm.afc_batch(thetas)), rtol=1e-12, atol=1e-14)
+    U = np.array([problem.space.to_u(t) for t in thetas])
+    # (chi2_batch maps U back to theta: a round trip's last digits)
+    np.testing.assert_allclose(problem.chi2_of_afc(H), problem.chi2_batch(U), rtol=1e-8)
+    assert problem.chi2_of_afc(H)[0] < 0.5 * problem.chi2_of_afc(H)[1]  # truth vs moved

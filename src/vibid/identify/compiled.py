@@ -28,6 +28,7 @@ class KernelFunctions:
     afc: Callable
     afc_batch: Callable
     modes_batch: Callable
+    modes_afc_batch: Callable
 
 
 @functools.lru_cache(maxsize=MAX_KERNELS)
@@ -40,6 +41,7 @@ def kernel_functions(kernel) -> KernelFunctions:
         afc=jax.jit(kernel),
         afc_batch=jax.jit(over_population(kernel)),
         modes_batch=jax.jit(over_population(kernel.modes)),
+        modes_afc_batch=jax.jit(over_population(kernel.modes_and_afc)),
     )
 
 

@@ -172,6 +172,9 @@ class GivesModes(Protocol):
     def modes_batch(self, thetas):
         """((npop, n) frequencies in Hz, (npop, n) peak heights in |H|)."""
 
+    def modes_afc_batch(self, thetas):
+        """:meth:`modes_batch` and the (npop, nf) AFCs, from one evaluation of each."""
+
 
 @runtime_checkable
 class SharedStructure(Protocol):
@@ -372,6 +375,15 @@ class LeastSquaresProblem:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""
         c = np.asarray(self._fn.chi2_batch(self._padded(U), *self._args(), self._space))
         return c + self.chi2_offset
+
+    def chi2_of_afc(self, A) -> np.ndarray:
+        """chi2 of each row of ``A`` (npop, nf): model AFCs over the model's frequencies
+        (what :meth:`chi2_batch` computes from ``U``, for AFCs evaluated already)."""
+        A = self.observed(np.asarray(A)[:, self._model_idx])
+        r = (A - self._H[None, :]) / self.sigma[None, :]
+        with np.errstate(invalid="ignore", over="ignore"):
+            c = np.sum(r.real**2 + r.imag**2, axis=1)
+        return np.where(np.isfinite(c), c, np.inf) + self.chi2_offset
 
     def on_points(self, model_values) -> np.ndarray:
         """The fitted points' entries of an array over the model's frequencies."""

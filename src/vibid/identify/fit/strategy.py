@@ -265,12 +265,17 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
 
     def score(U):
         thetas = space.theta(U)
-        f_hz, height = model.modes_batch(thetas)
+        if thin is problem:  # one modal decomposition gives the modes and chi2
+            f_hz, height, H = model.modes_afc_batch(thetas)
+            chi2 = problem.chi2_of_afc(H)
+        else:
+            f_hz, height = model.modes_batch(thetas)
+            chi2 = None if thin is None else thin.chi2_batch(U)
         if by_grid:
             height = _shown(model, thetas, f_hz, height, grid)
         s = np.asarray(peak_score(f_hz, height, peaks))
-        if tie_break:
-            s = s + PEAK_CHI2_WEIGHT * np.log(np.maximum(thin.chi2_batch(U), 1e-300))
+        if chi2 is not None:
+            s = s + PEAK_CHI2_WEIGHT * np.log(np.maximum(chi2, 1e-300))
         return s
 
     result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,

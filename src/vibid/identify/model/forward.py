@@ -253,6 +253,13 @@ class ForwardModel:
             self.arrays, embed(self.embedding, _f64(thetas)))
         return np.asarray(f_hz), np.asarray(height)
 
+    def modes_afc_batch(self, thetas):
+        """:meth:`modes_batch` and :meth:`afc_batch` from one evaluation of each member:
+        ``(f_hz, height, H)``, numpy arrays."""
+        f_hz, height, H = kernel_functions(self.kernel).modes_afc_batch(
+            self.arrays, embed(self.embedding, _f64(thetas)))
+        return np.asarray(f_hz), np.asarray(height), np.asarray(H)
+
     def afc_full(self, theta) -> np.ndarray:
         """(nf,) AFC of the full sparse FE model (same discretisation) at ``theta``."""
         return model_afc_full(self.mats, self.param, theta, self.frequencies_hz)

@@ -347,8 +347,10 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
 
 #: Reduced bases are padded to one of these sizes (then to multiples of the last), so that
 #: the models of a loop (rebuilt around new estimates, extended by candidates) share a few
-#: shapes and so a few compilations: 32, 64, 96, 128, then steps of 1.5.
-PAD_SIZES = (32, 64, 96, 128, 192, 256, 384, 512)
+#: shapes and so a few compilations: 32, 64, 96, 128, 160, then steps of 1.2-1.5. (A
+#: size's eigensolve costs its cube: the CFRP plate's wide basis of 131 padded to 192 cost
+#: 3.6 ms a member in the peak search, 2.3 ms at 160.)
+PAD_SIZES = (32, 64, 96, 128, 160, 192, 256, 384, 512)
 
 
 def padded_size(n: int) -> int:
@@ -373,18 +375,24 @@ class ReducedKernel:
 
     def __call__(self, arrays: dict, theta):
         """H (nf,) at the structure's parameter vector ``theta`` (:func:`embed`)."""
+        return self._afc(arrays, theta)[0]
+
+    def _afc(self, a: dict, theta):
+        """``(H, modal)``: H (nf,) and, for proportional loss, the ``(mu, weights)`` of
+        :meth:`_modal` it was summed from (else None)."""
         import jax.numpy as jnp
 
-        a, model = arrays, self.model
+        model = self.model
         theta = jnp.asarray(theta, jnp.float64)
         s = model.moduli(theta, jnp)
         Mr, probe, loads = self._sides(a, theta)
         w2 = a["w2"]
         omega = jnp.sqrt(w2)
         law = model.loss_law(theta, omega, jnp)
+        modal = None
         if model.proportional:
             beta = model.common_loss(theta, jnp)
-            mu, weights = self._modal(a, s, Mr, [f for f, _ in loads], probe)
+            mu, weights = modal = self._modal(a, s, Mr, [f for f, _ in loads], probe)
             loss = 1.0 + 1j * beta * (1.0 if law is None else law)
             denom = loss[..., None] * jnp.ones((w2.shape[0], 1)) - w2[:, None] * mu[None, :]
             Hs = [r + (w2[:, None] * wt[None, :] / denom).sum(axis=1)
@@ -401,7 +409,7 @@ class ReducedKernel:
         H = Hs[0]
         if model.rotates_base:
             H = H + model.base_rotation(theta, omega, jnp) * Hs[1]
-        return model.afc_map(theta, omega, H, jnp)
+        return model.afc_map(theta, omega, H, jnp), modal
 
     def _sides(self, a: dict, theta):
         """``(M, probe, loads)`` at ``theta``: the reduced inertia (m, m), the probe vector
@@ -440,10 +448,26 @@ class ReducedKernel:
         import jax.numpy as jnp
 
         theta = jnp.asarray(theta, jnp.float64)
-        beta = self.model.common_loss(theta, jnp)
         Mr, probe, loads = self._sides(arrays, theta)
-        mu, (weight, *_) = self._modal(arrays, self.model.moduli(theta, jnp), Mr,
-                                       [loads[0][0]], probe)
+        modal = self._modal(arrays, self.model.moduli(theta, jnp), Mr, [loads[0][0]], probe)
+        return self._peaks(theta, modal)
+
+    def modes_and_afc(self, arrays: dict, theta):
+        """``(f_hz, height, H)``: :meth:`modes` and H from one modal decomposition (the
+        peak search's score with chi2 as its tie-break pays for one, not two)."""
+        import jax.numpy as jnp
+
+        theta = jnp.asarray(theta, jnp.float64)
+        H, modal = self._afc(arrays, theta)
+        return (*self._peaks(theta, modal), H)
+
+    def _peaks(self, theta, modal):
+        """Each mode's frequency (Hz, ascending) and resonance peak height from ``modal``
+        (:meth:`_modal`; the first load's weights: the base's translation)."""
+        import jax.numpy as jnp
+
+        mu, (weight, *_) = modal
+        beta = self.model.common_loss(theta, jnp)
         mu, weight = mu[::-1], weight[::-1]  # largest mu = lowest frequency first
         f_hz = 1.0 / jnp.sqrt(jnp.abs(mu)) / (2 * jnp.pi)
         return f_hz, jnp.abs(weight) / (jnp.abs(mu) * beta)
