@@ -52,7 +52,7 @@ from vibid.identify.fit.noise import fits
 from vibid.identify.fit.peaks import grid_heights, measured_peaks, peak_score, peaks_matched
 from vibid.identify.fit.problem import (ForwardModel, GivesModes, LeastSquaresProblem,
                                        PlateForwardModel, SplitsModelError)
-from vibid.identify.fit.result import IdentificationResult, LocalResult
+from vibid.identify.fit.result import GlobalResult, IdentificationResult, LocalResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
@@ -290,15 +290,17 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
 def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     """Search the resonance peaks alone, the parameters that move no stiffness or inertia
     (a delay, a gain, and at first the loss factor: the peak frequencies do not fix them)
-    held at ``opts.peaks_only``, then polish every restart's best; a model mode counts as
-    one the data lack only where the grid would show it. A small search first
-    (:data:`PEAKS_ONLY_SMALL`); where its best polished fit does not put its modes on the
+    held at ``opts.peaks_only``, polishing each restart's best as it ends; a model mode
+    counts as one the data lack only where the grid would show it. A small search first
+    (:data:`PEAKS_ONLY_SMALL`); where none of its polished fits puts its modes on the
     measured peaks, a wider one (:data:`PEAKS_ONLY_WIDE`) that also searches the loss
     factor, with chi2 to break the ties among parameter sets that match the peaks equally
     (four peaks leave an orthotropic plate's D12 open; with the loss factor held at an
-    isotropic fit's, twice the plate's, chi2 would point the wrong way). Returns
-    (GlobalResult, fits), or (None, []) when the model cannot give its modes or the AFC
-    shows no peak.
+    isotropic fit's, twice the plate's, chi2 would point the wrong way). Either stops at
+    the first restart whose polished fit sits on the peaks: the basin is found, and the
+    other restarts would cost a search each (12 s on the CFRP plate) to find it again.
+    Returns (GlobalResult of the restarts run, fits), or (None, []) when the model cannot
+    give its modes or the AFC shows no peak.
 
     Where a model with several stiffnesses starts far from its basin (an orthotropic plate
     from an isotropic fit) this finds the basin for a fraction of chi2's search, whose
@@ -312,20 +314,36 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
         return None, []
     theta = np.array([float(opts.peaks_only[n]) for n in space.names])
     moving = moving_parameters(model.param, theta)
-    found, result = [], None
+    one = replace(opts, rng=np.random.default_rng(opts.rng))  # one stream for the restarts
+    found, results = [], []
     for wide, (popsize, generations) in ((False, PEAKS_ONLY_SMALL), (True, PEAKS_ONLY_WIDE)):
         hold = {n: theta[i] for i, n in enumerate(space.names)
                 if i not in moving and not (wide and n == SMOOTHING_PARAMETER)}
-        result = peak_search(problem, opts, tie_break=wide, fixed=hold, by_grid=True,
-                             popsize=popsize, max_generations=generations)
-        if result is None:
-            return None, []
-        found = _by_loss(found + polish(problem, distinct(list(result.u)), opts))
-        if wide or peaks_already_matched(found[0].problem, found[0].run.theta, by_grid=True):
-            break
-        log.info("peaks-only search: the small search's best does not sit on the peaks; "
-                 "the wider one follows")
-    return result, found
+        for _ in range(opts.restarts):
+            result = peak_search(problem, replace(one, restarts=1), tie_break=wide,
+                                 fixed=hold, by_grid=True, popsize=popsize,
+                                 max_generations=generations)
+            if result is None:
+                return None, []
+            starts = distinct(list(result.u), against=[u for r in results for u in r.u])
+            results.append(result)
+            found = _by_loss(found + polish(problem, starts, opts))
+            if peaks_already_matched(found[0].problem, found[0].run.theta, by_grid=True):
+                return _joined(results), found
+        if not wide:
+            log.info("peaks-only search: no restart of the small search ends on the peaks; "
+                     "the wider one follows")
+    return _joined(results), found
+
+
+def _joined(results) -> GlobalResult:
+    """The restarts of several searches as one :class:`GlobalResult`, best first."""
+    loss = np.concatenate([r.loss for r in results])
+    order = np.argsort(loss)
+    return GlobalResult(np.concatenate([r.u for r in results])[order],
+                        np.concatenate([r.theta for r in results])[order], loss[order],
+                        sum(r.n_evaluations for r in results),
+                        tuple(m for r in results for m in r.messages))
 
 
 def walk_valley(problem: LeastSquaresProblem, found: list[Fit], opts: Options) -> list[Fit]:
