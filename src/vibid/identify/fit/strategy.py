@@ -233,11 +233,12 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
     return [] if result is None else list(result.u)
 
 
-#: The peaks-only search's population per searched parameter and generations: the small
-#: search (an orthotropic strip's basin), then, where it misses, the wide one (a
-#: 150 x 100 mm plate's four stiffnesses: the small one ended short of the basin).
-PEAKS_ONLY_SMALL = (8, 40)
-PEAKS_ONLY_WIDE = (15, 60)
+#: The peaks-only search's population per searched parameter, generations and restarts
+#: (None: the caller's): the small search, one restart (its first lands in an orthotropic
+#: strip's basin), then, where it misses, the wide one (a 150 x 100 mm plate's four
+#: stiffnesses: each of three small restarts ended short of the basin).
+PEAKS_ONLY_SMALL = (8, 40, 1)
+PEAKS_ONLY_WIDE = (15, 60, None)
 
 
 def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
@@ -292,13 +293,14 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     (a delay, a gain, and at first the loss factor: the peak frequencies do not fix them)
     held at ``opts.peaks_only``, polishing each restart's best as it ends; a model mode
     counts as one the data lack only where the grid would show it. A small search first
-    (:data:`PEAKS_ONLY_SMALL`); where none of its polished fits puts its modes on the
+    (:data:`PEAKS_ONLY_SMALL`); where its polished fit does not put its modes on the
     measured peaks, a wider one (:data:`PEAKS_ONLY_WIDE`) that also searches the loss
     factor, with chi2 to break the ties among parameter sets that match the peaks equally
     (four peaks leave an orthotropic plate's D12 open; with the loss factor held at an
-    isotropic fit's, twice the plate's, chi2 would point the wrong way). Either stops at
-    the first restart whose polished fit sits on the peaks: the basin is found, and the
-    other restarts would cost a search each (12 s on the CFRP plate) to find it again.
+    isotropic fit's, twice the plate's, chi2 would point the wrong way), over the caller's
+    restarts, stopping at the first whose polished fit sits on the peaks: the basin is
+    found, and the other restarts would cost a search each (12 s on the CFRP plate) to
+    find it again.
     Returns (GlobalResult of the restarts run, fits), or (None, []) when the model cannot
     give its modes or the AFC shows no peak.
 
@@ -316,10 +318,11 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     moving = moving_parameters(model.param, theta)
     one = replace(opts, rng=np.random.default_rng(opts.rng))  # one stream for the restarts
     found, results = [], []
-    for wide, (popsize, generations) in ((False, PEAKS_ONLY_SMALL), (True, PEAKS_ONLY_WIDE)):
+    for wide, (popsize, generations, restarts) in ((False, PEAKS_ONLY_SMALL),
+                                                   (True, PEAKS_ONLY_WIDE)):
         hold = {n: theta[i] for i, n in enumerate(space.names)
                 if i not in moving and not (wide and n == SMOOTHING_PARAMETER)}
-        for _ in range(opts.restarts):
+        for _ in range(restarts or opts.restarts):
             result = peak_search(problem, replace(one, restarts=1), tie_break=wide,
                                  fixed=hold, by_grid=True, popsize=popsize,
                                  max_generations=generations)
@@ -331,8 +334,8 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
             if peaks_already_matched(found[0].problem, found[0].run.theta, by_grid=True):
                 return _joined(results), found
         if not wide:
-            log.info("peaks-only search: no restart of the small search ends on the peaks; "
-                     "the wider one follows")
+            log.info("peaks-only search: the small search does not end on the peaks; the "
+                     "wider one follows")
     return _joined(results), found
 
 
