@@ -36,8 +36,13 @@ KEEP_SHARE = 0.10
 #: A kept effect must lie this many standard deviations from its null value (Wald): a
 #: refit that lowers chi2 while its effect stays at the null adds nothing physical.
 KEEP_Z = 3.0
-#: Candidates refitted per round (the highest scores that pass the score test).
+#: Candidates refitted per round (the highest scores that pass the score test) ...
 REFITS_PER_ROUND = 3
+#: ... and beyond them, the best-scoring candidate whose feature the diagnosis found: where
+#: the model's own form leaves a misfit, a candidate that shaves it scores high without
+#: explaining anything, while the one a diagnosed structure asks for may score lower (the
+#: crosstalk's magnitude trend asked for a gain, ranked fourth behind a clamp).
+ASKED_SLOTS = 1
 #: The top candidate is searched globally only when no local refit explains this share
 #: of the chi2 above the noise.
 SEARCH_SHARE = 0.5
@@ -231,7 +236,9 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     """Refit the candidates whose score asks for it, best first, and judge each: name ->
     (verdict, detail, refit or None, parameters it leaves outside the prior box).
 
-    The best few are refitted locally, stopping at one that fits the noise; when no refit
+    The best few are refitted locally, with the best one the diagnosis asks for (a
+    feature of its kind found) where it is not among them, stopping at one that fits the
+    noise; when no refit
     explains most of the misfit, the best-scoring candidate whose basin may lie elsewhere
     (a new material) is also searched globally over its box. An effect is not: its new
     parameters start at their null or where the diagnosis placed them, in the basin the
@@ -261,6 +268,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                      and (outside or s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof))),
                     key=lambda s: -s.score)
     ranked = asking[:None if outside else REFITS_PER_ROUND]
+    ranked += [s for s in asking[len(ranked):] if s.asked][:ASKED_SLOTS]
     for s in asking[len(ranked):]:
         judged[s.name] = (Verdict.NOT_REFITTED, (), None, [])
     excess = max(res.chi2 - res.dof, 0.0)
