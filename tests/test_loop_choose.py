@@ -141,3 +141,18 @@ def test_a_refit_that_leaves_the_prior_box_explains_nothing(monkeypatch):
     verdict, _, _, _ = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit,
                                     res, {}, ["D22"], 1.08e4)
     assert verdict is Verdict.OUTRANKED
+
+
+def test_the_best_candidate_the_diagnosis_asks_for_is_refitted_beside_the_top_scores():
+    """Where the model's form leaves a misfit a candidate that shaves it scores high; the
+    one a diagnosed feature asks for (the crosstalk's magnitude trend asked for a gain,
+    ranked fourth behind a clamp) gets a refit slot after the top three. While the
+    estimate lies outside its box every candidate is refitted anyway."""
+    names = ["clamp_compliance", "added_mass", "sensor_position", "transverse_shear",
+             "sensor_gain", "channel_delay"]
+    asked = {"sensor_gain", "channel_delay"}
+    asking = [Score(n, 1e3 - k, 1, 0.0, 0.1, asked=n in asked) for k, n in enumerate(names)]
+    order = [s.name for s in rounds.refit_order(asking, False)]
+    assert order == ["clamp_compliance", "added_mass", "sensor_position", "sensor_gain"]
+    assert [s.name for s in rounds.refit_order(asking[:3], False)] == names[:3]
+    assert [s.name for s in rounds.refit_order(asking, True)] == names

@@ -267,10 +267,10 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     asking = sorted((s for s in scores if s.name not in judged and np.isfinite(s.score)
                      and (outside or s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof))),
                     key=lambda s: -s.score)
-    ranked = asking[:None if outside else REFITS_PER_ROUND]
-    ranked += [s for s in asking[len(ranked):] if s.asked][:ASKED_SLOTS]
-    for s in asking[len(ranked):]:
-        judged[s.name] = (Verdict.NOT_REFITTED, (), None, [])
+    ranked = refit_order(asking, bool(outside))
+    for s in asking:
+        if s.name not in {r.name for r in ranked}:
+            judged[s.name] = (Verdict.NOT_REFITTED, (), None, [])
     excess = max(res.chi2 - res.dof, 0.0)
 
     def attempt(s: Score, search: bool):
@@ -301,6 +301,15 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                                        or searched[2].gain > plain[2].gain):
                 judged[basin.name] = searched
     return judged
+
+
+def refit_order(asking: list[Score], outside: bool) -> list[Score]:
+    """Which of the scores that ask for a refit (highest first) are refitted, in order:
+    every one while the estimate is outside its prior box, else the best
+    :data:`REFITS_PER_ROUND` and, after them, the best :data:`ASKED_SLOTS` the diagnosis
+    asks for among the rest."""
+    ranked = asking[:None if outside else REFITS_PER_ROUND]
+    return ranked + [s for s in asking[len(ranked):] if s.asked][:ASKED_SLOTS]
 
 
 def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosis=None):
