@@ -264,6 +264,9 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                 judged[s.name] = (Verdict.NO_MODE_PATTERN, (("modes", modes),
                                                             ("needed", needed)), None, [])
     outside = outside_prior(res, state.box)
+    if outside:
+        log.info("loop: %s outside the prior box: every candidate is refitted",
+                 _values(res, outside, state.box))
     asking = sorted((s for s in scores if s.name not in judged and np.isfinite(s.score)
                      and (outside or s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof))),
                     key=lambda s: -s.score)
