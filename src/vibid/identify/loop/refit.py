@@ -96,9 +96,9 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     placed = cand.placed(res.parameters)
     new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
     run = LOCAL_METHODS[local]
-    around = _refreshed(problem)
-    runs = [run(around(u), u) for u in starts(space, np.clip(u0, -5, 5), new,
-                                              res.parameter_names)]
+    u0 = np.clip(u0, -5, 5)
+    around = _refreshed(problem, space.theta(u0))
+    runs = [run(around(u), u) for u in starts(space, u0, new, res.parameter_names)]
     runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
     inside = best_inside_prior(runs, space, max(1.0, float(res.chi2_reduced)))
     best = inside if inside is not None else runs[0]
@@ -110,20 +110,19 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     return result, best.loss
 
 
-def _refreshed(problem):
+def _refreshed(problem, theta0):
     """``u -> problem`` on its model refreshed around ``u``, one refresh (a full-model
-    check, maybe a new basis) per stiffness and inertia: a basis is built from those alone,
-    so starts that differ only in a gain, a delay or a loss share their model (on the
-    titanium AFC, 200 checks of 0.1 s for 225 starts)."""
+    check, maybe a new basis) per value of the parameters that move a stiffness or inertia
+    (found at ``theta0``): a basis is built from those alone, so starts that differ only in
+    a gain, a delay or a loss share their model (on the titanium AFC, 200 checks of 0.1 s
+    for 225 starts)."""
     from vibid.identify.model.reduced import moving_parameters
 
-    space, models, moving = problem.space, {}, None
+    space, models = problem.space, {}
+    moving = moving_parameters(problem.model.param, theta0)
 
     def at(u):
-        nonlocal moving
         theta = space.theta(u)
-        if moving is None:
-            moving = moving_parameters(problem.model.param, theta)
         key = tuple(theta[moving])
         if key not in models:
             models[key] = problem.model.refresh(theta)
@@ -169,25 +168,26 @@ def _search(setup, data, cand, problem, start, ext_box, local) -> Searched | Non
                          model=param.model, forward_model=wide, bounds=ext_box,
                          restarts=3, seed=0, local=local, peaks_only=peaks_only,
                          magnitude=data.magnitude)
-        loss = problem.with_model(problem.model.refresh(found.values)).chi2(
-            space.to_u(found.values))
+        at = problem.with_model(problem.model.refresh(found.values))
+        loss = at.chi2(space.to_u(found.values))
         log.info("loop: %s searched globally%s, chi2 %.6g", cand.name,
                  " on its peaks" if peaks_only else "", loss)
         if found.converged and (best is None or loss < best.loss):
             best = Searched(found, loss, False)
         if best is not None and _fits(best.result):
             return replace(best, settled=True)
-        if peaks_only is not None and best is not None and _on_the_peaks(problem, best.result):
+        if peaks_only is not None and best is not None and best.result is found \
+                and _on_the_peaks(at, found):
             log.info("loop: %s's modes lie on the measured peaks: no search on chi2 (its "
                      "misfit is not a wrong basin)", cand.name)
             return replace(best, settled=True)
     return best
 
 
-def _on_the_peaks(problem, result) -> bool:
+def _on_the_peaks(at, result) -> bool:
     """Whether ``result``'s modes lie on the measured resonance peaks to the grid's
-    resolution: chi2's search would find this basin again (:func:`identify`'s own rule)."""
+    resolution (``at``: the problem on its model refreshed around them): chi2's search
+    would find this basin again (:func:`identify`'s own rule)."""
     from vibid.identify.fit.strategy import peaks_already_matched
 
-    at = problem.with_model(problem.model.refresh(result.values))
     return peaks_already_matched(at, result.values, by_grid=True)

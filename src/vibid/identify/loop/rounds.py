@@ -271,8 +271,9 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                      and (outside or s.score > chi2_dist.ppf(KEEP_QUANTILE, s.dof))),
                     key=lambda s: -s.score)
     ranked = refit_order(asking, bool(outside))
+    refitted = {s.name for s in ranked}
     for s in asking:
-        if s.name not in {r.name for r in ranked}:
+        if s.name not in refitted:
             judged[s.name] = (Verdict.NOT_REFITTED, (), None, [])
     excess = max(res.chi2 - res.dof, 0.0)
 
