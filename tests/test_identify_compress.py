@@ -112,3 +112,28 @@ def test_no_bands_where_the_model_is_not_finite(monkeypatch):
     assert compressed(problem, u0) is not problem
     monkeypatch.setattr(LeastSquaresProblem, "jacobian_and_residuals_theta", with_nan)
     assert compressed(problem, u0) is problem
+
+
+@pytest.mark.slow
+def test_a_neighbouring_start_run_on_the_last_runs_nodes_reaches_the_same_minimum(monkeypatch):
+    """A refit's starts share their compression (vibid.identify.fit.local.run_local): the
+    second start, run on the first run's nodes without building its own, still ends on the
+    full data's minimum within 0.1 std (its end point is confirmed on every bin)."""
+    from vibid.identify.fit import local
+    from vibid.identify.fit.local import _METHODS, run_local
+
+    problem, u0 = titanium_problem()
+    first, near = run_local("newton", problem, u0)
+    assert near is not None and near.on(problem) is near.short
+    assert near.on(problem.with_sigma(problem.sigma * 2)) is None  # other weights: own nodes
+    built = []
+    monkeypatch.setattr(local, "compressed", lambda *a: built.append(1) or compressed(*a))
+    u1 = u0 + np.where(np.arange(u0.size) == 1, 0.3, 0.0)  # nu moved
+    second, _ = run_local("newton", problem, u1, near)
+    every_bin = _METHODS["newton"](problem, u1)
+    assert first.converged and second.converged and every_bin.converged
+    J = problem.jacobian_theta(every_bin.theta)
+    std = np.sqrt(np.diag(np.linalg.inv(J.T @ J)))
+    assert np.all(np.abs((second.theta - every_bin.theta) / std) < 0.1)
+    assert second.loss == pytest.approx(every_bin.loss, rel=1e-6)
+    assert built == []  # the first run's nodes served: no compression built for it

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,44 +43,78 @@ _METHODS: dict[str, Callable[..., LocalResult]] = {
 REBUILDS = 2
 
 
+@dataclass(frozen=True)
+class Compression:
+    """A long AFC's ``full`` problem and the ``short`` one a run ended on: the next run of
+    the same data and weights starts on its nodes (on the titanium AFC, building them
+    again for every start of a refit was a fifth of the closed loop's time)."""
+
+    full: LeastSquaresProblem
+    short: LeastSquaresProblem
+
+    def on(self, problem: LeastSquaresProblem) -> LeastSquaresProblem | None:
+        """The short problem on ``problem``'s model; None unless ``problem`` has the same
+        data and weights as :attr:`full`."""
+        if problem.data is not self.full.data or not np.array_equal(problem.sigma,
+                                                                     self.full.sigma):
+            return None
+        if problem.model is self.full.model:
+            return self.short
+        return self.short.with_model(problem.model.on_frequencies(self.short.model.frequencies_hz))
+
+
 def confirmed_run(method, problem: LeastSquaresProblem, short: LeastSquaresProblem, u0,
-                  max_iter: int = 200) -> LocalResult:
+                  max_iter: int = 200) -> tuple[LocalResult, LeastSquaresProblem]:
     """``method`` on the compressed ``short`` from ``u0``, its end point confirmed on the
     full ``problem`` (else the compression rebuilt there and the run resumed, at most
-    :data:`REBUILDS` times, then finished on ``problem``); the loss is the full chi2."""
+    :data:`REBUILDS` times, then finished on ``problem``); the loss is the full chi2.
+    Returns the result and the short problem it ended on (``problem`` when finished on it)."""
     r = method(short, u0, max_iter)
     for _ in range(REBUILDS + 1):
         if not np.all(np.isfinite(r.u)) or confirmed(problem, short, r.u):
-            return replace(r, loss=problem.chi2(r.u))
+            return replace(r, loss=problem.chi2(r.u)), short
         log.debug("the full data do not confirm the compressed fit: compressed again there")
         short = compressed(problem, r.u)
         r = method(short, r.u, max_iter)
-    return method(problem, r.u, max_iter)
+    return method(problem, r.u, max_iter), problem
 
 
-def _on_compressed(method: Callable[..., LocalResult]) -> Callable[..., LocalResult]:
-    """``method`` run on the problem compressed around its start when the AFC is long
-    (:func:`confirmed_run`; a continuation's rung with parameters held is not confirmed:
-    its loss is the full chi2 at its end)."""
+def run_local(local: str, problem, u0, near: Compression | None = None,
+              max_iter: int = 200) -> tuple[LocalResult, Compression | None]:
+    """The local method ``local`` from ``u0``, on the problem compressed around ``u0`` when
+    the AFC is long (:func:`confirmed_run`; a continuation's rung with parameters held is not
+    confirmed: its loss is the full chi2 at its end), or on ``near``'s nodes where it has
+    the same data and weights (a neighbouring start's: the end point is confirmed all the
+    same). Returns the result and the compression it ended on (None for a short AFC)."""
+    method = _METHODS[local]
+    if isinstance(problem, HeldProblem):
+        short = compressed(problem.problem, problem.space.full(u0))
+        if short is problem.problem:
+            return method(problem, u0, max_iter), None
+        r = method(problem.on(short), u0, max_iter)
+        return replace(r, loss=problem.chi2(r.u)), None
+    short = near.on(problem) if near is not None else None
+    if short is None:
+        short = compressed(problem, u0)
+    if short is problem:
+        return method(problem, u0, max_iter), None
+    r, short = confirmed_run(method, problem, short, u0, max_iter)
+    return r, (Compression(problem, short) if short is not problem else None)
+
+
+def _on_compressed(name: str) -> Callable[..., LocalResult]:
+    """The local method ``name`` run on the problem compressed around its start when the
+    AFC is long (:func:`run_local`)."""
 
     def run(problem, u0, max_iter=200):
-        if isinstance(problem, HeldProblem):
-            short = compressed(problem.problem, problem.space.full(u0))
-            if short is problem.problem:
-                return method(problem, u0, max_iter)
-            r = method(problem.on(short), u0, max_iter)
-            return replace(r, loss=problem.chi2(r.u))
-        short = compressed(problem, u0)
-        if short is problem:
-            return method(problem, u0, max_iter)
-        return confirmed_run(method, problem, short, u0, max_iter)
+        return run_local(name, problem, u0, max_iter=max_iter)[0]
 
     return run
 
 
 #: Local methods by name (compressing a long AFC).
 LOCAL_METHODS: dict[str, Callable[..., LocalResult]] = {
-    name: _on_compressed(method) for name, method in _METHODS.items()}
+    name: _on_compressed(name) for name in _METHODS}
 #: Iteration limit of each rung of the continuation (the winner is then run to the end).
 RUNG_MAX_ITER = 30
 
@@ -179,7 +213,7 @@ def polish_by_continuation(problem: LeastSquaresProblem, u_start, local: str = "
         results = [replace(r, loss=problem.chi2(r.u)) for r in results]
     results.sort(key=lambda r: (not np.isfinite(r.loss), r.loss))
     if short is not problem:
-        results[0] = confirmed_run(method, problem, short, results[0].u)
+        results[0] = confirmed_run(method, problem, short, results[0].u)[0]
     elif not results[0].converged:  # finish the best rung's free fit
         results.insert(0, method(problem, results[0].u))
     return results

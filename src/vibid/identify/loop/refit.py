@@ -2,7 +2,9 @@
 
 Local fits from the current estimate, with several starts along the new parameters (a
 parameter the diagnosis placed, a resonance's frequency and Q, is not varied), then the
-full identification (weights with the model's own error, covariance) from the best. Where
+full identification (weights with the model's own error, covariance) from the best. On a
+long AFC each start runs on the compressed problem the previous one ended on (its end point
+confirmed on every point all the same). Where
 the current estimate lies outside its prior box (the declared model bent a parameter to
 mimic what it lacks) the starts also move those parameters just inside the box and to
 its centre. With ``search`` (a new material: the loop's rounds decide), the extended
@@ -21,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from vibid.identify.fit.local import LOCAL_METHODS
+from vibid.identify.fit.local import run_local
 from vibid.identify.fit.minima import best_inside_prior
 from vibid.identify.fit.noise import fits_noise
 from vibid.identify.fit.result import IdentificationResult
@@ -95,10 +97,12 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
         u0 = space.to_u(np.array([start[n] for n in names]))
     placed = cand.placed(res.parameters)
     new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
-    run = LOCAL_METHODS[local]
     u0 = np.clip(u0, -5, 5)
     around = _refreshed(problem, space.theta(u0))
-    runs = [run(around(u), u) for u in starts(space, u0, new, res.parameter_names)]
+    runs, near = [], None
+    for u in starts(space, u0, new, res.parameter_names):  # each on the last one's nodes
+        r, near = run_local(local, around(u), u, near)
+        runs.append(r)
     runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
     inside = best_inside_prior(runs, space, max(1.0, float(res.chi2_reduced)))
     best = inside if inside is not None else runs[0]
