@@ -71,6 +71,25 @@ def test_paper_start_recovers_all_three(toy_problem, method):
         assert r.history[-1].radius > 0
 
 
+def test_a_decrement_tolerance_stops_early_within_it_of_the_minimum(toy_problem):
+    """``decrement_tol`` (a loop's start, polished later): the run stops once the Newton
+    decrement is below it, and its chi2 then lies within about that of the minimum's (the
+    noisy toy AFC: chi2 ~ its 400 residuals)."""
+    _, setup, f, H, fm = toy_problem
+    rng = np.random.default_rng(5)
+    std = np.full(f.size, 0.02 * np.abs(H).max())
+    noisy = H + std * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+    space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
+    problem = LeastSquaresProblem(fm, fit_data(f, noisy, std), space)
+    u0 = space.to_u(PAPER_START)
+    strict = trust_region(problem, u0, max_iter=1000)
+    early = trust_region(problem, u0, max_iter=1000, decrement_tol=1.0)
+    assert strict.converged and early.converged
+    assert early.n_iterations < strict.n_iterations
+    assert 0.0 <= early.loss - strict.loss <= 2.0
+    assert 300 < strict.loss < 500
+
+
 def test_non_convergence_is_reported(toy_problem):
     problem = toy_problem[0]
     r = trust_region(problem, problem.space.to_u(PAPER_START), max_iter=3)

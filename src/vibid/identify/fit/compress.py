@@ -230,11 +230,12 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
                                chi2_offset=kappa)
 
 
-def confirmed(problem: LeastSquaresProblem, short: LeastSquaresProblem, u) -> bool:
+def confirmed(problem: LeastSquaresProblem, short: LeastSquaresProblem, u,
+              tol: float = 0.0) -> bool:
     """Whether the full ``problem`` agrees that ``u``, the short problem's minimum, is its
     own to :data:`TOL_STD`: the full chi2's Newton step there (with the short problem's
     Hessian ``B``) is shorter than that many standard deviations, ``½ gᵀB⁻¹g ≤ TOL_STD²``
-    (``B/2`` is the Fisher information)."""
+    (``B/2`` is the Fisher information), or than ``tol`` where that is larger."""
     f, g = problem.value_and_grad(u)
     if not (np.isfinite(f) and np.all(np.isfinite(g))):
         return True  # nothing to refine here: the optimiser's own status says it
@@ -242,4 +243,4 @@ def confirmed(problem: LeastSquaresProblem, short: LeastSquaresProblem, u) -> bo
         step = np.linalg.solve(short.hessian(u), g)
     except np.linalg.LinAlgError:
         return False
-    return 0.5 * float(g @ step) <= TOL_STD**2
+    return 0.5 * float(g @ step) <= max(TOL_STD**2, tol)

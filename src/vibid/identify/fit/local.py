@@ -29,14 +29,16 @@ from vibid.identify.fit.trust_region import gauss_newton, trust_region
 
 log = logging.getLogger(__name__)
 
-#: The local methods by name, each on the problem as given.
+#: The local methods by name, each on the problem as given: ``(problem, u0, max_iter, tol)``,
+#: ``tol`` a Newton decrement (chi2) at which the trust region may stop (Levenberg-Marquardt
+#: keeps MINPACK's own test).
 _METHODS: dict[str, Callable[..., LocalResult]] = {
-    "newton": lambda problem, u0, max_iter=200: trust_region(problem, u0, hessian="exact",
-                                                             max_iter=max_iter),
-    "bfgs": lambda problem, u0, max_iter=200: trust_region(problem, u0, hessian="bfgs",
-                                                           max_iter=2 * max_iter),
-    "lm": lambda problem, u0, max_iter=200: gauss_newton(problem, u0,
-                                                         max_evaluations=2 * max_iter),
+    "newton": lambda problem, u0, max_iter=200, tol=0.0: trust_region(
+        problem, u0, hessian="exact", max_iter=max_iter, decrement_tol=tol),
+    "bfgs": lambda problem, u0, max_iter=200, tol=0.0: trust_region(
+        problem, u0, hessian="bfgs", max_iter=2 * max_iter, decrement_tol=tol),
+    "lm": lambda problem, u0, max_iter=200, tol=0.0: gauss_newton(
+        problem, u0, max_evaluations=2 * max_iter),
 }
 #: Rebuilds of the compressed problem around an end point the full data do not confirm
 #: (then the run is finished on the full problem).
@@ -64,41 +66,45 @@ class Compression:
 
 
 def confirmed_run(method, problem: LeastSquaresProblem, short: LeastSquaresProblem, u0,
-                  max_iter: int = 200) -> tuple[LocalResult, LeastSquaresProblem]:
+                  max_iter: int = 200, tol: float = 0.0) -> tuple[LocalResult, LeastSquaresProblem]:
     """``method`` on the compressed ``short`` from ``u0``, its end point confirmed on the
     full ``problem`` (else the compression rebuilt there and the run resumed, at most
     :data:`REBUILDS` times, then finished on ``problem``); the loss is the full chi2.
-    Returns the result and the short problem it ended on (``problem`` when finished on it)."""
-    r = method(short, u0, max_iter)
+    Returns the result and the short problem it ended on (``problem`` when finished on it).
+    ``tol``: :func:`run_local`'s."""
+    r = method(short, u0, max_iter, tol)
     for _ in range(REBUILDS + 1):
-        if not np.all(np.isfinite(r.u)) or confirmed(problem, short, r.u):
+        if not np.all(np.isfinite(r.u)) or confirmed(problem, short, r.u, tol):
             return replace(r, loss=problem.chi2(r.u)), short
         log.debug("the full data do not confirm the compressed fit: compressed again there")
         short = compressed(problem, r.u)
-        r = method(short, r.u, max_iter)
-    return method(problem, r.u, max_iter), problem
+        r = method(short, r.u, max_iter, tol)
+    return method(problem, r.u, max_iter, tol), problem
 
 
 def run_local(local: str, problem, u0, near: Compression | None = None,
-              max_iter: int = 200) -> tuple[LocalResult, Compression | None]:
+              max_iter: int = 200, tol: float = 0.0) -> tuple[LocalResult, Compression | None]:
     """The local method ``local`` from ``u0``, on the problem compressed around ``u0`` when
     the AFC is long (:func:`confirmed_run`; a continuation's rung with parameters held is not
     confirmed: its loss is the full chi2 at its end), or on ``near``'s nodes where it has
     the same data and weights (a neighbouring start's: the end point is confirmed all the
-    same). Returns the result and the compression it ended on (None for a short AFC)."""
+    same). ``tol``: a Newton decrement (chi2) small enough to stop at and, where larger than
+    :data:`~vibid.identify.fit.compress.TOL_STD` squared, to confirm with (a start whose
+    end is polished later). Returns the result and the compression it ended on (None for
+    a short AFC)."""
     method = _METHODS[local]
     if isinstance(problem, HeldProblem):
         short = compressed(problem.problem, problem.space.full(u0))
         if short is problem.problem:
-            return method(problem, u0, max_iter), None
-        r = method(problem.on(short), u0, max_iter)
+            return method(problem, u0, max_iter, tol), None
+        r = method(problem.on(short), u0, max_iter, tol)
         return replace(r, loss=problem.chi2(r.u)), None
     short = near.on(problem) if near is not None else None
     if short is None:
         short = compressed(problem, u0)
     if short is problem:
-        return method(problem, u0, max_iter), None
-    r, short = confirmed_run(method, problem, short, u0, max_iter)
+        return method(problem, u0, max_iter, tol), None
+    r, short = confirmed_run(method, problem, short, u0, max_iter, tol)
     return r, (Compression(problem, short) if short is not problem else None)
 
 

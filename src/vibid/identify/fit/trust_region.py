@@ -168,6 +168,7 @@ def trust_region(
     max_iter: int = 200,
     xtol: float = 1e-11,
     ftol: float = 1e-12,
+    decrement_tol: float = 0.0,
 ) -> LocalResult:
     """Minimise chi2(u) from ``u0`` by the paper's Algorithm 1.
 
@@ -187,6 +188,9 @@ def trust_region(
         ``ftol * chi2 + 2 sqrt(chi2 * f_floor) + f_floor``, the rounding level of chi2
         (:func:`chi2_rounding_level`; ``f_floor`` = 1e-20 per point: residuals exact to
         ~1e-10 relative).
+    decrement_tol: converged, too, when the Newton decrement is below this (chi2 units):
+        a run whose end is polished later need not walk to chi2's rounding level (a
+        parameter sliding to the edge of its logit span gains a factor e per step).
 
     Returns
     -------
@@ -221,7 +225,7 @@ def trust_region(
         # stop tests on the current model, deterministic (no trial value enters)
         if f <= f_floor or not np.any(g):
             return result(Status.CONVERGED, "the residual vanished to rounding", k - 1)
-        f_round = chi2_rounding_level(f, f_floor, ftol)
+        f_round = max(chi2_rounding_level(f, f_floor, ftol), decrement_tol)
         decrement = _newton_decrease(g, B)
         if decrement <= f_round and not B_exact:
             # a quasi-Newton B may be far too stiff along a valley: check with the exact

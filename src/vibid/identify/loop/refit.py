@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from vibid.identify.fit.compress import TOL_STD
 from vibid.identify.fit.local import run_local
 from vibid.identify.fit.minima import best_inside_prior
 from vibid.identify.fit.noise import fits_noise
@@ -99,12 +100,15 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
     u0 = np.clip(u0, -5, 5)
     around = _refreshed(problem, space.theta(u0))
+    # each start on the last one's nodes, stopped where its remaining Newton step is under
+    # TOL_STD of a standard deviation scaled by the misfit: the best is polished below
+    scale = max(1.0, float(res.chi2_reduced))
     runs, near = [], None
-    for u in starts(space, u0, new, res.parameter_names):  # each on the last one's nodes
-        r, near = run_local(local, around(u), u, near)
+    for u in starts(space, u0, new, res.parameter_names):
+        r, near = run_local(local, around(u), u, near, tol=TOL_STD**2 * scale)
         runs.append(r)
     runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
-    inside = best_inside_prior(runs, space, max(1.0, float(res.chi2_reduced)))
+    inside = best_inside_prior(runs, space, scale)
     best = inside if inside is not None else runs[0]
     fm = problem.model.refresh(best.theta)
     result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,

@@ -79,7 +79,7 @@ from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
 from vibid.identify.model.reduced import (ReducedAFC, ReducedBasis, cached_basis,
-                                          moving_parameters)
+                                          moving_parameters, same_coefficients)
 from vibid.identify.model.structure import embed, embedding
 from vibid.identify.model.terms import PlateModel, theta_from_dict
 from vibid.identify.profile import timed
@@ -300,10 +300,13 @@ class ForwardModel:
         return rel * np.abs(Hr) / math.sqrt(2.0)
 
     def refresh(self, theta) -> "ForwardModel":
-        """A model whose basis is local to ``theta``: ``self`` if it already is and passes
-        the a-posteriori check there, else a new one built at ``theta``."""
+        """A model whose basis is local to ``theta``: ``self`` if it already is (built at
+        ``theta``'s stiffness and inertia coefficients, or passing the a-posteriori check
+        there), else a new one built at ``theta``."""
         theta = np.asarray(theta, float)
         if self.kind == "local":
+            if same_coefficients(self.param, theta, self.theta0):
+                return self  # its basis was built there: a rebuild would give it again
             err = self.check(theta)
             if err <= REFRESH_TOL:
                 return self

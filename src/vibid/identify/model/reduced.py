@@ -119,6 +119,13 @@ def moving_parameters(model, theta0) -> list[int]:
     return out
 
 
+def same_coefficients(model, theta_a, theta_b) -> bool:
+    """Whether the stiffness and inertia coefficients at ``theta_a`` and ``theta_b`` are
+    equal (then so is every basis built at them)."""
+    (sa, ma), (sb, mb) = _coefficients(model, theta_a), _coefficients(model, theta_b)
+    return bool(np.array_equal(sa, sb) and np.array_equal(ma, mb))
+
+
 def _pure_scale(model, theta0, i) -> bool:
     """Whether parameter ``i`` only scales every stiffness coefficient (mode shapes stay)."""
     t = np.array(theta0, float)
