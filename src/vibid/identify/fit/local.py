@@ -10,6 +10,9 @@ the paper's trust-region Newton with the exact Hessian (or BFGS, or Levenberg-Ma
 A long AFC (thousands of FFT bins) is fitted on its compressed problem
 (:mod:`~vibid.identify.fit.compress`: a few nodes per band, the same minimum to a bounded
 fraction of a standard deviation), and each run's end point is confirmed on every point.
+Runs from neighbouring starts of the same data and weights may share the nodes the last
+one ended on (:func:`run_local`'s ``near``), and a start whose end is polished later may
+stop at a looser Newton decrement (``tol``).
 """
 
 from __future__ import annotations
