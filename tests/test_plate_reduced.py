@@ -118,6 +118,22 @@ def test_refresh_keeps_or_rebuilds(local):
     np.testing.assert_allclose(far.theta0, PAPER_THETA * np.array([1.6, 0.7, 1.0]))
 
 
+def test_a_model_rebuilt_at_its_own_coefficients_is_itself_unchecked(local, monkeypatch):
+    """``refresh`` and ``rebuilt`` at the coefficients the basis was built at return the
+    model without the full-model check (a rebuild would give the same basis); the loss
+    factor moves no coefficient. ``rebuilt`` elsewhere is a local basis built there,
+    unchecked, whose AFC matches the full model there."""
+    monkeypatch.setattr(type(local), "check", lambda self, theta: pytest.fail("checked"))
+    other_loss = PAPER_THETA * np.array([1.0, 1.0, 3.0])
+    assert local.refresh(other_loss) is local and local.rebuilt(other_loss) is local
+    th = PAPER_THETA * np.array([1.6, 0.7, 1.0])
+    far = local.rebuilt(th)
+    assert far is not local and far.kind == "local"
+    np.testing.assert_allclose(far.theta0, th)
+    H = np.asarray(far.afc(th))
+    assert np.abs(H - far.afc_full(th)).max() < 1e-5 * np.abs(H).max()
+
+
 def test_model_error_estimates_the_discretisation_error(local):
     """The estimate is small against the AFC and covers the difference to a fine model."""
     err = local.model_error(PAPER_THETA)

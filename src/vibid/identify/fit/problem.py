@@ -152,6 +152,9 @@ class PlateForwardModel(Protocol):
     bounds: dict
     kind: str
 
+    def rebuilt(self, theta) -> "PlateForwardModel":
+        """The model on a local basis built at ``theta`` (no a-posteriori check)."""
+
 
 @runtime_checkable
 class SplitsModelError(Protocol):

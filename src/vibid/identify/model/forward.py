@@ -304,15 +304,27 @@ class ForwardModel:
         ``theta``'s stiffness and inertia coefficients, or passing the a-posteriori check
         there), else a new one built at ``theta``."""
         theta = np.asarray(theta, float)
-        if self.kind == "local":
-            if same_coefficients(self.param, theta, self.theta0):
-                return self  # its basis was built there: a rebuild would give it again
+        if self.kind == "local" and not self._built_at(theta):
             err = self.check(theta)
             if err <= REFRESH_TOL:
                 return self
             log.info("refresh: reduced error %.1e at theta; rebuilding the basis", err)
+        return self.rebuilt(theta)
+
+    def rebuilt(self, theta) -> "ForwardModel":
+        """The model on a local basis built at ``theta``, without the a-posteriori check:
+        ``self`` if its basis was built there (where a start moves a stiffness far, the
+        check fails all but always and costs what the basis costs)."""
+        theta = np.asarray(theta, float)
+        if self._built_at(theta):
+            return self
         return ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds,
                             self.discretisation, theta, "local")
+
+    def _built_at(self, theta) -> bool:
+        """Whether this model's basis is local and built at ``theta``'s stiffness and
+        inertia coefficients (a rebuild would give it again)."""
+        return self.kind == "local" and same_coefficients(self.param, theta, self.theta0)
 
     def on_frequencies(self, frequencies_hz) -> "ForwardModel":
         """The same model (same basis) on other frequencies inside this one's band, Hz."""
