@@ -316,14 +316,14 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
         return None, []
     theta = np.array([float(opts.peaks_only[n]) for n in space.names])
     moving = moving_parameters(model.param, theta)
-    one = replace(opts, rng=np.random.default_rng(opts.rng))  # one stream for the restarts
+    single = replace(opts, restarts=1)  # the restarts one at a time, on opts' one rng
     found, results = [], []
     for wide, (popsize, generations, restarts) in ((False, PEAKS_ONLY_SMALL),
                                                    (True, PEAKS_ONLY_WIDE)):
         hold = {n: theta[i] for i, n in enumerate(space.names)
                 if i not in moving and not (wide and n == SMOOTHING_PARAMETER)}
         for _ in range(restarts or opts.restarts):
-            result = peak_search(problem, replace(one, restarts=1), tie_break=wide,
+            result = peak_search(problem, single, tie_break=wide,
                                  fixed=hold, by_grid=True, popsize=popsize,
                                  max_generations=generations)
             if result is None:

@@ -100,7 +100,7 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     placed = cand.placed(res.parameters)
     new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
     u0 = np.clip(u0, -5, 5)
-    around = _refreshed(problem, space.theta(u0))
+    around = _on_own_basis(problem, space.theta(u0))
     # each start on the last one's nodes, stopped where its remaining Newton step is under
     # TOL_STD of a standard deviation scaled by the misfit: the best is polished below
     scale = max(1.0, float(res.chi2_reduced))
@@ -119,7 +119,7 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     return result, best.loss
 
 
-def _refreshed(problem, theta0):
+def _on_own_basis(problem, theta0):
     """``u -> problem`` on its model rebuilt at ``u``, one basis per value of the parameters
     that move a stiffness or inertia (found at ``theta0``): a basis is built from those
     alone, so starts that differ only in a gain, a delay or a loss share their model (on
