@@ -17,9 +17,9 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    needs the modes' pattern to ask for it: more of the plate's modes in the band than the
    current material has stiffnesses (which place any fewer).
 4. **Refit** the candidates whose score asks for it, best first, and the best one the
-   diagnosis asks for where it is not among them (:mod:`~vibid.identify.loop.refit`);
-   when no local refit explains most of the misfit,
-   search the best-scoring new material globally (its basin may lie far from the current
+   diagnosis asks for where it is not among them (:mod:`~vibid.identify.loop.refit`), a
+   new material after the effects: where their refits leave most of the misfit, search
+   the best-scoring new material globally (its basin may lie far from the current
    fit's; an effect's new parameters start at their null or at the diagnosed feature, and
    a resonance the diagnosis placed is searched near its pole only: its frequency within
    10 %, its Q within 3 times the pole's).
