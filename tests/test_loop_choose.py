@@ -1,4 +1,5 @@
-"""The loop's choice among passing refits (``rounds.choose``), on stand-in refits: a refit
+"""The loop's choice among passing refits (``rounds.choose``) and the order of its refits
+(``rounds.refit_and_judge``), on stand-in refits: a refit
 that explains nearly all the misfit beats one that removes a more significant diagnosed
 feature but leaves most of it (the CFRP plate: a stand resonance took the isotropic fit's
 unmatched torsion peak, 18 % of the misfit, while the orthotropic material explained all
@@ -156,3 +157,62 @@ def test_the_best_candidate_the_diagnosis_asks_for_is_refitted_beside_the_top_sc
     assert order == ["clamp_compliance", "added_mass", "sensor_position", "sensor_gain"]
     assert [s.name for s in rounds.refit_order(asking[:3], False)] == names[:3]
     assert [s.name for s in rounds.refit_order(asking, True)] == names
+
+
+# -- the order of the refits (``rounds.refit_and_judge``) -------------------------------------
+def _round(monkeypatch, gains, fits_noise=()):
+    """Refit a round of stand-in candidates (``gains``: name -> the chi2 its refit removes;
+    the material ``anisotropy`` scores highest of all) and return the refits run, in
+    order, as (name, searched)."""
+    calls = []
+
+    def refit(setup, data, res, cand, box, diagnosis, local, search=False):
+        calls.append((cand.name, search))
+        return SimpleNamespace(gain=gains[cand.name], result=cand.name, searched=search)
+
+    def judge(cand, s, fit, res, box, outside, excess, diagnosis=None):
+        return Verdict.OUTRANKED, (), fit, []
+
+    monkeypatch.setattr(rounds.refits, "refit", refit)
+    monkeypatch.setattr(rounds, "judge", judge)
+    monkeypatch.setattr(rounds, "outside_prior", lambda res, box: [])
+    monkeypatch.setattr(rounds.Stage, "of", classmethod(
+        lambda cls, added, result: SimpleNamespace(fits_noise=result in fits_noise)))
+    cands = [SimpleNamespace(name=n, moves_basin=n == "anisotropy", modes_needed=lambda m: 0,
+                             extend=lambda m: SimpleNamespace(names=("D", "nu")))
+             for n in gains]
+    scores = [Score(n, 1e9 if n == "anisotropy" else 1e8 - k, 1, 0.0, 0.1)
+              for k, n in enumerate(gains)]
+    res = SimpleNamespace(chi2=CHI2, dof=DOF, plate_model=None)
+    state = SimpleNamespace(current=SimpleNamespace(result=res, diagnosis=None), box={})
+    inputs = SimpleNamespace(setup=None, data=SimpleNamespace(n_residuals=2 * DOF),
+                             local="newton")
+    judged = rounds.refit_and_judge(inputs, state, cands, scores)
+    return calls, judged
+
+
+def test_a_new_material_is_searched_at_once_where_the_effects_leave_most_of_the_misfit(
+        monkeypatch):
+    """The CFRP plate: the effects' refits explain under half the misfit, so the material,
+    though it scores highest, comes last and is searched over its box at once (a local
+    refit before the search had cost 9 s for a chi2 a million times the search's)."""
+    gains = {"anisotropy": CHI2 - 3.5e4, "stand_resonance": 0.18 * CHI2,
+             "sensor_position": 0.13 * CHI2}
+    calls, judged = _round(monkeypatch, gains)
+    assert calls == [("stand_resonance", False), ("sensor_position", False),
+                     ("anisotropy", True)]
+    assert judged["anisotropy"][2].searched
+
+
+def test_a_new_material_is_refitted_locally_where_an_effect_explains_most_of_the_misfit(
+        monkeypatch):
+    gains = {"anisotropy": 0.3 * CHI2, "clamp_compliance": 0.8 * CHI2}
+    calls, _ = _round(monkeypatch, gains)
+    assert calls == [("clamp_compliance", False), ("anisotropy", False)]
+
+
+def test_a_new_material_is_not_refitted_once_an_effect_fits_the_noise(monkeypatch):
+    gains = {"anisotropy": 0.3 * CHI2, "added_mass": CHI2 - DOF}
+    calls, judged = _round(monkeypatch, gains, fits_noise=("added_mass",))
+    assert calls == [("added_mass", False)]
+    assert judged["anisotropy"][0] is Verdict.NOT_REFITTED
