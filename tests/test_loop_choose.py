@@ -53,6 +53,27 @@ def test_where_none_explains_nearly_all_the_larger_feature_removed_decides(stage
     assert chosen.added == "stand_resonance"
 
 
+def test_a_refit_that_removes_no_diagnosed_structure_is_not_added(stages):
+    """Where no refit explains nearly all the misfit, a share taken off it is no
+    explanation (any extra parameter takes some): only a refit that removes a diagnosed
+    feature can be added, here the resonance at its pole, not the clamp that gained more;
+    where none removes one, nothing is (the beam's crosstalk, outside the library: a clamp
+    took 11 % of its misfit)."""
+    pole = SimpleNamespace(significance=900.0, note="a resonance at 661 Hz")
+    refits = {"clamp_compliance": _refit(0.3 * CHI2), "stand_resonance": _refit(0.2 * CHI2)}
+    scores, chosen = _choose(refits, {"clamp_compliance": None, "stand_resonance": pole})
+    assert chosen.added == "stand_resonance"
+    assert {s.name: s.verdict for s in scores}["clamp_compliance"] is Verdict.NO_STRUCTURE
+    scores, chosen = _choose({"clamp_compliance": _refit(0.11 * CHI2)},
+                             {"clamp_compliance": None})
+    assert chosen is None
+    (s,) = scores
+    assert s.verdict is Verdict.NO_STRUCTURE
+    assert s.verdict.sentence(**dict(s.detail)).startswith(
+        "it lowers chi2 significantly but removes no structure the diagnosis found and "
+        "leaves 89 % of the misfit")
+
+
 def test_the_models_compared_are_the_refits_the_data_support_kept_or_not():
     """The budget's model spread runs over every refit the data support: passing ones and
     significant ones that explain too small a share to be kept (the titanium strip's stand
@@ -60,7 +81,7 @@ def test_the_models_compared_are_the_refits_the_data_support_kept_or_not():
     improve chi2 significantly."""
     compared = {v for v in Verdict if v.compared}
     assert compared == {Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
-                        Verdict.OUTRANKED, Verdict.SMALL_SHARE}
+                        Verdict.OUTRANKED, Verdict.SMALL_SHARE, Verdict.NO_STRUCTURE}
 
 
 def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():

@@ -30,7 +30,9 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    misfit; or bringing a parameter the declared model bent out of its prior box back
    inside it.
 6. **Choose** among the passing refits one for the structure it explains: those that
-   explain nearly all the misfit where there are any; of them, those whose refit
+   explain nearly all the misfit where there are any, else those that remove a diagnosed
+   feature (a refit that only shaves a share off a misfit it leaves is ``no_structure``:
+   any extra parameter does that); of them, those whose refit
    removes the most significant diagnosed feature compete, and of them the plainest
    explanation the data cannot tell from the best: an effect whose feature the diagnosis
    found before one without, an effect of the stand before a new material.

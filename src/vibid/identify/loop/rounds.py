@@ -453,10 +453,13 @@ def choose(scores, judged: dict, res, plainness: dict,
 
     One that brings the estimate back inside its prior box goes first (an effect that
     leaves it outside is kept back). Among the rest, the refits that explain all but
-    :data:`KEEP_SHARE` of the misfit compete where there are any; of those, an effect is
-    chosen for the structure it explains: the ones whose refit removes the most
-    significant diagnosed feature (``removes``: name -> the feature it removed) compete,
-    or all where none removes one;
+    :data:`KEEP_SHARE` of the misfit compete where there are any; where there are none,
+    only those whose refit removes a diagnosed feature (``removes``: name -> the feature
+    it removed) or explains a bent estimate's excursion compete, and the others are
+    ``no_structure`` (a share of a misfit that remains is no explanation: any extra
+    parameter shaves some). Of those competing, an effect is chosen for the structure it
+    explains: the ones whose refit removes the most significant diagnosed feature
+    compete, or all where none removes one;
     of those whose chi2 the data cannot tell from the best's, the plainest explanation
     wins: one whose feature the diagnosis found before one without, an effect before a
     new material, then the larger likelihood ratio."""
@@ -476,7 +479,17 @@ def choose(scores, judged: dict, res, plainness: dict,
         # resonance, 18 %, that removed the isotropic fit's most significant pole)
         excess = max(float(res.chi2 - res.dof), 0.0)
         whole = [n for n in passing if passing[n][2].gain >= (1 - KEEP_SHARE) * excess]
-        competing = {n: passing[n] for n in whole} if whole else passing
+        # else only a refit that removes a diagnosed structure (or brings a bent estimate
+        # back inside its box) explains something: shaving a share off a misfit that
+        # remains is what any extra parameter does (a free length on a crosstalk)
+        competing = whole or [n for n in passing if removes.get(n)
+                              or passing[n][0] is Verdict.EXPLAINS_EXCURSION]
+        for n in set(passing) - set(competing) if not whole else ():
+            v, d, fit, left = passing.pop(n)
+            judged[n] = (Verdict.NO_STRUCTURE, d + (
+                ("left_share", 100 * (1 - fit.gain / excess) if excess > 0 else 0.0),),
+                fit, left)
+    if passing:
         top = max((f.significance for n, f in removes.items() if n in competing and f),
                   default=None)
         pool = [n for n in competing if top is None or (removes.get(n) and

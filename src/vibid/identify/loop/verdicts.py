@@ -32,6 +32,7 @@ class Verdict(enum.Enum):
     LEFT_ITS_FEATURE = "left_its_feature"
     OUTSIDE_PRIOR = "outside_prior"
     SMALL_SHARE = "small_share"
+    NO_STRUCTURE = "no_structure"
     NOT_SIGNIFICANT = "not_significant"
     WITHDRAWN = "withdrawn"
 
@@ -46,7 +47,7 @@ class Verdict(enum.Enum):
         """Whether the refit is a model the data support (converged, away from its null,
         significant), kept or not: the budget's spread is over these
         (:func:`vibid.identify.budget.model_spread`)."""
-        return self.passes or self is Verdict.SMALL_SHARE
+        return self.passes or self in (Verdict.SMALL_SHARE, Verdict.NO_STRUCTURE)
 
     def sentence(self, **d) -> str:
         """The report's note; ``d`` holds the numbers it quotes."""
@@ -90,6 +91,10 @@ class Verdict(enum.Enum):
             Verdict.SMALL_SHARE: (
                 f"it explains only {d.get('share', math.nan):.2g} % of the chi2 above the "
                 f"noise (an effect must explain {d.get('need', math.nan):.0f} %)"),
+            Verdict.NO_STRUCTURE: (
+                f"it lowers chi2 significantly but removes no structure the diagnosis found "
+                f"and leaves {d.get('left_share', math.nan):.2g} % of the misfit: a share of "
+                "a misfit that remains is no explanation of it"),
             Verdict.NOT_SIGNIFICANT: "the refit does not improve chi2 significantly",
             Verdict.WITHDRAWN: (
                 f"withdrawn: added in an earlier round, it lies at its null value once "
