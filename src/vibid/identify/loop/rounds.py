@@ -484,11 +484,10 @@ def choose(scores, judged: dict, res, plainness: dict,
         # remains is what any extra parameter does (a free length on a crosstalk)
         competing = whole or [n for n in passing if removes.get(n)
                               or passing[n][0] is Verdict.EXPLAINS_EXCURSION]
-        for n in set(passing) - set(competing) if not whole else ():
+        for n in [n for n in passing if n not in competing] if not whole else []:
             v, d, fit, left = passing.pop(n)
-            judged[n] = (Verdict.NO_STRUCTURE, d + (
-                ("left_share", 100 * (1 - fit.gain / excess) if excess > 0 else 0.0),),
-                fit, left)
+            share_left = 100 * (1 - fit.gain / excess) if excess > 0 else 0.0
+            judged[n] = (Verdict.NO_STRUCTURE, d + (("left_share", share_left),), fit, left)
     if passing:
         top = max((f.significance for n, f in removes.items() if n in competing and f),
                   default=None)
