@@ -293,7 +293,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                      state.current.diagnosis)
 
     basin = next((s for s in asking if by_name[s.name].moves_basin), None)
-    later = basin if basin is not None and not outside else None  # judged after the rest
+    later = None if outside else basin  # judged after the rest
     first = [s for s in ranked if s is not later]
     for k, s in enumerate(first):
         judged[s.name] = attempt(s, bool(outside) and k == 0 and by_name[s.name].moves_basin)
@@ -305,10 +305,10 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
             break
     else:
         explained = max((f.gain for v, _, f, _ in judged.values() if v.passes), default=0.0)
-        if later is not None and explained < SEARCH_SHARE * excess:
-            judged[later.name] = attempt(later, True)  # its local refit only if unsettled
-        elif later is not None and later in ranked:
-            judged[later.name] = attempt(later, False)
+        if later is not None:
+            search = explained < SEARCH_SHARE * excess  # its local refit only if unsettled
+            if search or later in ranked:
+                judged[later.name] = attempt(later, search)
     return judged
 
 
@@ -484,10 +484,12 @@ def choose(scores, judged: dict, res, plainness: dict,
         # remains is what any extra parameter does (a free length on a crosstalk)
         competing = whole or [n for n in passing if removes.get(n)
                               or passing[n][0] is Verdict.EXPLAINS_EXCURSION]
-        for n in [n for n in passing if n not in competing] if not whole else []:
-            v, d, fit, left = passing.pop(n)
-            share_left = 100 * (1 - fit.gain / excess) if excess > 0 else 0.0
-            judged[n] = (Verdict.NO_STRUCTURE, d + (("left_share", share_left),), fit, left)
+        if not whole:
+            for n in [n for n in passing if n not in competing]:
+                v, d, fit, left = passing.pop(n)
+                share_left = 100 * (1 - fit.gain / excess) if excess > 0 else 0.0
+                judged[n] = (Verdict.NO_STRUCTURE, d + (("left_share", share_left),), fit,
+                             left)
     if passing:
         top = max((f.significance for n, f in removes.items() if n in competing and f),
                   default=None)
