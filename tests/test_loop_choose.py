@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 from vibid.identify.loop import rounds
-from vibid.identify.loop.verdicts import Score, Verdict
+from vibid.identify.loop.verdicts import Judgement, Score, Verdict
 
 
 CHI2, DOF = 2.25169e11, 233
@@ -28,7 +28,7 @@ def stages(monkeypatch):
 
 def _choose(refits, removes):
     scores = [Score(n, 1e3, 1, 0.0, 0.1) for n in refits]
-    judged = {n: (Verdict.OUTRANKED, (), f, []) for n, f in refits.items()}
+    judged = {n: Judgement(Verdict.OUTRANKED, (), f) for n, f in refits.items()}
     current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF)
     plainness = {"stand_resonance": 0, "anisotropy": 1}
     return rounds.choose(scores, judged, current, plainness, removes)
@@ -103,8 +103,9 @@ def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():
     refit = SimpleNamespace(gain=1e6, searched=False, result=SimpleNamespace(
         converged=True, parameters=current | {"f_hz_1": 190.2}))
     res = SimpleNamespace(parameters=current, chi2=2e7)
-    verdict, detail, _, _ = rounds.judge(cand, Score("stand_resonance", 1e3, 3, 0.0, 0.1),
-                                         refit, res, {}, [], 1e7, diagnosis)
+    j = rounds.judge(cand, Score("stand_resonance", 1e3, 3, 0.0, 0.1), refit, res, {}, [],
+                     1e7, diagnosis)
+    verdict, detail = j.verdict, j.detail
     assert verdict is Verdict.LEFT_ITS_FEATURE
     assert verdict.sentence(**dict(detail)).startswith("its resonance moved from")
     assert not verdict.passes and not verdict.compared
@@ -155,14 +156,14 @@ def test_a_refit_that_leaves_the_prior_box_explains_nothing(monkeypatch):
                              plate_model=SimpleNamespace(default_bounds=lambda box: box, effects=()))
     refit = SimpleNamespace(gain=1e4, searched=True, result=result)
     res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.1}, chi2=1.1e4, chi2_reduced=40.0)
-    verdict, detail, _, _ = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit,
-                                         res, {}, [], 1.08e4)
+    j = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit, res, {}, [], 1.08e4)
+    verdict, detail = j.verdict, j.detail
     assert verdict is Verdict.OUTSIDE_PRIOR and not verdict.passes and not verdict.compared
     assert verdict.sentence(**dict(detail)).startswith(
         "its refit explains the residual only with D22 1e-10 (box 1 to 100) outside")
-    verdict, _, _, _ = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit,
-                                    res, {}, ["D22"], 1.08e4)
-    assert verdict is Verdict.OUTRANKED
+    j = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit, res, {}, ["D22"],
+                     1.08e4)
+    assert j.verdict is Verdict.OUTRANKED
 
 
 def test_the_best_candidate_the_diagnosis_asks_for_is_refitted_beside_the_top_scores():
@@ -192,7 +193,7 @@ def _round(monkeypatch, gains, fits_noise=()):
         return SimpleNamespace(gain=gains[cand.name], result=cand.name, searched=search)
 
     def judge(cand, s, fit, res, box, outside, excess, diagnosis=None):
-        return Verdict.OUTRANKED, (), fit, []
+        return Judgement(Verdict.OUTRANKED, (), fit)
 
     monkeypatch.setattr(rounds.refits, "refit", refit)
     monkeypatch.setattr(rounds, "judge", judge)
@@ -222,7 +223,7 @@ def test_a_new_material_is_searched_at_once_where_the_effects_leave_most_of_the_
     calls, judged = _round(monkeypatch, gains)
     assert calls == [("stand_resonance", False), ("sensor_position", False),
                      ("anisotropy", True)]
-    assert judged["anisotropy"][2].searched
+    assert judged["anisotropy"].fit.searched
 
 
 def test_a_new_material_is_refitted_locally_where_an_effect_explains_most_of_the_misfit(
@@ -236,4 +237,4 @@ def test_a_new_material_is_not_refitted_once_an_effect_fits_the_noise(monkeypatc
     gains = {"anisotropy": 0.3 * CHI2, "added_mass": CHI2 - DOF}
     calls, judged = _round(monkeypatch, gains, fits_noise=("added_mass",))
     assert calls == [("added_mass", False)]
-    assert judged["anisotropy"][0] is Verdict.NOT_REFITTED
+    assert judged["anisotropy"].verdict is Verdict.NOT_REFITTED

@@ -21,7 +21,7 @@ from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import all_candidates, default_candidates, distance_from_null
 from vibid.identify.loop.scoring import score
-from vibid.identify.loop.verdicts import LoopResult, Score, Stage, Verdict
+from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
 
 log = logging.getLogger(__name__)
 
@@ -128,15 +128,15 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     scores = [scored(inputs, current, c, state.box) for c in todo]
     judged = refit_and_judge(inputs, state, todo, scores)
     kinds = {c.name: c.explains for c in todo}
-    after = {n: diagnosis_of(inputs.setup, j[2].result) for n, j in judged.items()
-             if j[0].passes}  # each passing refit's residual, read once
+    after = {n: diagnosis_of(inputs.setup, j.fit.result) for n, j in judged.items()
+             if j.verdict.passes}  # each passing refit's residual, read once
     removes = {n: removed_feature(current.diagnosis, d, kinds[n]) for n, d in after.items()}
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
     rounds = state.rounds + (tuple(scores),)
     alternatives = state.alternatives + tuple(
-        j[2].result for n, j in judged.items()
-        if j[0].compared and (chosen is None or n != chosen.added))
+        judged[s.name].fit.result for s in scores
+        if s.verdict.compared and (chosen is None or s.name != chosen.added))
     state = replace(state, alternatives=alternatives)
     if chosen is None:
         return replace(state, rounds=rounds), False
@@ -234,7 +234,7 @@ def scored(inputs: Inputs, current: Stage, cand, box) -> Score:
 # -- refit and judge ------------------------------------------------------------------------
 def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     """Refit the candidates whose score asks for it, best first, and judge each: name ->
-    (verdict, detail, refit or None, parameters it leaves outside the prior box).
+    :class:`Judgement`.
 
     The best few are refitted locally, with the best one the diagnosis asks for (a
     feature of its kind found) where it is not among them, stopping at one that fits the
@@ -257,15 +257,15 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     for s in scores:
         n = len(by_name[s.name].extend(res.plate_model).names)
         if s.verdict is Verdict.BELOW_SCORE and n >= n_residuals:
-            judged[s.name] = (Verdict.TOO_FEW_POINTS, (("n", n), ("residuals", n_residuals)),
-                              None, [])
+            judged[s.name] = Judgement(Verdict.TOO_FEW_POINTS,
+                                       (("n", n), ("residuals", n_residuals)))
     for s in scores:
         needed = by_name[s.name].modes_needed(res.plate_model)
         if s.name not in judged and needed:
             modes = plate_modes_in_band(inputs.setup, res)
             if modes < needed:
-                judged[s.name] = (Verdict.NO_MODE_PATTERN, (("modes", modes),
-                                                            ("needed", needed)), None, [])
+                judged[s.name] = Judgement(Verdict.NO_MODE_PATTERN,
+                                           (("modes", modes), ("needed", needed)))
     outside = outside_prior(res, state.box)
     if outside:
         log.info("loop: %s outside the prior box: every candidate is refitted",
@@ -277,7 +277,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     refitted = {s.name for s in ranked}
     for s in asking:
         if s.name not in refitted:
-            judged[s.name] = (Verdict.NOT_REFITTED, (), None, [])
+            judged[s.name] = Judgement(Verdict.NOT_REFITTED)
     excess = max(res.chi2 - res.dof, 0.0)
 
     def attempt(s: Score, search: bool):
@@ -288,7 +288,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
             fit = refits.refit(inputs.setup, inputs.data, res, cand, state.box,
                                state.current.diagnosis, inputs.local, search=search)
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
-            return Verdict.REFIT_FAILED, (("error", str(exc)),), None, []
+            return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
         return judge(cand, s, fit, res, state.box, outside, excess,
                      state.current.diagnosis)
 
@@ -297,14 +297,14 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     first = [s for s in ranked if s is not later]
     for k, s in enumerate(first):
         judged[s.name] = attempt(s, bool(outside) and k == 0 and by_name[s.name].moves_basin)
-        verdict, _, fit, _ = judged[s.name]
-        if verdict.passes and Stage.of(s.name, fit.result).fits_noise:
+        j = judged[s.name]
+        if j.verdict.passes and Stage.of(s.name, j.fit.result).fits_noise:
             for rest in first[k + 1:] + ([later] if later in ranked else []):
                 # another could at best tie, for a refit's price
-                judged[rest.name] = (Verdict.NOT_REFITTED, (("by", s.name),), None, [])
+                judged[rest.name] = Judgement(Verdict.NOT_REFITTED, (("by", s.name),))
             break
     else:
-        explained = max((f.gain for v, _, f, _ in judged.values() if v.passes), default=0.0)
+        explained = max((j.gain for j in judged.values() if j.verdict.passes), default=0.0)
         if later is not None:
             search = explained < SEARCH_SHARE * excess  # its local refit only if unsettled
             if search or later in ranked:
@@ -321,7 +321,8 @@ def refit_order(asking: list[Score], outside: bool) -> list[Score]:
     return ranked + [s for s in asking[len(ranked):] if s.asked][:ASKED_SLOTS]
 
 
-def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosis=None):
+def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess,
+          diagnosis=None) -> Judgement:
     """The verdict on one refit: converged, a resonance the diagnosis placed still at its
     pole (inside the spans :data:`~vibid.identify.loop.candidates.POLE_SPAN` and
     :data:`~vibid.identify.loop.candidates.Q_SPAN` around it, not on their faces), its
@@ -335,30 +336,30 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess, diagnosi
     r, gain = fit.result, fit.gain
     detail = (("searched", fit.searched),)
     if not r.converged:
-        return Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit, []
+        return Judgement(Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit)
     moved = cand.strayed(r.parameters, res.parameters, diagnosis)
     if moved:
-        return Verdict.LEFT_ITS_FEATURE, detail + (("moved", moved),), fit, []
+        return Judgement(Verdict.LEFT_ITS_FEATURE, detail + (("moved", moved),), fit)
     z = cand.distance_from_null(r)
     if z <= KEEP_Z:
-        return Verdict.AT_NULL, detail + (("z", z),), fit, []
+        return Judgement(Verdict.AT_NULL, detail + (("z", z),), fit)
     significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
     own = box | cand.bounds(box, res.parameters, diagnosis)
-    left = [n for n in outside_prior(r, own) if n not in idle_parameters(r, cand.name)]
+    left = tuple(n for n in outside_prior(r, own) if n not in idle_parameters(r, cand.name))
     strayed = [n for n in left if n not in outside]
     if strayed:
-        return (Verdict.OUTSIDE_PRIOR, detail + (("left", _values(r, strayed, own)),), fit,
-                left)
+        return Judgement(Verdict.OUTSIDE_PRIOR, detail + (("left", _values(r, strayed, own)),),
+                         fit, left)
     if significant and gain >= KEEP_SHARE * excess:
-        return Verdict.OUTRANKED, detail, fit, left  # passes; :func:`choose` decides
+        return Judgement(Verdict.OUTRANKED, detail, fit, left)  # passes; choose() decides
     if outside and not left and gain >= -indistinct_chi2(len(r.values),
                                                          max(1.0, float(res.chi2_reduced))):
-        return (Verdict.EXPLAINS_EXCURSION, detail + (("outside", ", ".join(outside)),),
-                fit, left)
+        return Judgement(Verdict.EXPLAINS_EXCURSION,
+                         detail + (("outside", ", ".join(outside)),), fit, left)
     if significant:
-        return (Verdict.SMALL_SHARE, detail + (("share", 100 * gain / excess),
-                                               ("need", 100 * KEEP_SHARE)), fit, left)
-    return Verdict.NOT_SIGNIFICANT, detail, fit, left
+        return Judgement(Verdict.SMALL_SHARE, detail + (("share", 100 * gain / excess),
+                                                        ("need", 100 * KEEP_SHARE)), fit, left)
+    return Judgement(Verdict.NOT_SIGNIFICANT, detail, fit, left)
 
 
 def idle_parameters(result, but: str) -> set[str]:
@@ -449,7 +450,8 @@ def removed_feature(before, after, kinds):
 
 def choose(scores, judged: dict, res, plainness: dict,
            removes: dict | None = None) -> tuple[list[Score], Stage | None]:
-    """The candidate the round adds, and every score with its final verdict.
+    """The candidate the round adds, and every score with its final verdict (``judged``:
+    name -> :class:`Judgement`, left as it is).
 
     One that brings the estimate back inside its prior box goes first (an effect that
     leaves it outside is kept back). Among the rest, the refits that explain all but
@@ -464,12 +466,12 @@ def choose(scores, judged: dict, res, plainness: dict,
     wins: one whose feature the diagnosis found before one without, an effect before a
     new material, then the larger likelihood ratio."""
     removes = removes or {}
-    passing = {n: j for n, j in judged.items() if j[0].passes}
-    if any(not left for _, _, _, left in passing.values()):
-        for n, (v, d, fit, left) in list(passing.items()):
-            if left:
-                judged[n] = (Verdict.KEPT_BACK, d + (("left", ", ".join(left)),), fit, left)
-                del passing[n]
+    final = dict(judged)
+    passing = [n for n, j in judged.items() if j.verdict.passes]
+    if any(not judged[n].left for n in passing):
+        for n in [n for n in passing if judged[n].left]:
+            final[n] = judged[n].becomes(Verdict.KEPT_BACK, left=", ".join(judged[n].left))
+        passing = [n for n in passing if not judged[n].left]
     by_name = {s.name: s for s in scores}
     chosen = None
     if passing:
@@ -478,46 +480,40 @@ def choose(scores, judged: dict, res, plainness: dict,
         # (the orthotropic plate's anisotropy, 99.99998 % of the misfit, against a stand
         # resonance, 18 %, that removed the isotropic fit's most significant pole)
         excess = max(float(res.chi2 - res.dof), 0.0)
-        whole = [n for n in passing if passing[n][2].gain >= (1 - KEEP_SHARE) * excess]
+        whole = [n for n in passing if judged[n].gain >= (1 - KEEP_SHARE) * excess]
         # else only a refit that removes a diagnosed structure (or brings a bent estimate
         # back inside its box) explains something: shaving a share off a misfit that
         # remains is what any extra parameter does (a free length on a crosstalk)
         competing = whole or [n for n in passing if removes.get(n)
-                              or passing[n][0] is Verdict.EXPLAINS_EXCURSION]
+                              or judged[n].verdict is Verdict.EXPLAINS_EXCURSION]
         if not whole:
             for n in [n for n in passing if n not in competing]:
-                v, d, fit, left = passing.pop(n)
-                share_left = 100 * (1 - fit.gain / excess) if excess > 0 else 0.0
-                judged[n] = (Verdict.NO_STRUCTURE, d + (("left_share", share_left),), fit,
-                             left)
+                left_share = 100 * (1 - judged[n].gain / excess) if excess > 0 else 0.0
+                final[n] = judged[n].becomes(Verdict.NO_STRUCTURE, left_share=left_share)
+            passing = competing
     if passing:
         top = max((f.significance for n, f in removes.items() if n in competing and f),
                   default=None)
         pool = [n for n in competing if top is None or (removes.get(n) and
                                                        removes[n].significance == top)]
         # gains are all under the current fit's weights: comparable
-        best = max(passing[n][2].gain for n in pool)
+        best = max(judged[n].gain for n in pool)
         tie = indistinct_chi2(1, max(1.0, float(res.chi2_reduced)))
-        rivals = [n for n in pool if passing[n][2].gain >= best - tie]
+        rivals = [n for n in pool if judged[n].gain >= best - tie]
         chosen = min(rivals, key=lambda n: (not by_name[n].asked, plainness[n],
-                                            -passing[n][2].gain))
+                                            -judged[n].gain))
         for n in passing:
-            v, d, fit, left = judged[n]
-            if n == chosen:
-                v = v if v is Verdict.EXPLAINS_EXCURSION else Verdict.CHOSEN
-                if removes.get(n):
-                    d = d + (("feature", removes[n].note),)
+            j = judged[n]
+            if n != chosen:
+                final[n] = j.becomes(Verdict.OUTRANKED, by=chosen)
             else:
-                v, d = Verdict.OUTRANKED, d + (("by", chosen),)
-            judged[n] = (v, d, fit, left)
-    out = []
-    for s in scores:
-        if s.name in judged:
-            v, d, fit, _ = judged[s.name]
-            s = replace(s, verdict=v, detail=tuple(d),
-                        delta_chi2=fit.gain if fit is not None else math.nan)
-        out.append(s)
-    stage = Stage.of(chosen, judged[chosen][2].result) if chosen else None
+                verdict = (j.verdict if j.verdict is Verdict.EXPLAINS_EXCURSION
+                           else Verdict.CHOSEN)
+                feature = {"feature": removes[n].note} if removes.get(n) else {}
+                final[n] = j.becomes(verdict, **feature)
+    out = [replace(s, verdict=final[s.name].verdict, detail=tuple(final[s.name].detail),
+                   delta_chi2=final[s.name].gain) if s.name in final else s for s in scores]
+    stage = Stage.of(chosen, judged[chosen].fit.result) if chosen else None
     return out, stage
 
 

@@ -130,6 +130,27 @@ class Score:
 
 
 @dataclass(frozen=True)
+class Judgement:
+    """The judge's word on one candidate in a round: its verdict, the numbers the
+    verdict's sentence quotes, its refit (None where it was not refitted) and the names of
+    the refit's parameters outside their prior box."""
+
+    verdict: Verdict
+    detail: tuple = ()
+    fit: object = None  # :class:`vibid.identify.loop.refit.Refit`
+    left: tuple[str, ...] = ()
+
+    @property
+    def gain(self) -> float:
+        """The refit's likelihood ratio under the current fit's weights (nan unrefitted)."""
+        return self.fit.gain if self.fit is not None else math.nan
+
+    def becomes(self, verdict: Verdict, **more) -> "Judgement":
+        """This judgement with another verdict and more numbers for its sentence."""
+        return Judgement(verdict, self.detail + tuple(more.items()), self.fit, self.left)
+
+
+@dataclass(frozen=True)
 class Stage:
     """The model after one step of the loop (``added`` None for the declared model), and
     what its residual shows."""
