@@ -449,6 +449,7 @@ def identify(
     peaks_only: dict | None = None,
     magnitude: bool = False,
     kinds: dict | None = None,
+    weights: np.ndarray | None = None,
 ) -> IdentificationResult:
     """Identify the parameters of a material model from a measured AFC.
 
@@ -494,6 +495,10 @@ def identify(
     kinds: transforms by parameter name that replace the catalogue's
         (:func:`~vibid.identify.fit.space.make_transform`'s ``kind``): the closed loop holds
         a resonance it placed at a diagnosed pole inside the pole's span with a logit.
+    weights: (n_used,) standard uncertainties of Re and Im per used point to weigh chi2
+        with, in place of the data's std and the model's own error (which is then not
+        estimated): the closed loop polishes each refit under the current fit's weights,
+        and weighs only the refit it adds with its own model error.
     """
     t0 = time.perf_counter()
     model = model or setup.identification.model
@@ -518,7 +523,7 @@ def identify(
         box = forward_model.param.default_bounds(box)
     _check_basis_covers(forward_model, box, names)
     space = ParameterSpace.from_bounds(names, box, kinds)
-    problem = LeastSquaresProblem(forward_model, data, space)
+    problem = LeastSquaresProblem(forward_model, data, space, weights)
     opts = Options(local, restarts, refresh, np.random.default_rng(seed), progress,
                    None if peaks_only is None else dict(peaks_only))
 
@@ -534,7 +539,7 @@ def identify(
         found = [Fit(LOCAL_METHODS[local](problem, _start_u(space, start)), problem)]
     found = polish_on_local_model(found, opts)
     split = None
-    if data.noise_known:
+    if data.noise_known and weights is None:
         found, split = weigh_model_error(found, opts)
     best = found[0]
     return summarise(best.problem, data, model, best.run, tuple(f.run for f in found),

@@ -142,11 +142,14 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
         return replace(state, rounds=rounds), False
     cand = next(c for c in todo if c.name == chosen.added)
     box = state.box | cand.bounds(state.box, current.result.parameters, current.diagnosis)
-    chosen, gone = withdraw(inputs, chosen, box, [s.added for s in state.stages[1:]])
+    fit = judged[chosen.added].fit
+    own = refits.weighed(inputs.setup, inputs.data, fit, inputs.local)  # its own weights
+    chosen, gone = withdraw(inputs, Stage.of(chosen.added, own), box,
+                            [s.added for s in state.stages[1:]])
     if gone:  # a new fit: its residual read again
         rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
         chosen = diagnosed(inputs.setup, chosen)
-    else:
+    else:  # the residual of the refit it was chosen for (its weights aside, the same fit)
         chosen = replace(chosen, diagnosis=after[chosen.added])
     dropped = {s.name for s in gone}
     stages = tuple(s for s in state.stages if s.added not in dropped)
