@@ -45,11 +45,11 @@ residual's autocorrelation time along frequency (a smooth misfit spans many poin
 then count as one): the misfit then measures how far the model is from the data.
 """
 
-from vibid.identify.loop.candidates import (MAX_INSTANCES, ON_REQUEST, Candidate, EffectCandidate,
-                                            MaterialCandidate, all_candidates, default_candidates)
+from vibid.identify.loop.candidates import (MAX_INSTANCES, Candidate, EffectCandidate,
+                                            MaterialCandidate, all_candidates)
 from vibid.identify.loop.rounds import close_loop, scaled_by_misfit
 from vibid.identify.loop.verdicts import LoopResult, Score, Stage, Verdict
 
-__all__ = ["MAX_INSTANCES", "ON_REQUEST", "Candidate", "EffectCandidate", "LoopResult",
+__all__ = ["MAX_INSTANCES", "Candidate", "EffectCandidate", "LoopResult",
            "MaterialCandidate", "Score", "Stage", "Verdict", "all_candidates", "close_loop",
-           "default_candidates", "scaled_by_misfit"]
+           "scaled_by_misfit"]

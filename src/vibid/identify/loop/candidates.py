@@ -319,26 +319,8 @@ class MaterialCandidate:
         return max(z)
 
 
-#: Effects the loop tries only when asked (``candidates=``, ``--candidates``): a free
-#: length is nearly collinear with the bending stiffness (a longer span is a softer plate:
-#: only a declared prior on the length separates them), and its refits cost the most (the
-#: stretched plate is a structure of its own): among the default candidates the titanium
-#: AFC's loop, where every candidate is refitted in each of four rounds, took 109 s
-#: instead of 77 s for the same effects. (It had also been added to the beam's crosstalk,
-#: an effect outside the library, before a refit had to remove a diagnosed structure to be
-#: chosen.) A tall sensor's rotary inertia, once on request too, is a default candidate:
-#: every loop test and benchmark case ends as without it, the thick strip's transverse
-#: shear included, and a tall sensor alone is named among all of them.
-ON_REQUEST = ("free_length",)
-
-
 def all_candidates() -> tuple:
-    """Every candidate the loop knows (by default it tries :func:`default_candidates`)."""
+    """Every candidate the loop knows, and tries unless told which."""
     from vibid.identify.effects import EFFECTS
 
     return tuple(EffectCandidate(n) for n in EFFECTS) + (MaterialCandidate(),)
-
-
-def default_candidates() -> tuple:
-    """The candidates the loop tries unless told which: all but :data:`ON_REQUEST`."""
-    return tuple(c for c in all_candidates() if c.name not in ON_REQUEST)

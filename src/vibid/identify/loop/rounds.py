@@ -19,7 +19,7 @@ from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
-from vibid.identify.loop.candidates import all_candidates, default_candidates, distance_from_null
+from vibid.identify.loop.candidates import all_candidates, distance_from_null
 from vibid.identify.loop.scoring import score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
 
@@ -82,7 +82,7 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
     """Fit the declared model, then add the effects its residual asks for
     (:mod:`vibid.identify.loop`).
 
-    ``candidates``: names to consider (default :func:`default_candidates`);
+    ``candidates``: names to consider (default every one, :func:`all_candidates`);
     ``declared``: the declared model's result when already computed;
     ``magnitude``: fit |H| alone, with the candidates |H| can see (not a channel delay).
     """
@@ -112,7 +112,7 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
 
 def _pool(candidates) -> tuple:
     if candidates is None:
-        return default_candidates()
+        return all_candidates()
     known = {c.name: c for c in all_candidates()}
     unknown = sorted(set(candidates) - set(known))
     if unknown:
