@@ -238,3 +238,19 @@ def test_a_new_material_is_not_refitted_once_an_effect_fits_the_noise(monkeypatc
     calls, judged = _round(monkeypatch, gains, fits_noise=("added_mass",))
     assert calls == [("added_mass", False)]
     assert judged["anisotropy"].verdict is Verdict.NOT_REFITTED
+
+
+# -- how a refit is weighed (``refit.model_error_weighs_in``) ------------------------------------
+def test_refits_weigh_their_own_model_error_only_where_it_changes_chi2():
+    """Titanium's declared fit: chi2_red 9175 under the data's weights, 8963 with the
+    model's error (2.3 %): refits are weighed as the current fit is. The simulated CFRP
+    plate once orthotropic: 27.3 against 2.0: each refit weighs its own (without it, the
+    error's systematic part missing, three spurious effects stood 3 std from their nulls)."""
+    from vibid.identify.loop.refit import model_error_weighs_in
+
+    def fit(data, weighted):
+        return SimpleNamespace(chi2_reduced_data_weights=data, chi2_reduced=weighted)
+
+    assert not model_error_weighs_in(fit(9175.0, 8963.0))
+    assert model_error_weighs_in(fit(27.3, 2.0))
+    assert model_error_weighs_in(fit(1.12, 1.0))  # 12 %: near the noise it weighs in

@@ -497,8 +497,9 @@ def identify(
         a resonance it placed at a diagnosed pole inside the pole's span with a logit.
     weights: (n_used,) standard uncertainties of Re and Im per used point to weigh chi2
         with, in place of the data's std and the model's own error (which is then not
-        estimated): the closed loop polishes each refit under the current fit's weights,
-        and weighs only the refit it adds with its own model error.
+        estimated): where the model's error barely changes chi2, the closed loop polishes
+        each refit under the current fit's weights and weighs only the refit it adds with
+        its own model error (:data:`vibid.identify.loop.refit.MODEL_ERROR_SHARE`).
     """
     t0 = time.perf_counter()
     model = model or setup.identification.model

@@ -68,10 +68,10 @@ class Refit:
 
 def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
     """``fit``'s result weighed with its own model's error and polished once more (the
-    full identification), for the refit the loop adds: its rivals were all judged under
-    the current fit's weights, where the model's error is the current model's (on the
-    titanium AFC it changes the weights by 5 % at most, and estimating it again, on the
-    next finer mesh, cost each of 31 refits half a second)."""
+    full identification), for the refit the loop adds; ``fit.result`` itself where it
+    already weighed its own (:data:`MODEL_ERROR_SHARE`). Its rivals were judged under the
+    current fit's weights, whose model error is the current model's (on the titanium AFC
+    the weights lie at most 5.2 % above the data's std)."""
     if fit.polish is None:
         return fit.result
     fm, box, kinds = fit.polish
