@@ -75,11 +75,17 @@ def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
     if fit.polish is None:
         return fit.result
     fm, box, kinds = fit.polish
-    r = fit.result
+    return _polish(setup, data, fm.refresh(fit.result.values), fit.result.parameters, box,
+                   kinds, local)
+
+
+def _polish(setup, data, fm, start: dict, box, kinds, local: str, weights=None):
+    """The full identification from ``start`` on the forward model ``fm`` (one local
+    run, the covariance), under ``weights`` or, None, the data's and the model's error."""
     return identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
-                    model=fm.param.model, forward_model=fm.refresh(r.values), method="local",
-                    start=r.parameters, bounds=box, local=local, magnitude=data.magnitude,
-                    kinds=kinds)
+                    model=fm.param.model, forward_model=fm, method="local", start=start,
+                    bounds=box, local=local, magnitude=data.magnitude, kinds=kinds,
+                    weights=weights)
 
 
 def starts(space, u0, new, current_names) -> list[np.ndarray]:
@@ -113,16 +119,16 @@ def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = Fal
     if searched is not None and searched.settled:
         result, loss = searched.result, searched.loss
     else:
-        (result, loss), polish = _local(setup, data, res, cand, problem, start, ext_box,
-                                        diagnosis, local)
+        result, loss, polish = _local(setup, data, res, cand, problem, start, ext_box,
+                                      diagnosis, local)
         if searched is not None and searched.result.converged and searched.loss < loss:
-            (result, loss), polish = (searched.result, searched.loss), None
+            result, loss, polish = searched.result, searched.loss, None
     log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
     return Refit(result, float(res.chi2 - loss), search, polish)
 
 
 def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: str):
-    """``((result, chi2 under the current weights), polish)``: local fits from the current
+    """``(result, chi2 under the current weights, polish)``: local fits from the current
     estimate (:func:`starts`), the best polished by the full identification, under the
     current weights where the model's own error does not weigh in
     (:data:`MODEL_ERROR_SHARE`; ``polish``: :attr:`Refit.polish`, None where it weighed
@@ -148,11 +154,9 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     fm = problem.model.refresh(best.theta)
     kinds = cand.held(res.parameters, diagnosis)
     weights = None if model_error_weighs_in(res) else problem.sigma
-    result = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
-                      model=fm.param.model, forward_model=fm, method="local",
-                      start=dict(zip(names, best.theta)), bounds=ext_box, local=local,
-                      magnitude=data.magnitude, kinds=kinds, weights=weights)
-    return (result, best.loss), (None if weights is None else (fm, ext_box, kinds))
+    result = _polish(setup, data, fm, dict(zip(names, best.theta)), ext_box, kinds, local,
+                     weights)
+    return result, best.loss, (None if weights is None else (fm, ext_box, kinds))
 
 
 def model_error_weighs_in(res) -> bool:

@@ -475,49 +475,53 @@ def choose(scores, judged: dict, res, plainness: dict,
         for n in [n for n in passing if judged[n].left]:
             final[n] = judged[n].becomes(Verdict.KEPT_BACK, left=", ".join(judged[n].left))
         passing = [n for n in passing if not judged[n].left]
-    by_name = {s.name: s for s in scores}
-    chosen = None
-    if passing:
-        # a refit that leaves less of the misfit than an effect must explain to be kept
-        # answers the residual as a whole: only such refits compete where there are any
-        # (the orthotropic plate's anisotropy, 99.99998 % of the misfit, against a stand
-        # resonance, 18 %, that removed the isotropic fit's most significant pole)
-        excess = max(float(res.chi2 - res.dof), 0.0)
-        whole = [n for n in passing if judged[n].gain >= (1 - KEEP_SHARE) * excess]
-        # else only a refit that removes a diagnosed structure (or brings a bent estimate
-        # back inside its box) explains something: shaving a share off a misfit that
-        # remains is what any extra parameter does (a free length on a crosstalk)
-        competing = whole or [n for n in passing if removes.get(n)
-                              or judged[n].verdict is Verdict.EXPLAINS_EXCURSION]
-        if not whole:
-            for n in [n for n in passing if n not in competing]:
-                left_share = 100 * (1 - judged[n].gain / excess) if excess > 0 else 0.0
-                final[n] = judged[n].becomes(Verdict.NO_STRUCTURE, left_share=left_share)
-            passing = competing
-    if passing:
-        top = max((f.significance for n, f in removes.items() if n in competing and f),
-                  default=None)
-        pool = [n for n in competing if top is None or (removes.get(n) and
-                                                       removes[n].significance == top)]
-        # gains are all under the current fit's weights: comparable
-        best = max(judged[n].gain for n in pool)
-        tie = indistinct_chi2(1, max(1.0, float(res.chi2_reduced)))
-        rivals = [n for n in pool if judged[n].gain >= best - tie]
-        chosen = min(rivals, key=lambda n: (not by_name[n].asked, plainness[n],
-                                            -judged[n].gain))
-        for n in passing:
-            j = judged[n]
-            if n != chosen:
-                final[n] = j.becomes(Verdict.OUTRANKED, by=chosen)
-            else:
-                verdict = (j.verdict if j.verdict is Verdict.EXPLAINS_EXCURSION
-                           else Verdict.CHOSEN)
-                feature = {"feature": removes[n].note} if removes.get(n) else {}
-                final[n] = j.becomes(verdict, **feature)
-    out = [replace(s, verdict=final[s.name].verdict, detail=tuple(final[s.name].detail),
+    # a refit that leaves less of the misfit than an effect must explain to be kept
+    # answers the residual as a whole: only such refits compete where there are any
+    # (the orthotropic plate's anisotropy, 99.99998 % of the misfit, against a stand
+    # resonance, 18 %, that removed the isotropic fit's most significant pole)
+    excess = max(float(res.chi2 - res.dof), 0.0)
+    whole = [n for n in passing if judged[n].gain >= (1 - KEEP_SHARE) * excess]
+    # else only a refit that removes a diagnosed structure (or brings a bent estimate
+    # back inside its box) explains something: shaving a share off a misfit that
+    # remains is what any extra parameter does (a free length on a crosstalk)
+    competing = whole or [n for n in passing if removes.get(n)
+                          or judged[n].verdict is Verdict.EXPLAINS_EXCURSION]
+    if not whole:
+        for n in [n for n in passing if n not in competing]:
+            left_share = 100 * (1 - judged[n].gain / excess) if excess > 0 else 0.0
+            final[n] = judged[n].becomes(Verdict.NO_STRUCTURE, left_share=left_share)
+        passing = competing
+    chosen = plainest(competing, judged, removes, res, {s.name: s.asked for s in scores},
+                      plainness) if competing else None
+    for n in passing:
+        j = judged[n]
+        if n != chosen:
+            final[n] = j.becomes(Verdict.OUTRANKED, by=chosen)
+        else:
+            verdict = (j.verdict if j.verdict is Verdict.EXPLAINS_EXCURSION
+                       else Verdict.CHOSEN)
+            feature = {"feature": removes[n].note} if removes.get(n) else {}
+            final[n] = j.becomes(verdict, **feature)
+    out = [replace(s, verdict=final[s.name].verdict, detail=final[s.name].detail,
                    delta_chi2=final[s.name].gain) if s.name in final else s for s in scores]
     stage = Stage.of(chosen, judged[chosen].fit.result) if chosen else None
     return out, stage
+
+
+def plainest(competing, judged: dict, removes: dict, res, asked: dict, plainness: dict):
+    """Of the ``competing`` refits, those that remove the most significant diagnosed
+    feature (all where none removes one); of those whose chi2 the data cannot tell from
+    the best's, the plainest: asked for by the diagnosis, then an effect before a new
+    material, then the larger likelihood ratio."""
+    top = max((f.significance for n, f in removes.items() if n in competing and f),
+              default=None)
+    pool = [n for n in competing if top is None or (removes.get(n) and
+                                                   removes[n].significance == top)]
+    # gains are all under the current fit's weights: comparable
+    best = max(judged[n].gain for n in pool)
+    tie = indistinct_chi2(1, max(1.0, float(res.chi2_reduced)))
+    rivals = [n for n in pool if judged[n].gain >= best - tie]
+    return min(rivals, key=lambda n: (not asked[n], plainness[n], -judged[n].gain))
 
 
 def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:
