@@ -17,7 +17,8 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    needs the modes' pattern to ask for it: more of the plate's modes in the band than the
    current material has stiffnesses (which place any fewer).
 4. **Refit** the candidates whose score asks for it, best first, and the best one the
-   diagnosis asks for where it is not among them (:mod:`~vibid.identify.loop.refit`), a
+   diagnosis asks for where it is not among them, and each one without parameters of its
+   own (one run; its secant score is no slope) (:mod:`~vibid.identify.loop.refit`), a
    new material after the effects: where their refits leave most of the misfit, search
    the best-scoring new material globally (its basin may lie far from the current
    fit's; an effect's new parameters start at their null or at the diagnosed feature, and
