@@ -16,6 +16,11 @@ For the clamped plate under base excitation (relative motion ``u = 1 + u_rel``, 
 * the probe ``c`` with ``u(x_s, y_s) = c · u`` at the sensor centre, and the effects' own
   probe vectors (a sensor displaced from its declared place).
 
+A term may bring a field of its own beside the plate's deflection (the shear deflection of
+:mod:`vibid.identify.effects.transverse_shear`): its matrices are then larger, the plate's
+degrees of freedom first and the field's after them, all of the field's free; every other
+matrix, load and probe is padded with zeros (the field takes no part in them).
+
 The plate's own matrices are assembled once per (geometry, discretisation) on all degrees
 of freedom (:func:`assemble_all`); a model's terms then choose the free degrees of freedom
 (the clamp fixes displacement and slope along ``x = 0``; a term may release some) and add
@@ -97,6 +102,19 @@ class AssemblyContext:
         centre = np.array([g.sensor_x_m, g.sensor_y_m])
         _, grad, _ = assemble_disc(self.basis, centre, g.sensor_radius_m)
         return (g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2) * grad).tocsr()
+
+    def translational_inertia(self) -> sp.csr_matrix:
+        """``ρh ∫ u v + m/(π r²) ∫_disc u v`` (kg): the plate's and the declared sensor's
+        mass, without their rotary inertia."""
+        g = self.geometry
+        uv, _, _ = assemble_disc(self.basis, np.array([g.sensor_x_m, g.sensor_y_m]),
+                                 g.sensor_radius_m)
+        plate = g.mass_per_area_kg_m2 * translational_inertia.assemble(self.basis)
+        return (plate + g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2) * uv).tocsr()
+
+    def clamped(self, names) -> np.ndarray:
+        """The degrees of freedom named ``names`` (e.g. ``"u"``) on the clamped edge."""
+        return _clamped_dofs(self.basis, names)
 
     def probe_at(self, centre_m) -> np.ndarray:
         """(N,) the probe ``c`` with ``u(x, y) = c · u`` at ``centre_m`` = (x, y)."""
@@ -309,11 +327,26 @@ def _model_matrices(geometry: Geometry, discretisation: Discretisation,
                 probes[name] = np.asarray(matrix, float)
             else:
                 (stiffness if name in t.stiffness_matrices else inertia)[name] = matrix
+    # a term's own field (module docstring): every dof beyond the plate's is free
+    size = max(a.shape[0] for a in (*stiffness.values(), *inertia.values(), *probes.values()))
+    free = np.concatenate([free, np.arange(basis.N, size)])
+
+    def pad(a):
+        extra = size - a.shape[0]
+        if not extra:
+            return a
+        if a.ndim == 1:
+            return np.concatenate([a, np.zeros(extra)])
+        return sp.block_diag([a, sp.csr_matrix((extra, extra))]).tocsr()
+
+    stiffness = {k: pad(a) for k, a in stiffness.items()}
+    inertia = {k: pad(a) for k, a in inertia.items()}
+    probes = {k: pad(c) for k, c in probes.items()}
 
     def restrict(a):
         return a[free][:, free].tocsr()
 
-    one, x = full.one, full.x
+    one, x = pad(full.one), pad(full.x)
     mats = PlateMatrices(
         geometry=geometry, discretisation=discretisation,
         stiffness={k: restrict(a) for k, a in stiffness.items()},
@@ -323,7 +356,7 @@ def _model_matrices(geometry: Geometry, discretisation: Discretisation,
         probes={k: c[free] for k, c in probes.items()},
         probes_rigid={k: float(c @ one) for k, c in probes.items()},
         probes_rotation={k: float(c @ x) for k, c in probes.items()},
-        n_dof=free.size, n_dof_total=basis.N, sensor_area_m2=full.sensor_area_m2,
+        n_dof=free.size, n_dof_total=size, sensor_area_m2=full.sensor_area_m2,
         rigid_mass_kg={k: float(one @ (a @ one)) for k, a in inertia.items()}, free=free,
     )
     log.info("assembled %s %dx%d%s: %d free dof", discretisation.element, discretisation.nx,
