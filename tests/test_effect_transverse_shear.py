@@ -66,3 +66,24 @@ def test_orthotropic_form_equals_isotropic_form_at_the_isotropic_shear_modulus()
              "G13_Pa": E / (2 * (1 + nu))}
     f_o, _ = natural_frequencies(setup, ortho, 3)
     np.testing.assert_allclose(f_o, iso, rtol=1e-10)
+
+
+def test_the_shear_field_shares_no_model_with_a_stretched_mesh_or_a_moved_sensor():
+    """Their matrices move mass on the bending deflection alone; the field's coupling is the
+    declared mass: such a model is refused with one line, and the loop does not try it."""
+    from vibid.errors import VibidError
+    from vibid.identify.loop.candidates import all_candidates
+    from vibid.identify.model.assembly import Geometry, model_matrices
+    from vibid.identify.model.forward import discretisation, plate_model
+
+    setup = plate_setup(L, B, H, density=RHO, mass_kg=1e-3, radius_m=0.002)
+    g = Geometry.from_setup(setup)
+    both = plate_model("isotropic", effects=("sensor_position", "transverse_shear"))
+    with pytest.raises(VibidError, match="cannot share a model"):
+        model_matrices(g, discretisation(g), both.effects)
+    shear = {c.name: c for c in all_candidates()}
+    with_position = plate_model("isotropic", effects=("sensor_position",))
+    with_shear = plate_model("isotropic", effects=("transverse_shear",))
+    assert not shear["transverse_shear"].applies(with_position, None)
+    assert not shear["free_length"].applies(with_shear, None)
+    assert shear["clamp_compliance"].applies(with_shear, None)

@@ -97,6 +97,9 @@ class EffectCandidate:
         term = self.term
         if term.requires and term.requires not in model.effect_names:
             return False  # a clamp's own loss needs the clamp's spring first
+        if set(term.excludes) & set(model.effect_names) or any(
+                self.name in t.excludes for t in model.effects):
+            return False  # the shear field beside a stretched mesh or a moved sensor
         if term.needs_feature and not self.feature(diagnosis):
             return False  # a stand resonance needs a pole where the plate has none
         if term.instance is not None:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from vibid.errors import VibidError
 from vibid.identify.model.disc import assemble_disc, shifted_disc
 from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, rotary_inertia,
@@ -297,6 +298,11 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
     (see the module docstring); ``effects`` is ``PlateModel.effects``. Terms that bring no
     matrix, probe or released degree of freedom (a delay, a gain, a loss law) share the
     matrices of the model without them."""
+    names = {t.name for t in effects}
+    clash = [(t.name, n) for t in effects for n in t.excludes if n in names]
+    if clash:
+        raise VibidError(f"the effects {clash[0][0]} and {clash[0][1]} cannot share a model "
+                         "(vibid.identify.effects." + clash[0][0] + " says why)")
     own = tuple(t for t in effects if t.stiffness_matrices or t.inertia_matrices
                 or t.probe_vectors or t.released)
     return _model_matrices(geometry, discretisation, own)

@@ -72,6 +72,9 @@ class Term:
     #: the effect a model must have before this one can be added (a clamp's own loss
     #: needs the clamp's spring)
     requires = None
+    #: effects it cannot share a model with (the shear field's mass would no longer be
+    #: the plate's: a stretched mesh, a moved sensor disc)
+    excludes: tuple[str, ...] = ()
     #: the residual's features (:mod:`vibid.identify.diagnosis`) it can explain: the loop
     #: prefers a kept effect whose feature the diagnosis found
     explains: tuple[str, ...] = ("mode_shift",)
