@@ -1,4 +1,4 @@
-"""vibid's plate against the independent polynomial Ritz plate of tests/ritz_sessions.py (no
+"""vibid's plate against the independent polynomial Ritz plate of tests/ritz_plate.py (no
 mesh, no Argyris elements; the same energies, the sensor a disc of spread mass): the paper's
 strip with nu = 0 and its 1 g sensor, centred and 3 mm off the centre line, where the
 sensor excites the torsion modes (which the exact beam of tests/beam_reference.py cannot
@@ -9,7 +9,7 @@ import dataclasses
 import beam_sessions as bs
 import numpy as np
 import pytest
-import ritz_sessions as rs
+import ritz_plate as rs
 
 from vibid.identify.model.forward import build_forward_model, natural_frequencies, plate_model
 

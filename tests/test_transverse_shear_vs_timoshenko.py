@@ -7,7 +7,6 @@ force included. The first-order inertia it replaced placed the modes 7 %, 6 % an
 their shift short with a 1 g sensor and missed the AFC by up to 4 % at 4.4 kHz."""
 
 import numpy as np
-import pytest
 import timoshenko_reference as tim
 from plate_helpers import plate_setup
 

@@ -244,8 +244,9 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     parameter of its own whose score passes (its refit is one local run from the current
     estimate, and its score, taken along the secant to the model with it, is no local
     slope: the transverse shear of a Timoshenko beam scored 806, seventh, and its refit
-    lowered chi2 from 15 186 to 167), stopping at one that fits the noise. The best-scoring candidate whose basin may lie elsewhere (a new material) comes
-    after the others: where their refits leave most of the misfit unexplained, it is
+    lowered chi2 from 15 186 to 167), stopping at one that fits the noise. The
+    best-scoring candidate whose basin may lie elsewhere (a new material) comes after the
+    others: where their refits leave most of the misfit unexplained, it is
     searched globally over its box, its local refit run beside the search only where the
     search does not settle it (on the CFRP plate the local refit of the orthotropic
     material, 9 s, ended at a chi2 a million times the search's); else it is refitted

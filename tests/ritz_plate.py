@@ -1,5 +1,4 @@
-"""Sessions for the closed loop from an independent Ritz plate: polynomials, not vibid's
-finite elements. The deflection relative to the clamp is ``Σ q_mn ξ² P_m(2ξ − 1) P_n(2η − 1)``
+"""An independent Ritz plate for tests: polynomials, not vibid's finite elements. The deflection relative to the clamp is ``Σ q_mn ξ² P_m(2ξ − 1) P_n(2η − 1)``
 (``ξ = x/L``, ``η = y/B``, Legendre polynomials ``P``; ``ξ²`` holds the clamp's zero
 displacement and slope), the energies are those of the session format's plate with its
 rotary inertia ``ρh h²/12 ∫ ∇u·∇v``, and the sensor is a disc of spread mass (its mass
@@ -8,8 +7,9 @@ excitation ``H = 1 + ψ_s·q``, ``(K (1 + iβ) − ω² M) q = ω² M 1``. numpy
 vibid's.
 
 Its strip is the paper's (100 x 20 x 1 mm steel, nu = 0, a 1 g sensor of 1 mm radius 10 mm
-from the tip, as tests/beam_sessions.py declares it): a sensor off the centre line excites the torsion modes, which a centred one
-does not (the exact beam of tests/beam_reference.py cannot hold them)."""
+from the tip, as tests/beam_sessions.py declares it): a sensor off the centre line excites
+the torsion modes, which a centred one does not (the exact beam of tests/beam_reference.py
+cannot hold them)."""
 
 from __future__ import annotations
 
