@@ -39,7 +39,7 @@ def _along(n, xi):
 
 
 @functools.lru_cache(maxsize=8)
-def matrices(L, B, h, rho, xs, ys, mass, radius, n_x=22, n_y=12, n_quad=64, n_disc=24):
+def matrices(L, B, h, rho, xs, ys, mass, radius, n_x=30, n_y=16, n_quad=64, n_disc=24):
     """(K by modulus name, M, load M·1, probe at the sensor centre) of the Ritz plate."""
     gx, wx = np.polynomial.legendre.leggauss(n_quad)
     xi, wxi = (gx + 1) / 2, wx / 2
