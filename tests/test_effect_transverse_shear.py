@@ -4,10 +4,10 @@ shear field adds to the Kirchhoff plate equals the closed-form Timoshenko/Raylei
 ratio (Huang 1961): the field is Timoshenko's theory on a beam (the forced response and a
 sensor's: tests/test_transverse_shear_vs_timoshenko.py)."""
 
+import huang_cantilever as huang
 import numpy as np
 import pytest
 from plate_helpers import plate_setup
-from scipy.optimize import brentq
 
 from vibid.identify.model.forward import natural_frequencies
 from vibid.identify.model.materials import flexural_rigidity
@@ -17,23 +17,8 @@ L, B, H, RHO, E, KAPPA = 0.0996, 0.020, 0.003, 4550.0, 110e9, 5 / 6
 
 
 def cantilever(shear: bool, n: int = 2):
-    """Clamped-free Rayleigh (rotary inertia) or Timoshenko beam frequencies, Hz (Huang 1961),
-    with nu = 0: EI = E h³ b / 12, G = E / 2."""
-    EI, A = E * H**3 * B / 12, B * H
-    r2 = H**2 / 12 / L**2
-    s2 = EI / (KAPPA * E / 2 * A * L**2) if shear else 0.0
-
-    def g(b):
-        root = np.sqrt((r2 - s2) ** 2 + 4 / b**2)
-        a, c = np.sqrt((-(r2 + s2) + root) / 2), np.sqrt(((r2 + s2) + root) / 2)
-        return (2 / np.cosh(b * a) + (b**2 * (r2 - s2) ** 2 + 2) * np.cos(b * c)
-                - b * (r2 + s2) / np.sqrt(1 - b**2 * r2 * s2) * np.tanh(b * a) * np.sin(b * c))
-
-    grid = np.linspace(0.5, 60.0, 6000)
-    vals = g(grid)
-    roots = [brentq(g, grid[i], grid[i + 1], xtol=1e-14)
-             for i in range(len(grid) - 1) if vals[i] * vals[i + 1] < 0][:n]
-    return np.sqrt(np.array(roots) ** 2 * EI / (RHO * A * L**4)) / (2 * np.pi)
+    """The strip's clamped-free frequencies, Hz (Huang 1961: tests/huang_cantilever.py)."""
+    return huang.frequencies_hz(n, L=L, B=B, H=H, rho=RHO, E=E, kappa=KAPPA, shear=shear)
 
 
 @pytest.mark.slow

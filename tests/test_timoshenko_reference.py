@@ -3,6 +3,7 @@ results: the Rayleigh-beam reference (tests/beam_reference.py) in the shear-rigi
 (1961) closed-form cantilever frequency equation, static Timoshenko beam theory for the
 low-frequency limit, and its own result with the beam cut finer (the multiple shooting)."""
 
+import huang_cantilever as huang
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -21,24 +22,8 @@ BODY_M, BODY_J = 2e-3, 3e-8  # an accelerometer: 2 g, radius of gyration ~4 mm
 
 
 def cantilever(shear: bool, n: int = 2):
-    """Clamped-free Rayleigh (rotary inertia) or Timoshenko beam frequencies, Hz (Huang 1961),
-    with nu = 0: EI = E h³ b / 12, G = E / 2. Copied from test_effect_transverse_shear.py (which
-    imports vibid)."""
-    EI, A = E * H**3 * B / 12, B * H
-    r2 = H**2 / 12 / L**2
-    s2 = EI / (KAPPA * E / 2 * A * L**2) if shear else 0.0
-
-    def g(b):
-        root = np.sqrt((r2 - s2) ** 2 + 4 / b**2)
-        a, c = np.sqrt((-(r2 + s2) + root) / 2), np.sqrt(((r2 + s2) + root) / 2)
-        return (2 / np.cosh(b * a) + (b**2 * (r2 - s2) ** 2 + 2) * np.cos(b * c)
-                - b * (r2 + s2) / np.sqrt(1 - b**2 * r2 * s2) * np.tanh(b * a) * np.sin(b * c))
-
-    grid = np.linspace(0.5, 60.0, 6000)
-    vals = g(grid)
-    roots = [brentq(g, grid[i], grid[i + 1], xtol=1e-14)
-             for i in range(len(grid) - 1) if vals[i] * vals[i + 1] < 0][:n]
-    return np.sqrt(np.array(roots) ** 2 * EI / (RHO * A * L**4)) / (2 * np.pi)
+    """The strip's clamped-free frequencies, Hz (Huang 1961: tests/huang_cantilever.py)."""
+    return huang.frequencies_hz(n, L=L, B=B, H=H, rho=RHO, E=E, kappa=KAPPA, shear=shear)
 
 
 # ------------------------------------------------------------ shear-rigid limit = Rayleigh
