@@ -117,3 +117,26 @@ def test_modes_and_chi2_from_one_decomposition_equal_the_separate_calls():
     # (chi2_batch maps U back to theta: a round trip's last digits)
     np.testing.assert_allclose(problem.chi2_of_afc(H), problem.chi2_batch(U), rtol=1e-8)
     assert problem.chi2_of_afc(H)[0] < 0.5 * problem.chi2_of_afc(H)[1]  # truth vs moved
+
+
+@pytest.mark.parametrize("magnitude", [False, True])
+def test_reverse_mode_gradient_equals_the_forward_jacobians(magnitude):
+    """The trust region's chi2 and gradient (one reverse-mode pass) equal ``|r|²`` and
+    ``2 Jᵀ r`` from the forward-mode Jacobian, and a central difference of chi2, away
+    from the minimum (clamp and sensor offset moved: 6 parameters, padded to 8)."""
+    problem, theta = _problem(("clamp_compliance", "sensor_position"),
+                              {"k_theta_N_per_rad": 2e4, "sensor_dy_m": 2e-3})
+    if magnitude:
+        d = problem.data
+        problem = LeastSquaresProblem(problem.model, fit_data(
+            FREQS, np.abs(d.H), d.std, magnitude=True), problem.space)
+    u = problem.space.to_u(theta) + np.linspace(-0.02, 0.03, theta.size)
+    f, g = problem.value_and_grad(u)
+    J = problem.jacobian(u)
+    r = problem.residuals(u)
+    np.testing.assert_allclose(f, r @ r, rtol=1e-12)
+    np.testing.assert_allclose(g, 2 * J.T @ r, rtol=1e-9, atol=1e-9 * np.abs(g).max())
+    h = 1e-6
+    fd = [(problem.chi2(u + h * e) - problem.chi2(u - h * e)) / (2 * h)
+          for e in np.eye(u.size)]
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6 * np.abs(g).max())
