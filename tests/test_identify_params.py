@@ -53,3 +53,16 @@ def test_out_of_bounds_names():
     space = ParameterSpace.from_bounds(("D", "nu", "beta"),
                                        {"D": (30.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)})
     assert space.out_of_bounds([17.97, 0.286, 0.003]) == ["D"]
+
+
+def test_a_log_box_keeps_its_positive_lower_bound_over_many_decades():
+    """The clamp's catalogue box, 1e2 to 1e9 N/rad, maps to [-1, 1] whole: a stiff clamp of
+    1.6e4 N/rad lies inside it (u = -0.37), not below a box cut at a thousandth of its top
+    (1e6, where it was u = -2.2); only a bound at 0 is moved in (mass >= 0)."""
+    t = make_transform("k_theta_N_per_rad", 1e2, 1e9)
+    assert float(t.to_u(1e2)) == pytest.approx(-1.0) and float(t.to_u(1e9)) == pytest.approx(1.0)
+    assert float(t.to_u(1.6e4)) == pytest.approx(-0.3703, abs=1e-4)
+    space = ParameterSpace.from_bounds(("k_theta_N_per_rad",), {"k_theta_N_per_rad": (1e2, 1e9)})
+    assert space.out_of_bounds([1.6e4]) == []
+    m = make_transform("mass_kg", 0.0, 5e-3)
+    assert float(m.from_u(-1.0)) == pytest.approx(5e-6)  # a bound at 0: moved to 1e-3 of the top

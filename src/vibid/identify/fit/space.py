@@ -137,7 +137,10 @@ def make_transform(name: str, low: float, high: float, kind: tuple | None = None
     if kind[0] == "log":
         if high <= 0:
             raise VibidError(f"bounds of {name}: {name} is positive, got [{low!r}, {high!r}]")
-        lo = max(low, high * EDGE_MARGIN)  # a prior bound at 0 (e.g. beta >= 0)
+        # only a prior bound at 0 (e.g. mass >= 0) is moved in: a positive one is kept, however
+        # many decades the box spans (clipped to a thousandth of its top, the clamp's
+        # 1e2-1e9 N/rad box was 1e6-1e9, and a stiff clamp of 1.6e4 lay outside it)
+        lo = low if low > 0 else high * EDGE_MARGIN
     elif kind[0] == "logit":
         a, b = float(kind[1]), float(kind[2])
         if high <= a or low >= b:
