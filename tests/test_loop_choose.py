@@ -76,7 +76,8 @@ def test_a_refit_that_removes_no_diagnosed_structure_is_not_added(stages):
 
 def _choose_with_left(refits, removes, left):
     scores = [Score(n, 1e3, 1, 0.0, 0.1) for n in refits]
-    judged = {n: Judgement(Verdict.OUTRANKED, (), f, left.get(n, ())) for n, f in refits.items()}
+    judged = {n: Judgement(Verdict.OUTRANKED, (), f, left.get(n, ()))
+              for n, f in refits.items()}
     current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF)
     return rounds.choose(scores, judged, current, {n: 0 for n in refits}, removes)
 

@@ -463,10 +463,11 @@ def choose(scores, judged: dict, res, plainness: dict,
     name -> :class:`Judgement`, left as it is).
 
     One that brings the estimate back inside its prior box and competes (below) goes
-    first (an effect that leaves it outside is kept back). Among the rest, the refits that explain all but
-    :data:`KEEP_SHARE` of the misfit compete where there are any; where there are none,
-    only those whose refit removes a diagnosed feature (``removes``: name -> the feature
-    it removed) or explains a bent estimate's excursion compete, and the others are
+    first (an effect that leaves it outside is kept back). Among the rest, the refits that
+    explain all but :data:`KEEP_SHARE` of the misfit compete where there are any; where
+    there are none, only those whose refit removes a diagnosed feature (``removes``:
+    name -> the feature it removed) or explains a bent estimate's excursion compete, and
+    the others are
     ``no_structure`` (a share of a misfit that remains is no explanation: any extra
     parameter shaves some). Of those competing, an effect is chosen for the structure it
     explains: the ones whose refit removes the most significant diagnosed feature
