@@ -26,11 +26,15 @@ def stages(monkeypatch):
         lambda cls, added, result: SimpleNamespace(added=added, result=result)))
 
 
-def _choose(refits, removes):
+def _choose(refits, removes, left=None):
+    """``rounds.choose`` on stand-in refits; ``left``: name -> the parameters its refit
+    leaves outside their prior box."""
+    left = left or {}
     scores = [Score(n, 1e3, 1, 0.0, 0.1) for n in refits]
-    judged = {n: Judgement(Verdict.OUTRANKED, (), f) for n, f in refits.items()}
+    judged = {n: Judgement(Verdict.OUTRANKED, (), f, left.get(n, ()))
+              for n, f in refits.items()}
     current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF)
-    plainness = {"stand_resonance": 0, "anisotropy": 1}
+    plainness = {n: 0 for n in refits} | {"anisotropy": 1}
     return rounds.choose(scores, judged, current, plainness, removes)
 
 
@@ -74,14 +78,6 @@ def test_a_refit_that_removes_no_diagnosed_structure_is_not_added(stages):
         "leaves 89 % of the misfit")
 
 
-def _choose_with_left(refits, removes, left):
-    scores = [Score(n, 1e3, 1, 0.0, 0.1) for n in refits]
-    judged = {n: Judgement(Verdict.OUTRANKED, (), f, left.get(n, ()))
-              for n, f in refits.items()}
-    current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF)
-    return rounds.choose(scores, judged, current, {n: 0 for n in refits}, removes)
-
-
 def test_an_effect_leaving_a_bent_estimate_is_kept_back_only_for_one_that_competes(stages):
     """A stiff clamp under a stand resonance (beam data): the resonance's refit took 90 %
     of the misfit with nu still bent, the clamp's 26 % with nu back inside its box and no
@@ -93,13 +89,13 @@ def test_an_effect_leaving_a_bent_estimate_is_kept_back_only_for_one_that_compet
     pole = SimpleNamespace(significance=900.0, note="a resonance at 661 Hz")
     refits = {"stand_resonance": _refit(0.9 * CHI2), "clamp_compliance": _refit(0.26 * CHI2)}
     left = {"stand_resonance": ("nu",)}
-    scores, chosen = _choose_with_left(refits, {"stand_resonance": pole,
+    scores, chosen = _choose(refits, {"stand_resonance": pole,
                                                 "clamp_compliance": None}, left)
     assert chosen.added == "stand_resonance"
     assert {s.name: s.verdict for s in scores} == {
         "stand_resonance": Verdict.CHOSEN, "clamp_compliance": Verdict.OUTRANKED}
     shift = SimpleNamespace(significance=300.0, note="mode 1 misplaced")
-    scores, chosen = _choose_with_left(refits, {"stand_resonance": pole,
+    scores, chosen = _choose(refits, {"stand_resonance": pole,
                                                 "clamp_compliance": shift}, left)
     assert chosen.added == "clamp_compliance"
     assert {s.name: s.verdict for s in scores}["stand_resonance"] is Verdict.KEPT_BACK

@@ -16,7 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from vibid.identify.model.materials import Material
-from vibid.identify.model.terms import PlateModel
+from vibid.identify.model.terms import PlateModel, clash
 
 #: How many instances of an effect that may occur more than once the loop adds.
 MAX_INSTANCES = 2
@@ -97,8 +97,7 @@ class EffectCandidate:
         term = self.term
         if term.requires and term.requires not in model.effect_names:
             return False  # a clamp's own loss needs the clamp's spring first
-        if set(term.excludes) & set(model.effect_names) or any(
-                self.name in t.excludes for t in model.effects):
+        if clash((*model.effects, term)):
             return False  # the shear field beside a stretched mesh or a moved sensor
         if term.needs_feature and not self.feature(diagnosis):
             return False  # a stand resonance needs a pole where the plate has none

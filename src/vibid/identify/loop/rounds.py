@@ -467,12 +467,10 @@ def choose(scores, judged: dict, res, plainness: dict,
     explain all but :data:`KEEP_SHARE` of the misfit compete where there are any; where
     there are none, only those whose refit removes a diagnosed feature (``removes``:
     name -> the feature it removed) or explains a bent estimate's excursion compete, and
-    the others are
-    ``no_structure`` (a share of a misfit that remains is no explanation: any extra
-    parameter shaves some). Of those competing, an effect is chosen for the structure it
-    explains: the ones whose refit removes the most significant diagnosed feature
-    compete, or all where none removes one;
-    of those whose chi2 the data cannot tell from the best's, the plainest explanation
+    the others are ``no_structure`` (a share of a misfit that remains is no explanation:
+    any extra parameter shaves some). Of those competing, an effect is chosen for the
+    structure it explains: the ones whose refit removes the most significant diagnosed
+    feature compete, or all where none removes one; of those whose chi2 the data cannot tell from the best's, the plainest explanation
     wins: one whose feature the diagnosis found before one without, an effect before a
     new material, then the larger likelihood ratio."""
     removes = removes or {}
@@ -498,11 +496,13 @@ def choose(scores, judged: dict, res, plainness: dict,
     # stand resonance: the clamp's refit took 26 % of the misfit with nu back inside, the
     # resonance's 90 % with nu still bent, and nothing was added)
     inside = [n for n in passing if not judged[n].left]
-    if competitors(inside)[1]:
+    whole, competing = competitors(inside)
+    if competing:
         for n in [n for n in passing if judged[n].left]:
             final[n] = judged[n].becomes(Verdict.KEPT_BACK, left=", ".join(judged[n].left))
         passing = inside
-    whole, competing = competitors(passing)
+    else:
+        whole, competing = competitors(passing)
     if not whole:
         for n in [n for n in passing if n not in competing]:
             left_share = 100 * (1 - judged[n].gain / excess) if excess > 0 else 0.0

@@ -43,6 +43,7 @@ from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, rotary_inertia,
                                         translational_inertia)
 from vibid.identify.model.mesh import Discretisation, plate_mesh
+from vibid.identify.model.terms import clash
 from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
@@ -298,11 +299,10 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
     (see the module docstring); ``effects`` is ``PlateModel.effects``. Terms that bring no
     matrix, probe or released degree of freedom (a delay, a gain, a loss law) share the
     matrices of the model without them."""
-    names = {t.name for t in effects}
-    clash = [(t.name, n) for t in effects for n in t.excludes if n in names]
-    if clash:
-        raise VibidError(f"the effects {clash[0][0]} and {clash[0][1]} cannot share a model "
-                         "(vibid.identify.effects." + clash[0][0] + " says why)")
+    pair = clash(effects)
+    if pair:
+        raise VibidError(f"the effects {pair[0]} and {pair[1]} cannot share a model "
+                         f"(vibid.identify.effects.{pair[0]} says why)")
     own = tuple(t for t in effects if t.stiffness_matrices or t.inertia_matrices
                 or t.probe_vectors or t.released)
     return _model_matrices(geometry, discretisation, own)

@@ -338,6 +338,14 @@ class PlateModel:
         return out
 
 
+def clash(terms) -> tuple[str, str] | None:
+    """The first pair of ``terms`` that cannot share a model (one names the other in its
+    :attr:`Term.excludes`), as ``(the one that excludes, the one excluded)``; None if
+    they can."""
+    names = {t.name for t in terms}
+    return next(((t.name, n) for t in terms for n in t.excludes if n in names), None)
+
+
 def theta_from_dict(model: PlateModel, values: dict) -> np.ndarray:
     """The parameter vector in ``model.names`` order; KeyError naming what is missing."""
     missing = [n for n in model.names if n not in values]
