@@ -140,3 +140,34 @@ def test_reverse_mode_gradient_equals_the_forward_jacobians(magnitude):
     fd = [(problem.chi2(u + h * e) - problem.chi2(u - h * e)) / (2 * h)
           for e in np.eye(u.size)]
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6 * np.abs(g).max())
+
+
+def test_padding_a_basis_changes_nothing(monkeypatch):
+    """A basis padded with dummy unknowns to any size gives the same AFC, and the same
+    exact Hessian of chi2, as unpadded (the pad sizes are a matter of speed only: a strip's
+    15 unknowns padded to 16 instead of 32 cut the Hessian threefold)."""
+    import jax
+    import jax.numpy as jnp
+
+    from vibid.identify.model import reduced
+
+    problem, theta = _problem(("clamp_compliance",), {"k_theta_N_per_rad": 2e4})
+    fm = problem.model
+    n = fm.basis.size
+    H_data = jnp.asarray(problem.data.H)
+    got = []
+    for size in (n, n + 1, n + 17):
+        monkeypatch.setattr(reduced, "PAD_SIZES", (size,))
+        arrays = reduced.padded_arrays(fm.basis, 2 * np.pi * FREQS, fm.param, fm.param)
+        assert arrays["K"].shape[-1] == size
+        kernel = reduced.ReducedKernel(fm.param)
+
+        def chi2(t, arrays=arrays, kernel=kernel):
+            r = (kernel(arrays, t) - H_data) / 1e-3
+            return jnp.sum(r.real**2 + r.imag**2)
+
+        t = jnp.asarray(theta)
+        got.append((np.asarray(kernel(arrays, t)), np.asarray(jax.hessian(chi2)(t))))
+    for H, B in got[1:]:
+        np.testing.assert_allclose(H, got[0][0], rtol=1e-11, atol=0)
+        np.testing.assert_allclose(B, got[0][1], rtol=1e-8, atol=1e-8 * np.abs(B).max())

@@ -43,6 +43,8 @@ from vibid.identify.model.reduced import padded_size
 
 #: Problems with fewer fitted points than this are solved as they are.
 MIN_POINTS = 1000
+#: A compressed problem's nodes are padded to one of these counts (one compilation each).
+NODE_COUNTS = (32, 64, 96, 128, 160, 192, 256, 384, 512)
 #: Nodes per band; a band of no more than twice as many points keeps its points.
 NODES = 12
 #: Bound on the shift of the estimate by the interpolation error, in standard deviations
@@ -222,7 +224,7 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
     if nodes.size > n // 2:
         return problem
     # padded to a few lengths (one compilation each): nodes of infinite std weigh nothing
-    extra = padded_size(nodes.size) - nodes.size
+    extra = padded_size(nodes.size, NODE_COUNTS) - nodes.size
     nodes = np.append(nodes, np.full(extra, nodes[-1]))
     c, s = np.append(c, np.zeros(extra)), np.append(s, np.full(extra, np.inf))
     short = FitData(nodes, c, s, np.ones(nodes.size, bool), magnitude=d.magnitude)
