@@ -2,7 +2,10 @@
 not write: two close linear modes (a rational function), a single-degree-of-freedom
 oscillator on a moving base with Coulomb friction in series with its viscous damper, solved
 by harmonic balance in closed form (its equivalent damping grows as the motion shrinks, so
-its AFC depends on the drive amplitude), and the real titanium strip's AFC."""
+its AFC depends on the drive amplitude), the same oscillator with a Jenkins joint instead
+(a spring in series with a Coulomb slider: stuck at small motion, slipping at large; Iwan's
+describing function, the amplitude solved by fixed-point iteration), and the real titanium
+strip's AFC."""
 
 import gzip
 from pathlib import Path
@@ -44,6 +47,35 @@ def _with_friction(friction, zeta=0.005, f0=197.0):
     return 1 - w**2 * (-1.0 / (w0**2 - w**2 + 1j * w * damping))
 
 
+def _with_microslip(kappa, slip_m, zeta=0.002, f0=197.0):
+    """Base acceleration 1 drives a unit mass on a spring (f0) with viscous damping zeta and
+    a Jenkins joint: a spring of ``kappa`` times the main one in series with a slider that
+    slips once the joint's spring stretches by ``slip_m``. First harmonic balance (Iwan
+    1966): below the slip amplitude the joint is its spring; above, at amplitude a, its
+    stiffness is k_j (φ − sin 2φ / 2) / π with cos φ = 1 − 2 slip_m / a and it dissipates
+    4 F_s (a − slip_m) a cycle. Stuck, the oscillator is linear: frequency f0 √(1 + kappa),
+    Q √(1 + kappa) / (2 zeta)."""
+    w0 = 2 * np.pi * f0
+    kj = kappa * w0**2
+
+    def joint(a):
+        if a <= slip_m:
+            return kj + 0j
+        phi = np.arccos(1 - 2 * slip_m / a)
+        return (kj * (phi - 0.5 * np.sin(2 * phi)) / np.pi
+                + 4j * kj * slip_m * (a - slip_m) / (np.pi * a * a))
+
+    H, a = np.empty(F_HZ.size, complex), 0.0
+    for i, w in enumerate(2 * np.pi * F_HZ):  # a stepped sine upwards
+        for _ in range(2000):
+            z = 1.0 / (w0**2 + joint(a) + 2j * zeta * w0 * w - w * w)
+            if abs(abs(z) - a) <= 1e-12 * abs(z):
+                break
+            a = 0.5 * (a + abs(z))
+        H[i] = 1 + w * w * z
+    return H
+
+
 def _peak(H):
     return [F_HZ[np.argmax(np.abs(H))]]
 
@@ -65,6 +97,22 @@ def test_a_linear_oscillator_is_linear_and_friction_is_not():
         (t,) = resonance_linearity(F_HZ, H, _peak(H))
         assert not t.linear and "no sum of linear modes" in t.note
         assert min(t.rms) > 3 * np.sqrt(2) * t.scatter
+
+
+@pytest.mark.parametrize("kappa", [0.02, 0.05])
+def test_a_joint_that_slips_at_large_motion_is_read_from_the_flanks(kappa):
+    """Away from the top the joint sticks: one linear mode fitted to the flanks alone is the
+    stuck oscillator (its frequency and Q, analytic), and the top is softer and damped
+    more; the note says so."""
+    H = _noisy(_with_microslip(kappa, 3e-5), 5)
+    (t,) = resonance_linearity(F_HZ, H, _peak(H))
+    assert not t.linear and "sticks at small amplitude and slips at large" in t.note
+    f_fl, q_fl, rms = t.flanks
+    assert f_fl == pytest.approx(197.0 * np.sqrt(1 + kappa), rel=5e-4)
+    assert q_fl == pytest.approx(np.sqrt(1 + kappa) / (2 * 0.002), rel=0.05)
+    assert rms < 3 * np.sqrt(2) * t.scatter  # the flanks are linear
+    assert t.top[0] < f_fl and t.top[1] < q_fl / 2  # the top: softer, more damped
+    assert t.as_report()["flanks"]["q"] == q_fl
 
 
 def test_a_coarse_grid_is_not_tested():
@@ -89,3 +137,8 @@ def test_the_titanium_strips_resonances_are_no_sums_of_linear_modes():
     for t in found:
         assert not t.linear
         assert min(t.rms) > 5 * t.scatter and t.scatter < 0.005
+    # the first one's flanks are a linear mode, far less damped than its top, and higher
+    first = found[0]
+    assert first.flanks[2] < 3 * np.sqrt(2) * first.scatter
+    assert first.flanks[1] > 4 * first.top[1] and first.flanks[0] > first.top[0]
+    assert "sticks at small amplitude and slips at large" in first.note

@@ -14,6 +14,18 @@ bandwidth (an FFT analyser's AFC; a stepped sine of a few hundred steps rarely h
 It does not use vibid's plate model, so it also says something the model cannot: whether
 any linear model could fit this resonance at all.
 
+Where no linear model fits, the flanks say which way the response depends on its amplitude.
+Away from the top (further than :data:`FLANK_WIDTHS` half-power widths of the whole band's
+one-mode fit) the motion is smallest: one pole pair fitted there alone is the structure at
+small amplitude. If it fits the flanks to the scatter, is damped less than the whole
+resonance (beyond :data:`Q_RATIO`) and sits higher, the structure softens and loses more
+energy as its motion grows: a joint that sticks at small amplitude and slips at large (the
+micro-slip of a clamp; under a broadband excitation, whose amplitude varies, such a
+stiffness spreads the top over frequencies as well). If the flanks are damped more than
+the top, the motion outgrows a dry friction instead. A drift of the temperature during the
+measurement would broaden every resonance by the same relative spread; the sentence gives
+the flanks' and the top's frequency and Q, so the resonances of one AFC can be compared.
+
 Scatter: second differences of H/|H| on the grid, ``√(mean |Δ²|² / 12)`` per real and
 imaginary part for white noise (Δ² of white noise of std e per part has variance 6 e²
 per part); smooth curvature adds to it, so it is an upper estimate of the noise.
@@ -37,6 +49,11 @@ POINTS_PER_BANDWIDTH = 10
 #: The band fitted: this fraction of the peak's frequency either side (cut halfway to a
 #: neighbouring peak).
 HALF_BAND = 0.2
+#: The flanks: points further from the one-mode fit's frequency than this many half-power
+#: widths (f / Q) of it.
+FLANK_WIDTHS = 6.0
+#: The flanks' mode is damped less (or more) than the top's beyond this ratio of Q.
+Q_RATIO = 1.5
 
 
 @dataclass(frozen=True)
@@ -51,10 +68,20 @@ class Linearity:
     rms: tuple[float, ...]
     linear: bool
     note: str
+    #: (Hz, Q) of the whole band's one pole pair, and (Hz, Q, relative RMS) of the one
+    #: fitted to the flanks alone (module doc); None where the resonance is linear or the
+    #: flanks hold too few points
+    top: tuple[float, float] | None = None
+    flanks: tuple[float, float, float] | None = None
 
     def as_report(self) -> dict:
-        return {"f_hz": self.f_hz, "n_points": self.n_points, "scatter": self.scatter,
-                "rms_by_pole_pairs": list(self.rms), "linear": self.linear, "note": self.note}
+        out = {"f_hz": self.f_hz, "n_points": self.n_points, "scatter": self.scatter,
+               "rms_by_pole_pairs": list(self.rms), "linear": self.linear, "note": self.note}
+        if self.flanks is not None:
+            out["top"] = {"f_hz": self.top[0], "q": self.top[1]}
+            out["flanks"] = {"f_hz": self.flanks[0], "q": self.flanks[1],
+                             "rms": self.flanks[2]}
+        return out
 
 
 def resonance_linearity(frequency_hz, H, peaks_hz) -> list[Linearity]:
@@ -102,15 +129,17 @@ def _half_power_points(f, H) -> int:
 
 
 def _test(f, H, fp) -> Linearity | None:
-    rms = []
+    fits = []
     for n in range(1, MAX_PAIRS + 1):
         fitted = rational_fit(f, H, n)
         if fitted is None:
             return None
-        rms.append(fitted[0])
+        fits.append(fitted)
+    rms = [r for r, _ in fits]
     scatter = relative_scatter(H)
     best, limit = min(rms), FACTOR * math.sqrt(2) * scatter
     linear = best <= limit
+    top = flanks = None
     if linear:
         n = next(k for k, r in enumerate(rms, start=1) if r <= limit)  # the fewest that fit
         best = rms[n - 1]
@@ -120,10 +149,49 @@ def _test(f, H, fp) -> Linearity | None:
     else:
         note = (f"the resonance at {fp:.4g} Hz is no sum of linear modes: {len(rms)} pole pairs "
                 f"still leave {100 * best:.2g} % against a point-to-point scatter of "
-                f"{100 * scatter:.2g} % (1 pair: {100 * rms[0]:.2g} %); the response depends on "
-                "something a linear FRF does not hold, most likely its amplitude (a clamp "
-                "whose friction grows with the motion)")
-    return Linearity(float(fp), int(f.size), scatter, tuple(rms), bool(linear), note)
+                f"{100 * scatter:.2g} % (1 pair: {100 * rms[0]:.2g} %)")
+        top = tuple(float(v) for v in fits[0][1][0])
+        flanks = flank_mode(f, H, *top)
+        note += "; " + amplitude_sentence(top, flanks, limit)
+    return Linearity(float(fp), int(f.size), scatter, tuple(rms), bool(linear), note, top,
+                     flanks)
+
+
+def flank_mode(f, H, f_top, q_top) -> tuple[float, float, float] | None:
+    """(Hz, Q, relative RMS) of one pole pair fitted to the flanks alone: the points
+    further than :data:`FLANK_WIDTHS` half-power widths from ``f_top`` (module doc), with
+    at least a quarter of the band's points on either side; None otherwise."""
+    if not (np.isfinite(f_top) and q_top > 0):
+        return None
+    away = np.abs(f - f_top) > FLANK_WIDTHS * f_top / q_top
+    enough = f.size // 4
+    if (away & (f < f_top)).sum() < enough or (away & (f > f_top)).sum() < enough:
+        return None
+    fitted = rational_fit(f[away], H[away], 1)
+    if fitted is None or not fitted[1]:
+        return None
+    rms, ((f_hz, q),) = fitted
+    return float(f_hz), float(q), float(rms)
+
+
+def amplitude_sentence(top, flanks, limit: float) -> str:
+    """What the flanks say of the amplitude dependence (module doc), in a lab's words."""
+    generic = ("the response depends on something a linear FRF does not hold, most likely "
+               "its amplitude (a clamp whose friction depends on the motion)")
+    if flanks is None or flanks[2] > limit:
+        return generic
+    (f_top, q_top), (f_fl, q_fl, rms) = top, flanks
+    told = (f"on its flanks alone one linear mode fits to {100 * rms:.2g} %: Q {q_fl:.0f} at "
+            f"{f_fl:.5g} Hz, where the whole resonance needs Q {q_top:.0f} at {f_top:.5g} Hz")
+    if q_fl > Q_RATIO * q_top and f_fl > f_top:
+        return (told + ": at large motion the structure is softer and more damped than at "
+                "small, as a joint is that sticks at small amplitude and slips at large (a "
+                "clamp's micro-slip; under a broadband excitation, whose amplitude varies, "
+                "such a stiffness also spreads the top over frequencies)")
+    if q_fl * Q_RATIO < q_top:
+        return (told + ": the top is damped less than the flanks, as by a dry friction "
+                "that the motion outgrows")
+    return told + "; " + generic
 
 
 def relative_scatter(H) -> float:
