@@ -54,6 +54,28 @@ def test_configure_switches_on_64_bits_and_the_cache(tmp_path):
     assert one_thread == "True"  # every BLAS library of the process on one thread
 
 
+def test_the_compilation_cache_is_read_and_written_under_a_lock(tmp_path):
+    """Two processes share the cache: one must not read an entry the other is still writing
+    (a truncated entry crashed a test worker). JAX locks the cache only when it has a size
+    limit; its lock file and its access times appear once an entry is written and read."""
+    code = ("from vibid.identify import configure\nimport jax, jax.numpy as jnp\n"
+            "folder = configure()\n"
+            "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0)\n"
+            "f = jax.jit(lambda x: jnp.linalg.eigh(x @ x.T + jnp.eye(40))[0].sum())\n"
+            "value = float(f(jnp.ones((40, 40))))\n"
+            "print(folder, jax.config.jax_compilation_cache_max_size, value)\n")
+    first = _run(code, tmp_path)
+    assert first.returncode == 0, first.stderr
+    folder, limit, _ = first.stdout.split()
+    assert int(limit) > 0
+    entries = [n for n in os.listdir(folder) if n.endswith("-cache")]
+    assert entries and os.path.exists(os.path.join(folder, ".lockfile"))
+    second = _run(code, tmp_path)  # a second process reads the entry
+    assert second.returncode == 0, second.stderr
+    assert all(os.path.exists(os.path.join(folder, n.replace("-cache", "-atime")))
+               for n in entries)
+
+
 def test_the_forward_model_is_built_on_the_box_the_search_explores(monkeypatch):
     """identify(..., bounds=...) built its wide basis on the setup's box and searched the
     caller's, so the basis need not cover what was searched."""

@@ -27,6 +27,14 @@ second ``vibid identify`` of a session of the same shape starts at once. The fol
 ``$XDG_CACHE_HOME/vibid/jax`` (``~/.cache/vibid/jax``); a cache folder the user already
 gave JAX (``JAX_COMPILATION_CACHE_DIR``) is kept. A cache that cannot be read or written
 only costs the compilation (JAX turns such errors into warnings).
+
+The cache is shared by every vibid process of the machine (the test suite's workers, a
+batch's Dask workers, a replay beside a campaign), and JAX writes an entry in place: without
+a size limit it takes no lock, and a process that finds an entry another is still writing
+reads it truncated and dies in XLA's deserialisation (a segmentation fault in a fresh
+clone's suite, in the titanium test, while the other worker compiled the same function).
+With a size limit (:data:`MAX_CACHE_BYTES`) JAX reads and writes under a file lock
+(``filelock``), and evicts the least recently used entries beyond it.
 """
 
 from __future__ import annotations
@@ -37,6 +45,9 @@ from vibid.errors import VibidError
 
 #: Functions that compile faster than this are not worth a disk entry.
 MIN_COMPILE_S = 0.2
+#: The compilation cache's size limit, bytes: a limit makes JAX lock the cache (module doc);
+#: a day of vibid's work fills about 50 MB.
+MAX_CACHE_BYTES = 1 << 30
 
 
 def cache_dir() -> str | None:
@@ -52,6 +63,8 @@ def enable_compilation_cache() -> str | None:
     """Turn on JAX's persistent compilation cache (see the module doc); returns the folder."""
     import jax
 
+    if jax.config.jax_compilation_cache_max_size < 0:  # no limit: no lock (module doc)
+        jax.config.update("jax_compilation_cache_max_size", MAX_CACHE_BYTES)
     current = jax.config.jax_compilation_cache_dir
     if current:
         return current
