@@ -27,16 +27,14 @@ import json
 
 import numpy as np
 
-EFFECT_OF = {"gain": "sensor_gain", "alpha": "frequency_dependent_loss",
-             "mass_kg": "added_mass", "tau_s": "channel_delay"}
 EDGES_HZ = (40, 150, 185, 205, 260, 600, 720, 950, 1010, 1200, 1265, 1300, 1500)
 
 
 def stage_afc(setup, f, parameters: dict) -> np.ndarray:
+    from vibid.identify.effects import effects_for
     from vibid.identify.model.forward import build_forward_model, plate_model
 
-    effects = tuple(dict.fromkeys(EFFECT_OF[n] for n in parameters if n in EFFECT_OF))
-    model = plate_model("isotropic", effects=effects)
+    model = plate_model("isotropic", effects=effects_for(parameters))
     fm = build_forward_model(setup, f, model=model, theta0=parameters)
     return np.asarray(fm.afc(np.array([parameters[n] for n in model.names])))
 
