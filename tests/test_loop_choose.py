@@ -89,14 +89,14 @@ def test_an_effect_leaving_a_bent_estimate_is_kept_back_only_for_one_that_compet
     pole = SimpleNamespace(significance=900.0, note="a resonance at 661 Hz")
     refits = {"stand_resonance": _refit(0.9 * CHI2), "clamp_compliance": _refit(0.26 * CHI2)}
     left = {"stand_resonance": ("nu",)}
-    scores, chosen = _choose(refits, {"stand_resonance": pole,
-                                                "clamp_compliance": None}, left)
+    scores, chosen = _choose(refits, {"stand_resonance": pole, "clamp_compliance": None},
+                             left)
     assert chosen.added == "stand_resonance"
     assert {s.name: s.verdict for s in scores} == {
         "stand_resonance": Verdict.CHOSEN, "clamp_compliance": Verdict.OUTRANKED}
     shift = SimpleNamespace(significance=300.0, note="mode 1 misplaced")
-    scores, chosen = _choose(refits, {"stand_resonance": pole,
-                                                "clamp_compliance": shift}, left)
+    scores, chosen = _choose(refits, {"stand_resonance": pole, "clamp_compliance": shift},
+                             left)
     assert chosen.added == "clamp_compliance"
     assert {s.name: s.verdict for s in scores}["stand_resonance"] is Verdict.KEPT_BACK
 

@@ -39,12 +39,14 @@ import numpy as np
 
 from vibid.identify.fit.data import FitData
 from vibid.identify.fit.problem import LeastSquaresProblem, SharedStructure
-from vibid.identify.model.reduced import padded_size
+from vibid.identify.model.reduced import PAD_SIZES, padded_size
 
 #: Problems with fewer fitted points than this are solved as they are.
 MIN_POINTS = 1000
-#: A compressed problem's nodes are padded to one of these counts (one compilation each).
-NODE_COUNTS = (32, 64, 96, 128, 160, 192, 256, 384, 512)
+#: A compressed problem's nodes are padded to one of these counts (one compilation each):
+#: the reduced bases' sizes from 32 up, the counts the nodes had before the bases gained a
+#: 16 (a new count is a new compiled shape).
+NODE_COUNTS = tuple(m for m in PAD_SIZES if m >= 32)
 #: Nodes per band; a band of no more than twice as many points keeps its points.
 NODES = 12
 #: Bound on the shift of the estimate by the interpolation error, in standard deviations

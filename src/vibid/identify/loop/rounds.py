@@ -470,9 +470,10 @@ def choose(scores, judged: dict, res, plainness: dict,
     the others are ``no_structure`` (a share of a misfit that remains is no explanation:
     any extra parameter shaves some). Of those competing, an effect is chosen for the
     structure it explains: the ones whose refit removes the most significant diagnosed
-    feature compete, or all where none removes one; of those whose chi2 the data cannot tell from the best's, the plainest explanation
-    wins: one whose feature the diagnosis found before one without, an effect before a
-    new material, then the larger likelihood ratio."""
+    feature compete, or all where none removes one; of those whose chi2 the data cannot
+    tell from the best's, the plainest explanation wins: one whose feature the diagnosis
+    found before one without, an effect before a new material, then the larger likelihood
+    ratio."""
     removes = removes or {}
     final = dict(judged)
     passing = [n for n, j in judged.items() if j.verdict.passes]
