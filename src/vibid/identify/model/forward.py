@@ -77,7 +77,7 @@ from vibid.identify.model.assembly import Geometry, PlateMatrices, model_matrice
 from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
-from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
+from vibid.identify.model.modal import frequencies_and_decays, mode_heights, model_eigenvalues
 from vibid.identify.model.reduced import (ReducedAFC, ReducedBasis, cached_basis,
                                           moving_parameters, same_coefficients)
 from vibid.identify.model.structure import embed, embedding
@@ -506,3 +506,15 @@ def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "def
     theta = theta_from_dict(model, params)
     mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))
     return frequencies_and_decays(model_eigenvalues(mats, model, theta, n))
+
+
+def natural_mode_heights(setup, params: dict, n: int = 6, *, accuracy: str = "default"):
+    """``(frequency_hz (n,), height (n,))`` of the setup's plate at ``params`` (as
+    :func:`natural_frequencies`): each real mode's peak in |H| times the loss factor
+    (:func:`vibid.identify.model.modal.mode_heights`), near zero for a mode the sensor does
+    not see."""
+    geometry = Geometry.from_setup(setup)
+    model = plate_model_for(params).for_geometry(geometry)
+    theta = theta_from_dict(model, params)
+    mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))
+    return mode_heights(mats, model, theta, n)

@@ -62,6 +62,28 @@ def model_eigenvalues(mats, model, theta, n: int = 6) -> np.ndarray:
     return lam
 
 
+def mode_heights(mats, model, theta, n: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """``(frequency_hz, height)`` of the ``n`` lowest real modes of a PlateModel at
+    ``theta`` (its storage moduli; loss and any loss law left out): ``height_k = |c φ_k|
+    |φ_kᵀ f|`` for the mass-normalised mode ``φ_k``, the probe ``c`` and the base
+    translation's load ``f``, which is ``β`` times mode k's resonance peak in |H|. A mode
+    of height near zero is one the sensor does not see, or the base does not excite (a
+    strip's torsion with its sensor on the centre line)."""
+    theta = np.asarray(theta, float)
+    inertia = dict(zip(model.inertia_names, model.inertia(theta)))
+    probe = dict(zip(model.probe_names, model.probe(theta)))
+    M = mats.inertia_matrix(inertia)
+    K = mats.stiffness_matrix(dict(zip(mats.stiffness, model.moduli(theta))))
+    n = int(min(n, mats.n_dof - 2))
+    lam, phi = spla.eigsh(K, k=n, M=M, sigma=0.0, which="LM", v0=arpack_start(K.shape[0]))
+    order = np.argsort(lam)
+    lam, phi = lam[order], phi[:, order]
+    phi = phi / np.sqrt(np.einsum("ik,ik->k", phi, M @ phi))
+    c, _ = mats.probe_vector(probe)
+    height = np.abs(c @ phi) * np.abs(phi.T @ mats.inertia_load(inertia))
+    return np.sqrt(np.abs(lam)) / (2 * np.pi), height
+
+
 def frequencies_and_decays(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(f_k in Hz, γ_k in 1/s)`` from eigenvalues ``Λ_k``: ``√Λ = ω + iγ``, ``f = ω/2π``."""
     root = np.sqrt(np.asarray(lam, complex))
