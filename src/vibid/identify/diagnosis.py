@@ -22,9 +22,12 @@ the band (2 % margin) or ``q < 2`` → part of the trend; within ``max(2 f_k / Q
 (5 % without ``plate_q``) of a plate mode ``f_k`` → ``mode_shift`` if the offset from the
 model's pole is mostly in frequency (``|Δ Im p| ≥ |Δ Re p|``; without ``plate_q``: ``|f - f_k|
 > f_k / 4q``), else ``damping``; at a dip of ``|H_model|`` (a misplaced antiresonance of the
-model is a pole of R) → ``mode_shift``, the note says so; else ``extra_pole``. One ``trend``
-gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase and magnitude
-change and the delay a linear phase means. ``size``: the peak over the band of ``|ΔR|``, the
+model is a pole of R) → ``mode_shift``, the note says so; else ``extra_pole``, with
+``hidden_mode_hz`` the nearest mode of the model that its sensor does not see
+(``hidden_hz``) within :data:`HIDDEN_SPAN` of it: a sensor off the node line the model puts
+it on shows a mode the model hides (the plate modes ``plate_modes_hz`` are those it shows).
+One ``trend`` gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase
+and magnitude change and the delay a linear phase means. ``size``: the peak over the band of ``|ΔR|``, the
 feature's term in R (trend: ``|T - 1|``).
 
 Significance: ``sqrt(max(Δchi2 / b - ν, 0))``; ``Δchi2`` the rise of chi2 when the feature's
@@ -47,6 +50,10 @@ import numpy as np
 
 _VF_POINTS = 1500  # vector fitting sees at most this many points (its time grows with N)
 _POLISHED = 3  # how many of the best candidates get their poles polished
+#: An extra pole within this factor of a mode of the model that its sensor does not see
+#: may be that mode (the model's sensor on its node line, the material bent to place the
+#: modes it does see: a strip's torsion 10 % off).
+HIDDEN_SPAN = 1.25
 _NAN = float("nan")
 
 
@@ -58,10 +65,18 @@ class Feature:
     size: float = _NAN
     significance: float = _NAN
     note: str = ""
+    #: an extra pole's nearest mode of the model that its sensor does not see (Hz)
+    hidden_mode_hz: float = _NAN
+
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        """Its kind, and ``"hidden_mode"`` for an extra pole beside a mode of the model that
+        its sensor does not see (what a candidate may explain)."""
+        return (self.kind,) + (("hidden_mode",) if math.isfinite(self.hidden_mode_hz) else ())
 
     def as_report(self) -> dict:
         out = {"kind": self.kind}
-        for key in ("f_hz", "q", "size"):
+        for key in ("f_hz", "q", "size", "hidden_mode_hz"):
             if math.isfinite(getattr(self, key)):
                 out[key] = float(getattr(self, key))
         return out | ({"note": self.note} if self.note else {})
@@ -206,11 +221,12 @@ def _select(f, R, w, known_noise, max_pairs):
     return poles, chi2, errors
 
 
-def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips):
-    """(kind, note) of the complex pole p (rad/s); kind "trend" when it is no resonance."""
+def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips, hidden_hz=()):
+    """(kind, note, hidden mode's Hz or NaN) of the complex pole p (rad/s); kind "trend"
+    when it is no resonance."""
     f_p, q_p = abs(p) / (2 * math.pi), abs(p) / (2 * abs(p.real))
     if q_p < 2 or not 0.98 * f_lo <= f_p <= 1.02 * f_hi:
-        return "trend", ""
+        return "trend", "", _NAN
     for f_k, q_k in zip(modes_hz, modes_q):
         if abs(f_p - f_k) > (max(2 * f_k / q_k, 0.03 * f_k) if q_k > 0 else 0.05 * f_k):
             continue
@@ -223,14 +239,21 @@ def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips):
             shift, model = abs(f_p - f_k) > f_k / (4 * q_p), ""
         if shift:
             return "mode_shift", (f"the mode the model puts at {f_k:.4g} Hz is at {f_p:.4g} Hz "
-                                  f"in the data ({100 * (f_p / f_k - 1):+.1f} %)")
+                                  f"in the data ({100 * (f_p / f_k - 1):+.1f} %)"), _NAN
         return "damping", (f"the mode at {f_p:.4g} Hz is damped otherwise: "
-                           f"Q {q_p:.3g} in the data{model}")
+                           f"Q {q_p:.3g} in the data{model}"), _NAN
     if any(lo <= f_p <= hi or abs(f_p - mid) <= 0.03 * mid for lo, mid, hi in dips):
         return "mode_shift", (f"the ratio resonates at {f_p:.4g} Hz (Q {q_p:.3g}) where the "
                               "model has an antiresonance: the modes around it are misplaced "
-                              "or misweighted")
-    return "extra_pole", f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has no mode"
+                              "or misweighted"), _NAN
+    near = [f_k for f_k in hidden_hz if abs(math.log(f_k / f_p)) <= math.log(HIDDEN_SPAN)]
+    if near:
+        f_k = min(near, key=lambda f_k: abs(math.log(f_k / f_p)))
+        return "extra_pole", (f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has "
+                              f"no mode its sensor sees: the model's mode at {f_k:.4g} Hz, "
+                              "which its sensor does not see, may be it"), f_k
+    return "extra_pole", (f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has no "
+                          "mode"), _NAN
 
 
 def _trend_note(f_hz, T) -> str:
@@ -256,18 +279,19 @@ def _trend_note(f_hz, T) -> str:
 
 
 def diagnose(frequency_hz, H_measured, H_model, std, *, plate_modes_hz, plate_q=None,
-             max_pole_pairs: int = 4, min_significance: float = 5.0,
+             hidden_hz=(), max_pole_pairs: int = 4, min_significance: float = 5.0,
              min_size: float = 0.02) -> Diagnosis:
     """Features of ``H_measured / H_model`` (module docstring); never raises, prints nothing."""
     try:
         with _quiet():
             return _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
-                             max(int(max_pole_pairs), 0), min_significance, min_size)
+                             hidden_hz, max(int(max_pole_pairs), 0), min_significance,
+                             min_size)
     except Exception as exc:  # noqa: BLE001 - a diagnosis must never stop the loop
         return Diagnosis(message=f"diagnosis failed: {type(exc).__name__}: {exc}")
 
 
-def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
+def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, hidden_hz,
               max_pairs, min_significance, min_size) -> Diagnosis:
     f = np.asarray(frequency_hz, float).ravel()
     sd = np.broadcast_to(np.asarray(np.nan if std is None else std, float), f.shape)
@@ -305,15 +329,16 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
     dips = np.stack([f[i - 1], f[i], f[i + 1]], axis=1)  # the model's antiresonances
     features, trend = [], [0, 1]
     for k, p in enumerate(poles, start=2):
-        kind, note = "trend", ""
+        kind, note, hidden = "trend", "", _NAN
         if p.imag != 0:
-            kind, note = _classify(p, f[0], f[-1], modes_hz, modes_q, dips)
+            kind, note, hidden = _classify(p, f[0], f[-1], modes_hz, modes_q, dips,
+                                           np.atleast_1d(np.asarray(hidden_hz, float)))
         if kind == "trend":
             trend.append(k)
         else:
             f_p, q_p = float(abs(p) / (2 * math.pi)), float(abs(p) / (2 * abs(p.real)))
             size = float(np.max(np.abs(term[k])))
-            features.append(Feature(kind, f_p, q_p, size, significance({k}), note))
+            features.append(Feature(kind, f_p, q_p, size, significance({k}), note, hidden))
     T = sum(term[k] for k in trend)
     features.append(Feature("trend", size=float(np.max(np.abs(T - 1))),
                             significance=significance(set(trend)), note=_trend_note(f_dense, T)))
