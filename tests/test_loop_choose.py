@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 
+from vibid.identify.diagnosis import Feature
 from vibid.identify.loop import rounds
 from vibid.identify.loop.verdicts import Judgement, Score, Verdict
 
@@ -118,7 +119,7 @@ def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():
     Within 10 % it is judged on as usual."""
     from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
 
-    pole = SimpleNamespace(kind="extra_pole", f_hz=661.0, q=50.0, significance=900.0)
+    pole = Feature("extra_pole", f_hz=661.0, q=50.0, significance=900.0)
     diagnosis = SimpleNamespace(features=(pole,))
     cand = EffectCandidate("stand_resonance")
     current = {"D": 216.0, "nu": 0.3, "beta": 0.009}
@@ -147,7 +148,7 @@ def test_a_resonance_placed_at_a_pole_is_refitted_within_its_span():
     from vibid.identify.fit.space import ParameterSpace
     from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
 
-    pole = SimpleNamespace(kind="extra_pole", f_hz=661.0, q=50.0, significance=900.0)
+    pole = Feature("extra_pole", f_hz=661.0, q=50.0, significance=900.0)
     diagnosis = SimpleNamespace(features=(pole,))
     cand = EffectCandidate("stand_resonance")
     current = {"D": 216.0, "nu": 0.3, "beta": 0.009}

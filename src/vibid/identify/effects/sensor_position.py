@@ -58,6 +58,8 @@ class SensorPosition(Term):
     """The response sensor ``sensor_dy_m`` across the width from its declared centre."""
 
     name = "sensor_position"
+    #: besides a misplaced torsion, a mode the declared place hides (its node line)
+    explains = ("mode_shift", "hidden_mode")
     meaning = "the response sensor off its declared place across the width"
     parameters = (DY,)
     inertia_matrices = tuple(f"sensor_dy{k}" for k in POWERS)

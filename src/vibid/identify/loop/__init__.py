@@ -8,8 +8,9 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    explains the data to the level of their noise ends the loop, so nothing is ever added
    to data the model already explains.
 2. **Diagnose** its residual (:mod:`vibid.identify.diagnosis`): the ratio measured / model
-   fitted with poles and residues, read as resonances where the plate has none, plate modes
-   misplaced or damped wrongly, and smooth trends.
+   fitted with poles and residues, read as resonances where the plate has none (or none
+   its sensor sees: a mode the model hides beside one is named), plate modes misplaced or
+   damped wrongly, and smooth trends.
 3. **Score** every candidate (:mod:`~vibid.identify.loop.candidates`: an effect or a new
    material, behind one protocol) that applies to the model and the diagnosis (a stand
    resonance needs a diagnosed pole, which also places its frequency and Q) with a score
@@ -23,7 +24,8 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    the best-scoring new material globally (its basin may lie far from the current
    fit's; an effect's new parameters start at their null or at the diagnosed feature, and
    a resonance the diagnosis placed is searched near its pole only: its frequency within
-   10 %, its Q within 3 times the pole's). Where the model's own error barely changes
+   10 %, its Q within 3 times the pole's; an effect that shows a mode the model hides
+   also starts from the material moved to place that mode on the pole). Where the model's own error barely changes
    the current fit's chi2, every refit is weighed as the current fit is (that error is
    estimated again only for the one the round adds); elsewhere each weighs its own.
 5. **Judge** each refit (:class:`Verdict`): a placed resonance inside the spans around

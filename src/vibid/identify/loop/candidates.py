@@ -114,7 +114,7 @@ class EffectCandidate:
         model has no resonance for), or None."""
         if diagnosis is None or not self.term.needs_feature:
             return None
-        found = [f for f in diagnosis.features if f.kind in self.explains]
+        found = [f for f in diagnosis.features if set(f.kinds) & set(self.explains)]
         return max(found, key=lambda f: f.significance, default=None)
 
     def extend(self, model: PlateModel) -> PlateModel:

@@ -9,7 +9,9 @@ standard deviation (scaled by the misfit), on a long AFC each runs on the compre
 problem the previous one ended on (its end confirmed on every point), and a start that
 moves a stiffness gets its own basis. Where the current estimate lies outside its prior box
 (the declared model bent a parameter to mimic what it lacks) the starts also move those
-parameters just inside the box and to its centre. With ``search`` (a new material: the
+parameters just inside the box and to its centre; where the diagnosis reads a pole as a
+mode the model hides and the candidate can show it (a sensor off its node line), they also
+start from the material moved to place that mode on the pole. With ``search`` (a new material: the
 loop's rounds decide), the extended model is first searched globally over its box (the
 current estimate may lie in a wrong basin of it: an orthotropic plate fitted as isotropic):
 on the resonance peaks, then on chi2 unless the best's modes already lie on the measured
@@ -88,7 +90,7 @@ def _polish(setup, data, fm, start: dict, box, kinds, local: str, weights=None):
                     weights=weights)
 
 
-def starts(space, u0, new, current_names) -> list[np.ndarray]:
+def starts(space, u0, new, current_names, placed=None) -> list[np.ndarray]:
     """The current estimate, and it with the new parameters at :data:`STARTS_U`; where
     current parameters lie outside their prior box, also those moved just inside it and to
     its centre (a physical value, far from the bent one), the new parameters at their
@@ -97,7 +99,9 @@ def starts(space, u0, new, current_names) -> list[np.ndarray]:
     (a sensor 3 mm off the strip's centre line excites a torsion mode that the centred
     model places by bending nu to -0.17; spread from the bent estimate the refit stopped
     at 1.3 mm, chi2_red 960, from the centred one it found 2.98 mm, chi2_red 0.88; the
-    titanium loop's 253 runs took 51 s instead of 39 s, the same stages)."""
+    titanium loop's 253 runs took 51 s instead of 39 s, the same stages). With ``placed``
+    (:func:`on_hidden_mode`: the material moved so that a mode the current model hides
+    lies on the diagnosed pole), that too, and the spread from it."""
     out = set(space.out_of_bounds(space.theta(u0))) & set(current_names)
     outside = [i for i, n in enumerate(space.names) if n in out]
     bases = [u0]
@@ -106,7 +110,9 @@ def starts(space, u0, new, current_names) -> list[np.ndarray]:
         moved[outside] = np.clip(moved[outside], -INSIDE_U, INSIDE_U)
         centred[outside] = 0.0
         bases += [moved, centred]
-    spread = bases[-1]  # the new parameters spread from the centred estimate where bent
+    if placed is not None:
+        bases.append(placed)
+    spread = bases[-1]  # the new parameters spread from the centred or placed estimate
     found = [u0]
     for v in STARTS_U if new else ():
         u = spread.copy()
@@ -146,11 +152,12 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
     u0 = np.clip(u0, -5, 5)
     around = _on_own_basis(problem, space.theta(u0))
+    placed = on_hidden_mode(setup, res, cand, diagnosis, space, u0, data)
     # each start on the last one's nodes, stopped where its remaining Newton step is under
     # TOL_STD of a standard deviation scaled by the misfit: the best is polished below
     scale = max(1.0, float(res.chi2_reduced))
     runs, near = [], None
-    for u in starts(space, u0, new, res.parameter_names):
+    for u in starts(space, u0, new, res.parameter_names, placed):
         r, near = run_local(local, around(u), u, near, tol=TOL_STD**2 * scale)
         runs.append(r)
     runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
@@ -162,6 +169,61 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     result = _polish(setup, data, fm, dict(zip(names, best.theta)), ext_box, kinds, local,
                      weights)
     return result, best.loss, (None if weights is None else (fm, ext_box, kinds))
+
+
+def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
+    """``u0`` with the current material moved so that the mode of the model its sensor
+    does not see lies on the diagnosed pole beside it, the modes it sees (in the data's
+    band) where they are, for a candidate that shows hidden modes (a sensor off its
+    declared node line); None where there is no such pole or no material places it.
+
+    The declared model bends its material to place the modes it sees and leaves the
+    hidden one where that puts it (the Ritz strip, its sensor 3 mm off the centre line:
+    nu -0.17, its torsion at 1046 Hz against the data's 948 Hz); a refit spread from the
+    bent material cannot reach the basin where the sensor's offset shows the torsion, and
+    the estimate lies inside its prior box, so no centred start is made either."""
+    from scipy.optimize import least_squares
+
+    from vibid.identify.loop.rounds import HIDDEN_HEIGHT
+    from vibid.identify.model.forward import natural_mode_heights
+
+    poles = [f for f in getattr(diagnosis, "features", ()) if "hidden_mode" in f.kinds]
+    if "hidden_mode" not in cand.explains or not poles:
+        return None
+    pole = max(poles, key=lambda f: f.significance)
+    params, n = dict(res.parameters), 12
+    f0, height = natural_mode_heights(setup, params, n)
+    k = int(np.argmin(np.abs(np.log(f0 / pole.hidden_mode_hz))))
+    f_used = np.asarray(data.frequency_hz)[np.asarray(data.used)]
+    seen = np.flatnonzero((height >= HIDDEN_HEIGHT * height.max()) & (f0 >= f_used.min())
+                          & (f0 <= f_used.max()))
+    target = np.log(np.append(f0[seen], pole.f_hz))
+    moving = [space.names.index(m) for m in res.plate_model.material.stiffness_names]
+
+    def theta_at(x):
+        u = u0.copy()
+        u[moving] = x
+        return u, dict(zip(space.names, space.theta(u)))
+
+    def misfit(x):
+        f, _ = natural_mode_heights(setup, {**params, **theta_at(x)[1]}, n)
+        return np.log(np.append(f[seen], f[k])) - target
+
+    try:
+        fit = least_squares(misfit, np.clip(u0[moving], -0.99, 0.99), bounds=(-1.0, 1.0),
+                            x_scale=0.1,
+                            max_nfev=20 * (len(moving) + 1))
+    except Exception as exc:  # noqa: BLE001 - no placed start, the others remain
+        log.info("loop: %s: the hidden mode could not be placed: %s", cand.name, exc)
+        return None
+    u, theta = theta_at(fit.x)
+    f, height = natural_mode_heights(setup, {**params, **theta}, n)
+    if height[k] >= HIDDEN_HEIGHT * height.max() or abs(np.log(f[k] / pole.f_hz)) > 0.02:
+        return None  # the modes crossed, or the material cannot place it
+    log.info("loop: %s: the model's hidden mode at %.4g Hz placed on the pole at %.4g Hz "
+             "(%s)", cand.name, f0[k], pole.f_hz,
+             ", ".join(f"{m} {theta[m]:.4g}" for m in res.plate_model.material.stiffness_names))
+    return u
 
 
 def model_error_weighs_in(res) -> bool:

@@ -46,6 +46,9 @@ ASKED_SLOTS = 1
 #: The top candidate is searched globally only when no local refit explains this share
 #: of the chi2 above the noise.
 SEARCH_SHARE = 0.5
+#: A mode of the model whose peak in |H| is below this share of the highest mode's is one
+#: its sensor does not see (a strip's torsion, its sensor on the centre line: 1e-14).
+HIDDEN_HEIGHT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -184,30 +187,35 @@ def diagnosis_of(setup, r: IdentificationResult):
     from vibid.identify.diagnosis import diagnose
 
     try:
-        modes_hz, q = model_resonances(setup, r)
+        modes_hz, q, hidden_hz = model_resonances(setup, r)
         u = np.asarray(r.used)
         return diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
                         None if r.H_std is None else np.asarray(r.H_std)[u],
-                        plate_modes_hz=modes_hz, plate_q=q)
+                        plate_modes_hz=modes_hz, plate_q=q, hidden_hz=hidden_hz)
     except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
         log.warning("loop: the residual could not be diagnosed: %s", exc)
         return None
 
 
-def model_resonances(setup, result, n: int = 12) -> tuple[np.ndarray, np.ndarray]:
-    """(frequency_hz, Q) of the fitted model's resonances: its plate's modes and its stand
-    resonances."""
-    from vibid.identify.model.forward import natural_frequencies
+def model_resonances(setup, result, n: int = 12):
+    """``(frequency_hz, Q, hidden_hz)`` of the fitted model's resonances: the plate's modes
+    its sensor sees and its stand resonances; and the plate's modes its sensor does not see
+    (a peak in |H| below :data:`HIDDEN_HEIGHT` of the highest)."""
+    from vibid.identify.model.forward import natural_frequencies, natural_mode_heights
 
     params = result.parameters
     f_hz, decay = natural_frequencies(setup, params, n)
     q = np.pi * np.asarray(f_hz) / np.maximum(np.asarray(decay), 1e-30)
+    _, height = natural_mode_heights(setup, params, n)  # the same modes, in the same order
+    seen = np.asarray(height) >= HIDDEN_HEIGHT * np.max(height)
+    hidden_hz = np.asarray(f_hz, float)[~seen]
+    f_hz, q = np.asarray(f_hz)[seen], q[seen]
     stand = [(params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
              for t in result.plate_model.effects if t.rotates_base]
     if stand:
         f_hz = np.concatenate([f_hz, [s[0] for s in stand]])
         q = np.concatenate([q, [s[1] for s in stand]])
-    return np.asarray(f_hz, float), np.asarray(q, float)
+    return np.asarray(f_hz, float), np.asarray(q, float), hidden_hz
 
 
 def plate_modes_in_band(setup, result, n: int = 12) -> int:
@@ -223,7 +231,7 @@ def plate_modes_in_band(setup, result, n: int = 12) -> int:
 def scored(inputs: Inputs, current: Stage, cand, box) -> Score:
     """``cand``'s score test at the current fit (a failure is its verdict, not fatal)."""
     asked = bool(current.diagnosis is not None and any(
-        f.kind in cand.explains for f in current.diagnosis.features))
+        k in cand.explains for f in current.diagnosis.features for k in f.kinds))
     try:
         lm, dof, cos = score(inputs.setup, inputs.data, current.result, cand, box,
                              current.diagnosis)
@@ -453,7 +461,7 @@ def removed_feature(before, after, kinds):
                    and (f.kind == "trend" or abs(g.f_hz - f.f_hz) <= 0.03 * f.f_hz)
                    for g in after.features)
 
-    gone = [f for f in before.features if f.kind in kinds and not remains(f)]
+    gone = [f for f in before.features if set(f.kinds) & set(kinds) and not remains(f)]
     return max(gone, key=lambda f: f.significance, default=None)
 
 
