@@ -11,7 +11,8 @@ Cases (``benchmarks/loop_cases.py``):
   effects that the declared setup does not name;
 * the beam cases (``--cases beam``): the exact beam of ``tests/beam_reference.py`` (a model
   vibid did not write), clean, with a stand resonance, and with a stand resonance and an
-  elastic clamp, every default candidate in play;
+  elastic clamp, every default candidate in play; and ``ritz-sensor``, the independent Ritz
+  plate of ``tests/ritz_plate.py`` with its sensor 3 mm off the declared centre line;
 * ``plate``: a 150 x 100 x 2 mm CFRP plate, orthotropic in the data (E1/E2 = 5), declared
   isotropic, 120 steps to 800 Hz; the loop should add ``anisotropy``;
 * ``titanium``: the real AFC of ``../shared/data/real-titanium`` (11 960 points), read as
