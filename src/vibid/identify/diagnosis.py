@@ -27,8 +27,8 @@ model is a pole of R) → ``mode_shift``, the note says so; else ``extra_pole``,
 (``hidden_hz``) within :data:`HIDDEN_SPAN` of it: a sensor off the node line the model puts
 it on shows a mode the model hides (the plate modes ``plate_modes_hz`` are those it shows).
 One ``trend`` gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase
-and magnitude change and the delay a linear phase means. ``size``: the peak over the band of ``|ΔR|``, the
-feature's term in R (trend: ``|T - 1|``).
+and magnitude change and the delay a linear phase means. ``size``: the peak over the band
+of ``|ΔR|``, the feature's term in R (trend: ``|T - 1|``).
 
 Significance: ``sqrt(max(Δchi2 / b - ν, 0))``; ``Δchi2`` the rise of chi2 when the feature's
 terms are dropped and the rest refitted (trend: ``T`` fixed to 1), ``ν`` its number of linear

@@ -25,9 +25,10 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    fit's; an effect's new parameters start at their null or at the diagnosed feature, and
    a resonance the diagnosis placed is searched near its pole only: its frequency within
    10 %, its Q within 3 times the pole's; an effect that shows a mode the model hides
-   also starts from the material moved to place that mode on the pole). Where the model's own error barely changes
-   the current fit's chi2, every refit is weighed as the current fit is (that error is
-   estimated again only for the one the round adds); elsewhere each weighs its own.
+   also starts from the material moved to place that mode on the pole). Where the model's
+   own error barely changes the current fit's chi2, every refit is weighed as the current
+   fit is (that error is estimated again only for the one the round adds); elsewhere each
+   weighs its own.
 5. **Judge** each refit (:class:`Verdict`): a placed resonance inside the spans around
    its pole, not on their faces; significant, away from its null, every parameter the
    current fit had inside its prior box still inside it (a refit that reaches the data

@@ -11,8 +11,9 @@ moves a stiffness gets its own basis. Where the current estimate lies outside it
 (the declared model bent a parameter to mimic what it lacks) the starts also move those
 parameters just inside the box and to its centre; where the diagnosis reads a pole as a
 mode the model hides and the candidate can show it (a sensor off its node line), they also
-start from the material moved to place that mode on the pole. With ``search`` (a new material: the
-loop's rounds decide), the extended model is first searched globally over its box (the
+start from the material moved to place that mode on the pole. With ``search`` (a new
+material: the loop's rounds decide), the extended model is first searched globally over its
+box (the
 current estimate may lie in a wrong basin of it: an orthotropic plate fitted as isotropic):
 on the resonance peaks, then on chi2 unless the best's modes already lie on the measured
 peaks or it fits the noise; such a search settles the refit, and only where it does not are
@@ -184,8 +185,8 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
     the estimate lies inside its prior box, so no centred start is made either."""
     from scipy.optimize import least_squares
 
-    from vibid.identify.loop.rounds import HIDDEN_HEIGHT
     from vibid.identify.model.forward import natural_mode_heights
+    from vibid.identify.model.modal import seen
 
     poles = [f for f in getattr(diagnosis, "features", ()) if "hidden_mode" in f.kinds]
     if "hidden_mode" not in cand.explains or not poles:
@@ -195,9 +196,8 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
     f0, height = natural_mode_heights(setup, params, n)
     k = int(np.argmin(np.abs(np.log(f0 / pole.hidden_mode_hz))))
     f_used = np.asarray(data.frequency_hz)[np.asarray(data.used)]
-    seen = np.flatnonzero((height >= HIDDEN_HEIGHT * height.max()) & (f0 >= f_used.min())
-                          & (f0 <= f_used.max()))
-    target = np.log(np.append(f0[seen], pole.f_hz))
+    shown = np.flatnonzero(seen(height) & (f0 >= f_used.min()) & (f0 <= f_used.max()))
+    target = np.log(np.append(f0[shown], pole.f_hz))
     moving = [space.names.index(m) for m in res.plate_model.material.stiffness_names]
 
     def theta_at(x):
@@ -207,18 +207,17 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
 
     def misfit(x):
         f, _ = natural_mode_heights(setup, {**params, **theta_at(x)[1]}, n)
-        return np.log(np.append(f[seen], f[k])) - target
+        return np.log(np.append(f[shown], f[k])) - target
 
     try:
         fit = least_squares(misfit, np.clip(u0[moving], -0.99, 0.99), bounds=(-1.0, 1.0),
-                            x_scale=0.1,
-                            max_nfev=20 * (len(moving) + 1))
+                            x_scale=0.1, max_nfev=20 * (len(moving) + 1))
     except Exception as exc:  # noqa: BLE001 - no placed start, the others remain
         log.info("loop: %s: the hidden mode could not be placed: %s", cand.name, exc)
         return None
     u, theta = theta_at(fit.x)
     f, height = natural_mode_heights(setup, {**params, **theta}, n)
-    if height[k] >= HIDDEN_HEIGHT * height.max() or abs(np.log(f[k] / pole.f_hz)) > 0.02:
+    if seen(height)[k] or abs(np.log(f[k] / pole.f_hz)) > 0.02:
         return None  # the modes crossed, or the material cannot place it
     log.info("loop: %s: the model's hidden mode at %.4g Hz placed on the pole at %.4g Hz "
              "(%s)", cand.name, f0[k], pole.f_hz,

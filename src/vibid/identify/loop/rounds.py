@@ -46,9 +46,6 @@ ASKED_SLOTS = 1
 #: The top candidate is searched globally only when no local refit explains this share
 #: of the chi2 above the noise.
 SEARCH_SHARE = 0.5
-#: A mode of the model whose peak in |H| is below this share of the highest mode's is one
-#: its sensor does not see (a strip's torsion, its sensor on the centre line: 1e-14).
-HIDDEN_HEIGHT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -200,16 +197,16 @@ def diagnosis_of(setup, r: IdentificationResult):
 def model_resonances(setup, result, n: int = 12):
     """``(frequency_hz, Q, hidden_hz)`` of the fitted model's resonances: the plate's modes
     its sensor sees and its stand resonances; and the plate's modes its sensor does not see
-    (a peak in |H| below :data:`HIDDEN_HEIGHT` of the highest)."""
+    (:func:`vibid.identify.model.modal.seen`)."""
     from vibid.identify.model.forward import natural_frequencies, natural_mode_heights
+    from vibid.identify.model.modal import seen
 
     params = result.parameters
     f_hz, decay = natural_frequencies(setup, params, n)
     q = np.pi * np.asarray(f_hz) / np.maximum(np.asarray(decay), 1e-30)
-    _, height = natural_mode_heights(setup, params, n)  # the same modes, in the same order
-    seen = np.asarray(height) >= HIDDEN_HEIGHT * np.max(height)
-    hidden_hz = np.asarray(f_hz, float)[~seen]
-    f_hz, q = np.asarray(f_hz)[seen], q[seen]
+    shown = seen(natural_mode_heights(setup, params, n)[1])  # the same modes, in order
+    hidden_hz = np.asarray(f_hz, float)[~shown]
+    f_hz, q = np.asarray(f_hz)[shown], q[shown]
     stand = [(params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
              for t in result.plate_model.effects if t.rotates_base]
     if stand:

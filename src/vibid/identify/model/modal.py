@@ -62,6 +62,18 @@ def model_eigenvalues(mats, model, theta, n: int = 6) -> np.ndarray:
     return lam
 
 
+#: A mode whose peak in |H| is below this share of the highest mode's is one the sensor
+#: does not see (a strip's torsion, its sensor on the centre line: 1e-17; 3 mm off it, 6e-3).
+HIDDEN_HEIGHT = 1e-3
+
+
+def seen(height) -> np.ndarray:
+    """Which of the modes of peak heights ``height`` (:func:`mode_heights`) the sensor sees
+    (:data:`HIDDEN_HEIGHT`)."""
+    height = np.asarray(height, float)
+    return height >= HIDDEN_HEIGHT * np.max(height)
+
+
 def mode_heights(mats, model, theta, n: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """``(frequency_hz, height)`` of the ``n`` lowest real modes of a PlateModel at
     ``theta`` (its storage moduli; loss and any loss law left out): ``height_k = |c φ_k|
