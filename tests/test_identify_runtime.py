@@ -109,3 +109,29 @@ def test_a_wide_model_built_for_a_smaller_box_is_refused():
     res = identify(strip_setup(), f, H, forward_model=fm, method="local", refresh=False,
                    start={"D": 18.0, "nu": 0.29, "beta": 0.003})
     np.testing.assert_allclose(res.values, PAPER_THETA, rtol=1e-6)
+
+
+def test_an_entry_without_an_access_time_does_not_stop_new_entries(tmp_path):
+    """A cache written without a size limit (vibid before it had one) holds entries without
+    an access time; JAX's eviction reads every entry's before it writes a new one, fails, and
+    writes nothing ("Error writing persistent compilation cache entry", every compilation
+    again in every process). configure() stamps them with their file's time first."""
+    folder = tmp_path / "cache"
+    folder.mkdir()
+    (folder / "jit_old-0123-cache").write_bytes(b"an entry of the unlimited cache")
+    os.utime(folder / "jit_old-0123-cache", ns=(0, 1_700_000_000_123_456_789))
+    code = ("import os, warnings\nfrom vibid.identify import configure\n"
+            "import jax, jax.numpy as jnp\n"
+            f"os.environ['VIBID_JAX_CACHE'] = {str(folder)!r}\n"
+            "folder = configure()\n"
+            "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0)\n"
+            "warnings.simplefilter('error')\n"
+            "f = jax.jit(lambda x: jnp.linalg.eigh(x @ x.T + jnp.eye(40))[0].sum())\n"
+            "print(float(f(jnp.ones((40, 40)))))\n")
+    run = _run(code, tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "Error writing" not in run.stderr
+    stamp = (folder / "jit_old-0123-atime").read_bytes()
+    assert int.from_bytes(stamp, "little") == 1_700_000_000_123_456_789
+    new = [n for n in os.listdir(folder) if n.endswith("-cache") and not n.startswith("jit_old")]
+    assert new and all((folder / n.replace("-cache", "-atime")).exists() for n in new)

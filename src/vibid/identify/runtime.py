@@ -34,7 +34,11 @@ a size limit it takes no lock, and a process that finds an entry another is stil
 reads it truncated and dies in XLA's deserialisation (a segmentation fault in a fresh
 clone's suite, in the titanium test, while the other worker compiled the same function).
 With a size limit (:data:`MAX_CACHE_BYTES`) JAX reads and writes under a file lock
-(``filelock``), and evicts the least recently used entries beyond it.
+(``filelock``), and evicts the least recently used entries beyond it. Before it writes an
+entry it reads every entry's access time, and an entry written without a limit (by vibid
+before the limit, or by JAX left to itself) has none: the read fails, the new entry is not
+written, and every later process compiles it again (a warning per compilation). So the
+entries without one are given their file's time first (:func:`stamp_entries`).
 """
 
 from __future__ import annotations
@@ -67,6 +71,7 @@ def enable_compilation_cache() -> str | None:
         jax.config.update("jax_compilation_cache_max_size", MAX_CACHE_BYTES)
     current = jax.config.jax_compilation_cache_dir
     if current:
+        stamp_entries(current)
         return current
     path = cache_dir()
     if path is None:
@@ -75,9 +80,30 @@ def enable_compilation_cache() -> str | None:
         os.makedirs(path, exist_ok=True)
     except OSError:
         return None
+    stamp_entries(path)
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_S)
     return path
+
+
+def stamp_entries(path: str) -> int:
+    """Give each entry of the cache folder ``path`` that has no access time (``<key>-atime``,
+    JAX's eviction reads it: module doc) its file's modification time; returns how many.
+    Under the cache's lock, as JAX writes; a folder that cannot be read is left as it is."""
+    import filelock
+
+    try:
+        with filelock.FileLock(os.path.join(path, ".lockfile"), timeout=10):
+            names = set(os.listdir(path))
+            bare = [n[:-len("-cache")] for n in names
+                    if n.endswith("-cache") and n[:-len("-cache")] + "-atime" not in names]
+            for key in bare:
+                stamp = os.stat(os.path.join(path, key + "-cache")).st_mtime_ns
+                with open(os.path.join(path, key + "-atime"), "wb") as fh:
+                    fh.write(stamp.to_bytes(8, "little"))
+    except (OSError, filelock.Timeout):
+        return 0
+    return len(bare)
 
 
 def limit_blas_threads(threads: int = 1) -> None:
