@@ -18,7 +18,7 @@ AMPLITUDES = np.array([1.0, 0.6, 0.3])
 Q = np.array([40.0, 35.0, 30.0])
 REL_NOISE = 0.003
 SPEC_KEYS = {"kind", "f_hz", "q", "size", "note",
-             "hidden_mode_hz"}  # the last one added by vibid (README, report fields)
+             "hidden_mode_hz", "causal"}  # the last two added by vibid (README, report fields)
 
 
 def modal_afc(f_hz, modes_hz=MODES_HZ, q=Q):
@@ -101,6 +101,47 @@ def test_an_extra_pole_beside_a_mode_the_model_hides_names_that_mode(hidden_hz, 
         assert x.hidden_mode_hz == named and x.kinds == ("extra_pole", "hidden_mode")
         assert x.as_report()["hidden_mode_hz"] == named
         assert f"model's mode at {named:.4g} Hz, which its sensor does not see" in x.note
+
+
+def test_on_an_fft_grid_a_causal_extra_pole_is_causal_and_a_time_reversed_one_is_not():
+    """On a uniform 0.5 Hz grid (an FFT's bins) the extra resonance multiplying H is causal;
+    the same factor time-reversed (its complex conjugate: the same magnitude, the phase
+    mirrored) is found at the same pole but marked not causal, and its note says no
+    resonance of the stand or the plate makes it."""
+    rng = np.random.default_rng(0)
+    f = rng.permutation(np.arange(40.0, 1500.0, 0.5))
+    H = modal_afc(f)
+    for reversed_, expected in ((False, True), (True, False)):
+        g = resonance(f)
+        Hm, std = measure(H * (1 + THETA * (np.conj(g) if reversed_ else g)), rng)
+        (x,) = diagnose(f, Hm, H, std, plate_modes_hz=MODES_HZ, plate_q=Q).extra_poles()
+        assert abs(x.f_hz / 660 - 1) < 0.01 and x.causal is expected
+        assert x.as_report()["causal"] is expected
+        assert ("no resonance of the stand or the plate makes it" in x.note) is reversed_
+
+
+def test_on_a_stepped_grid_causality_is_not_judged():
+    """A stepped sine's grid is sparse and uneven: no Hilbert transform, no verdict, no key."""
+    (x,) = diagnose(*extra_pole_case(0), plate_modes_hz=MODES_HZ, plate_q=Q).extra_poles()
+    assert x.causal is None and "causal" not in x.as_report()
+
+
+def test_the_titanium_strips_664_hz_feature_is_not_causal_and_its_modes_are():
+    """The real AFC (11 960 FFT bins): the strip's two bending resonances (197.5 and
+    1280 Hz, the first one's flat top included) and the feature at 982 Hz have a causal
+    factor's phase; the stand's feature at 661 Hz does not (its phase rises by 27 degrees
+    where a causal factor of its magnitude would fall by 57: BENCHMARKS.md)."""
+    import gzip
+    from pathlib import Path
+
+    from vibid.identify.diagnosis import causal
+
+    path = Path(__file__).parent / "data" / "titanium_afc.csv.gz"
+    with gzip.open(path, "rt") as fh:
+        f, re, im, _ = np.loadtxt(fh, delimiter=",", skiprows=1, unpack=True)
+    H = re + 1j * im
+    assert [causal(f, H, f_hz) for f_hz in (197.5, 661.0, 982.0, 1280.0)] == [
+        True, False, True, True]
 
 
 @pytest.mark.parametrize("seed", [0, 6, 7])
