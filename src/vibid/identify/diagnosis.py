@@ -25,8 +25,9 @@ model's pole is mostly in frequency (``|Δ Im p| ≥ |Δ Re p|``; without ``plat
 model is a pole of R) → ``mode_shift``, the note says so; else ``extra_pole``, with
 ``hidden_mode_hz`` the nearest mode of the model that its sensor does not see
 (``hidden_hz``) within :data:`HIDDEN_SPAN` of it: a sensor off the node line the model puts
-it on shows a mode the model hides (the plate modes ``plate_modes_hz`` are those it shows).
-One ``trend`` gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase
+it on shows a mode the model hides (the plate modes ``plate_modes_hz`` are those it shows),
+and, on a uniform grid, ``causal``: whether its phase is that of a causal factor of its
+magnitude (:func:`causal`; a resonance of a linear stand is). One ``trend`` gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase
 and magnitude change and the delay a linear phase means. ``size``: the peak over the band
 of ``|ΔR|``, the feature's term in R (trend: ``|T - 1|``).
 
