@@ -27,8 +27,9 @@ model is a pole of R) → ``mode_shift``, the note says so; else ``extra_pole``,
 (``hidden_hz``) within :data:`HIDDEN_SPAN` of it: a sensor off the node line the model puts
 it on shows a mode the model hides (the plate modes ``plate_modes_hz`` are those it shows),
 and, on a uniform grid, ``causal``: whether its phase is that of a causal factor of its
-magnitude (:func:`causal`; a resonance of a linear stand is). One ``trend`` gathers ``T = d + e s`` + real and out-of-band poles; its note gives the phase
-and magnitude change and the delay a linear phase means. ``size``: the peak over the band
+magnitude (:func:`causal`; a resonance of a linear stand is). One ``trend`` gathers
+``T = d + e s`` + real and out-of-band poles; its note gives the phase and magnitude change
+and the delay a linear phase means. ``size``: the peak over the band
 of ``|ΔR|``, the feature's term in R (trend: ``|T - 1|``).
 
 Significance: ``sqrt(max(Δchi2 / b - ν, 0))``; ``Δchi2`` the rise of chi2 when the feature's
