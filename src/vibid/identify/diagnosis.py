@@ -275,13 +275,13 @@ def causal(f_hz, R, f_p: float) -> bool | None:
     minimum phase swings by less than 0.1 rad (too small a feature to judge). Any resonance
     of a linear stand multiplies or adds to H causally; on the titanium strip's 664 Hz
     feature the phase rises by 27° where a causal factor's would fall by 57°."""
-    from scipy.signal import hilbert
-
     window = (f_hz >= f_p / CAUSAL_SPAN) & (f_hz <= f_p * CAUSAL_SPAN)
     f, R = f_hz[window], R[window]
     step = np.diff(f)
     if f.size < 200 or np.ptp(step) > 0.01 * np.median(step):
         return None
+    from scipy.signal import hilbert  # here: importing scipy.signal takes 2 s
+
     ln_mag, phase = np.log(np.abs(R)), np.unwrap(np.angle(R))
     ln_mag = ln_mag - np.interp(f, f[[0, -1]], ln_mag[[0, -1]])
     phase = phase - np.interp(f, f[[0, -1]], phase[[0, -1]])
