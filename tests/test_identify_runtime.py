@@ -13,6 +13,11 @@ from vibid.errors import VibidError
 from vibid.identify.fit import identify
 
 
+#: A script's lines that compile one function worth a cache entry and evaluate it (``value``).
+COMPILE_ONE = ("f = jax.jit(lambda x: jnp.linalg.eigh(x @ x.T + jnp.eye(40))[0].sum())\n"
+               "value = float(f(jnp.ones((40, 40))))\n")
+
+
 def _run(code: str, tmp_path) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "VIBID_", "OPENBLAS_", "OMP_"))}
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
@@ -61,8 +66,7 @@ def test_the_compilation_cache_is_read_and_written_under_a_lock(tmp_path):
     code = ("from vibid.identify import configure\nimport jax, jax.numpy as jnp\n"
             "folder = configure()\n"
             "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0)\n"
-            "f = jax.jit(lambda x: jnp.linalg.eigh(x @ x.T + jnp.eye(40))[0].sum())\n"
-            "value = float(f(jnp.ones((40, 40))))\n"
+            + COMPILE_ONE +
             "print(folder, jax.config.jax_compilation_cache_max_size, value)\n")
     first = _run(code, tmp_path)
     assert first.returncode == 0, first.stderr
@@ -125,9 +129,7 @@ def test_an_entry_without_an_access_time_does_not_stop_new_entries(tmp_path):
             f"os.environ['VIBID_JAX_CACHE'] = {str(folder)!r}\n"
             "folder = configure()\n"
             "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0)\n"
-            "warnings.simplefilter('error')\n"
-            "f = jax.jit(lambda x: jnp.linalg.eigh(x @ x.T + jnp.eye(40))[0].sum())\n"
-            "print(float(f(jnp.ones((40, 40)))))\n")
+            "warnings.simplefilter('error')\n" + COMPILE_ONE)
     run = _run(code, tmp_path)
     assert run.returncode == 0, run.stderr
     assert "Error writing" not in run.stderr
