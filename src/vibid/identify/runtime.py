@@ -95,8 +95,8 @@ def stamp_entries(path: str) -> int:
     try:
         with filelock.FileLock(os.path.join(path, ".lockfile"), timeout=10):
             names = set(os.listdir(path))
-            bare = [n[:-len("-cache")] for n in names
-                    if n.endswith("-cache") and n[:-len("-cache")] + "-atime" not in names]
+            keys = {n.removesuffix("-cache") for n in names if n.endswith("-cache")}
+            bare = [k for k in keys if k + "-atime" not in names]
             for key in bare:
                 stamp = os.stat(os.path.join(path, key + "-cache")).st_mtime_ns
                 with open(os.path.join(path, key + "-atime"), "wb") as fh:
