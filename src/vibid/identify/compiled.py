@@ -7,7 +7,9 @@ one structure (the declared model, each candidate of the loop, a model rebuilt a
 estimate, another restart's, another session's) shares the compiled functions built here,
 passing its own arrays; JAX compiles each once per array shape. The caches are LRUs of a
 few entries: a long-running worker that replays hundreds of sessions keeps only the code of
-the last few structures, and an evicted entry frees its compiled code.
+the last few structures, and an evicted entry frees its compiled code. Each function also
+keeps the programs it traces on disk (:mod:`vibid.identify.persist`), so that another
+process does not trace them again.
 """
 
 from __future__ import annotations
@@ -35,13 +37,19 @@ class KernelFunctions:
 def kernel_functions(kernel) -> KernelFunctions:
     import jax
 
+    from vibid.identify.persist import Persisted, identity_of
     from vibid.identify.runtime import over_population
 
+    identity = identity_of(kernel)
+
+    def kept(name, fn):
+        return Persisted(jax.jit(fn), identity and f"kernel.{name}|{identity}")
+
     return KernelFunctions(
-        afc=jax.jit(kernel),
-        afc_batch=jax.jit(over_population(kernel)),
-        modes_batch=jax.jit(over_population(kernel.modes)),
-        modes_afc_batch=jax.jit(over_population(kernel.modes_and_afc)),
+        afc=kept("afc", kernel),
+        afc_batch=kept("afc_batch", over_population(kernel)),
+        modes_batch=kept("modes_batch", over_population(kernel.modes)),
+        modes_afc_batch=kept("modes_afc_batch", over_population(kernel.modes_and_afc)),
     )
 
 
@@ -50,6 +58,14 @@ def problem_functions(kernel, magnitude: bool = False):
     """The least-squares functions of a kernel, whatever the points fitted, the data, the
     weights and the parameter space (arguments of each function:
     :func:`vibid.identify.fit.problem.compile_problem`); ``magnitude``: on |H| alone."""
-    from vibid.identify.fit.problem import compile_problem
+    from dataclasses import fields, replace
 
-    return compile_problem(kernel, magnitude)
+    from vibid.identify.fit.problem import compile_problem
+    from vibid.identify.persist import Persisted, identity_of
+
+    functions = compile_problem(kernel, magnitude)
+    identity = identity_of(kernel)
+    return replace(functions, **{
+        f.name: Persisted(getattr(functions, f.name),
+                          identity and f"problem.{f.name}|magnitude={magnitude}|{identity}")
+        for f in fields(functions)})
