@@ -43,6 +43,8 @@ def main():
     B = problem.hessian(u)
     print(len(traced))
     print(" ".join(repr(float(b)) for b in B.ravel()))
+    plain = problem._fn.hessian.fn(problem._padded(u), *problem._args(), problem._space)
+    print(" ".join(repr(float(b)) for b in np.asarray(plain)[:3, :3].ravel()))
 
 if __name__ == "__main__":
     main()
@@ -57,8 +59,10 @@ def _run(tmp_path) -> tuple[int, np.ndarray]:
     out = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stderr
-    count, values = out.stdout.splitlines()[-2:]
-    return int(count), np.array([float(v) for v in values.split()])
+    count, kept, plain = out.stdout.splitlines()[-3:]
+    kept, plain = (np.array([float(v) for v in line.split()]) for line in (kept, plain))
+    np.testing.assert_allclose(kept, plain, rtol=1e-12, atol=0)  # the program jit traces
+    return int(count), kept
 
 
 def test_a_second_process_runs_the_kept_hessian_without_tracing_the_model(tmp_path):

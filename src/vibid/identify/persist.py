@@ -134,10 +134,20 @@ class Persisted:
             if exported is None:
                 exported = export.export(self.fn)(*args)
                 _write(where, path, exported.serialize())
-            return jax.jit(exported.call)
+            return jax.jit(_named(exported.call, self.identity.split("|")[0]))
         except Exception as exc:  # noqa: BLE001 - persisting only saves time
             log.debug("persist: %s is traced as usual (%s)", self.identity, exc)
             return self.fn
+
+
+def _named(call, name: str):
+    """``call`` under ``name`` (JAX's logs and profiles name a function by it)."""
+
+    def kept(*args):
+        return call(*args)
+
+    kept.__name__ = kept.__qualname__ = name.replace(".", "_")
+    return kept
 
 
 def _read(path: str):
