@@ -169,3 +169,13 @@ def test_the_folder_keeps_the_most_recently_used(tmp_path):
         os.utime(p, (1000 + k, 1000 + k))
     persist._evict(str(tmp_path), keep=2)
     assert _artefacts(tmp_path) == ["3.jaxexport", "4.jaxexport"]
+
+
+def test_inside_a_transformation_it_is_the_function_itself(folder):
+    f, traces = _counted()
+    kept = Persisted(f, "toy")
+    x, y = np.eye(2), np.array([1.0, 2.0])
+    J = jax.jacfwd(lambda x: kept(x, y))(x)  # a kept program has no derivative rule
+    expected = jax.jacfwd(lambda x: jnp.sin(x) @ y)(x)
+    np.testing.assert_allclose(J, expected, rtol=1e-15)
+    assert _artefacts(folder) == []

@@ -90,8 +90,8 @@ def _made_by_vibid(obj, depth: int = 0) -> bool:
 
 class Persisted:
     """``fn`` (a ``jax.jit`` function) whose traced programs are kept on disk under
-    ``identity`` (module doc); called like ``fn``. Without an identity, or for arguments
-    that are not all arrays, it is ``fn``."""
+    ``identity`` (module doc); called like ``fn``. Without an identity, for arguments that
+    are not all arrays, or inside a transformation (``jax.jacfwd`` of it), it is ``fn``."""
 
     def __init__(self, fn, identity: str | None):
         self.fn, self.identity = fn, identity
@@ -101,9 +101,9 @@ class Persisted:
         import jax
 
         leaves, tree = jax.tree_util.tree_flatten(args)
-        if self.identity is None or not all(hasattr(x, "shape") and hasattr(x, "dtype")
-                                            for x in leaves):
-            return self.fn(*args)
+        if self.identity is None or not all(_concrete_array(x) for x in leaves):
+            return self.fn(*args)  # called inside a transformation (a kept program has
+            # no derivative rule), or with Python numbers: traced as usual
         signature = (tree, tuple((tuple(x.shape), str(x.dtype), bool(getattr(
             x, "weak_type", False))) for x in leaves))
         call = self._calls.get(signature)
@@ -138,6 +138,13 @@ class Persisted:
         except Exception as exc:  # noqa: BLE001 - persisting only saves time
             log.debug("persist: %s is traced as usual (%s)", self.identity, exc)
             return self.fn
+
+
+def _concrete_array(x) -> bool:
+    """Whether ``x`` is an array with values (not a tracer of an enclosing transformation)."""
+    import jax
+
+    return hasattr(x, "shape") and hasattr(x, "dtype") and not isinstance(x, jax.core.Tracer)
 
 
 def _named(call, name: str):
