@@ -19,7 +19,7 @@ COMPILE_ONE = ("f = jax.jit(lambda x: jnp.linalg.eigh(x @ x.T + jnp.eye(40))[0].
 
 
 def _run(code: str, tmp_path) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "VIBID_", "OPENBLAS_", "OMP_"))}
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "VIBID_", "XLA_", "OPENBLAS_", "OMP_"))}
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                           timeout=300)
@@ -57,6 +57,20 @@ def test_configure_switches_on_64_bits_and_the_cache(tmp_path):
     assert x64 == "True" and folder == str(tmp_path / "cache" / "vibid" / "jax")
     assert os.path.isdir(folder)
     assert one_thread == "True"  # every BLAS library of the process on one thread
+
+
+def test_configure_adds_vibids_xla_flags_and_keeps_the_users(tmp_path, monkeypatch):
+    from vibid.identify.runtime import XLA_CPU_FLAGS, use_xla_flags
+
+    out = _run("import os\nfrom vibid.identify import configure\nconfigure()\n"
+               "print(os.environ['XLA_FLAGS'])", tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == list(XLA_CPU_FLAGS)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=true --xla_dump_to=/x")
+    use_xla_flags(("--xla_cpu_use_fusion_emitters=false", "--xla_cpu_enable_fast_math=false"))
+    assert os.environ["XLA_FLAGS"].split() == [
+        "--xla_cpu_use_fusion_emitters=true", "--xla_dump_to=/x",
+        "--xla_cpu_enable_fast_math=false"]
 
 
 def test_the_compilation_cache_is_read_and_written_under_a_lock(tmp_path):

@@ -115,6 +115,23 @@ def limit_blas_threads(threads: int = 1) -> None:
     threadpool_limits(limits=int(threads), user_api="blas")
 
 
+#: XLA flags vibid compiles with. XLA's older CPU code generators for fusions (its newer
+#: MLIR emitters off): the reduced model's Hessian compiles in 1.7-1.9 s instead of
+#: 2.6-2.8 s, its gradient in 0.6 instead of 1.0-1.2 s, and they run as fast, to the same
+#: digits (BENCHMARKS.md). The closed loop on a plate compiles about 30 functions cold.
+XLA_CPU_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
+
+
+def use_xla_flags(flags) -> None:
+    """Add ``flags`` (``--name=value``) to ``XLA_FLAGS``, each unless the user's
+    ``XLA_FLAGS`` already sets it; XLA reads them when it first compiles."""
+    current = os.environ.get("XLA_FLAGS", "")
+    given = {f.split("=", 1)[0] for f in current.split()}
+    added = [f for f in flags if f.split("=", 1)[0] not in given]
+    if added:
+        os.environ["XLA_FLAGS"] = " ".join([current, *added]).strip()
+
+
 def configure(*, cache: bool = True, blas_threads: int | None = 1) -> str | None:
     """What an entry point calls once: 64-bit JAX, the compilation cache unless ``cache``
     is False, and ``blas_threads`` BLAS threads (None leaves them as they are). Returns the
@@ -126,7 +143,11 @@ def configure(*, cache: bool = True, blas_threads: int | None = 1) -> str | None
     for work queued behind itself for good (``jax::ParallelBatchMap`` in
     ``lapack_ztrsm_ffi``, under ``ThreadPoolAsyncWorkRunner``: the Monte Carlo test hung in
     2 runs of 5 and in a fresh clone's suite; 10 of 10 passed at the same speed with the
-    dispatch off). vibid waits for every result it asks for, so it loses nothing."""
+    dispatch off). vibid waits for every result it asks for, so it loses nothing.
+
+    XLA's compiler flags :data:`XLA_CPU_FLAGS` are added to ``XLA_FLAGS`` (a flag the user
+    set there is kept); they act on the compilations after the call."""
+    use_xla_flags(XLA_CPU_FLAGS)
     import jax
 
     jax.config.update("jax_enable_x64", True)
