@@ -11,10 +11,12 @@ A :class:`Persisted` function keeps each program it traces as a :mod:`jax.export
 that calls it with arguments of the same shapes reads the artefact and calls it (a small
 wrapper to trace; its compiled code is found in the compilation cache as before). The
 artefact's name is a hash of everything the program depends on: the function's identity
-(what it computes, for which model structure), the arguments' tree, shapes and dtypes, the
-versions of JAX and jaxlib and the source of the vibid package, so that no edit of vibid
-can load an older program. A function whose identity is not fully known from vibid's own
-code (a model with a test's own term, :func:`identity_of`) is not persisted.
+(what it computes, for which model structure), the arguments' tree, shapes and dtypes,
+64-bit JAX or not, the versions of JAX and jaxlib and the source of the vibid package, so
+that no edit of vibid can load an older program. A function whose identity is not fully known from vibid's own
+code (a model with a test's own term, :func:`identity_of`) is not persisted, nor a call
+inside a transformation (a derivative taken of the AFC): a kept program has no derivative
+rule.
 
 Anything that goes wrong (no ``flatbuffers``, a folder that cannot be written, an artefact
 cut short) only costs the tracing: the function is then traced as usual.
@@ -125,7 +127,8 @@ class Persisted:
         where = folder()
         if where is None:
             return self.fn
-        key = hashlib.sha256(f"{code_digest()}|{self.identity}|{signature}".encode())
+        x64 = jax.config.jax_enable_x64  # the dtypes a program makes inside
+        key = hashlib.sha256(f"{code_digest()}|{x64}|{self.identity}|{signature}".encode())
         path = os.path.join(where, key.hexdigest()[:40] + ".jaxexport")
         try:
             from jax import export
