@@ -133,12 +133,15 @@ def test_a_damaged_artefact_is_traced_again_and_rewritten(folder):
     assert len(traces_g) == 1 and path.stat().st_size > 100
 
 
-def test_without_an_identity_or_a_folder_the_function_is_traced_as_usual(tmp_path, monkeypatch):
+def test_without_an_identity_a_folder_or_vibids_source_the_function_is_traced_as_usual(
+        tmp_path, monkeypatch):
     monkeypatch.setattr(persist, "folder", lambda: None)
     f, traces = _counted()
     Persisted(f, "toy")(np.eye(2), np.ones(2))
     monkeypatch.setattr(persist, "folder", lambda: str(tmp_path))
     Persisted(f, None)(np.eye(2), np.ones(2))
+    monkeypatch.setattr(persist, "code_digest", lambda: None)  # vibid in a zip archive
+    Persisted(f, "toy")(np.eye(2), np.ones(2))
     assert list(tmp_path.iterdir()) == []
 
 

@@ -50,8 +50,10 @@ def folder() -> str | None:
 
 
 @functools.lru_cache(maxsize=1)
-def code_digest() -> str:
-    """A hash of the versions of JAX and jaxlib and of every source file of vibid."""
+def code_digest() -> str | None:
+    """A hash of the versions of JAX and jaxlib and of every source file of vibid; None
+    where vibid's source files cannot be read (an installation in a zip archive): then
+    nothing is persisted, since no edit could be told apart."""
     import jax
     import jaxlib
 
@@ -59,7 +61,10 @@ def code_digest() -> str:
 
     h = hashlib.sha256(f"{jax.__version__} {jaxlib.__version__}".encode())
     root = Path(vibid.__file__).parent
-    for path in sorted(root.rglob("*.py")):
+    sources = sorted(root.rglob("*.py"))
+    if not sources:
+        return None
+    for path in sources:
         h.update(str(path.relative_to(root)).encode())
         h.update(path.read_bytes())
     return h.hexdigest()
@@ -124,11 +129,11 @@ class Persisted:
     def _load(self, args, signature):
         import jax
 
-        where = folder()
-        if where is None:
+        where, code = folder(), code_digest()
+        if where is None or code is None:
             return self.fn
         x64 = jax.config.jax_enable_x64  # the dtypes a program makes inside
-        key = hashlib.sha256(f"{code_digest()}|{x64}|{self.identity}|{signature}".encode())
+        key = hashlib.sha256(f"{code}|{x64}|{self.identity}|{signature}".encode())
         path = os.path.join(where, key.hexdigest()[:40] + ".jaxexport")
         try:
             from jax import export
