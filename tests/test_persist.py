@@ -67,7 +67,7 @@ def _run(tmp_path) -> tuple[int, np.ndarray]:
 
 def test_a_second_process_runs_the_kept_hessian_without_tracing_the_model(tmp_path):
     traced_first, first = _run(tmp_path)
-    kept = os.listdir(tmp_path / "cache" / "vibid" / "jax-exported")
+    kept = os.listdir(tmp_path / "cache" / "vibid" / "jax" / "exported")
     assert traced_first > 0 and any(n.endswith(".jaxexport") for n in kept)
     traced_again, again = _run(tmp_path)
     assert traced_again == 0  # the model's Python code never ran: the program came from disk

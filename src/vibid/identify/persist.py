@@ -7,7 +7,7 @@ hash. For the reduced model's Hessian that is 0.3 s of the 0.5 s its first call 
 the cache filled, and an identification of the titanium AFC calls about 55 such functions.
 
 A :class:`Persisted` function keeps each program it traces as a :mod:`jax.export` artefact
-(serialised StableHLO, tens of kB) in a folder beside the compilation cache. A later process
+(serialised StableHLO, tens of kB) in a folder within the compilation cache's. A later process
 that calls it with arguments of the same shapes reads the artefact and calls it (a small
 wrapper to trace; its compiled code is found in the compilation cache as before). The
 artefact's name is a hash of everything the program depends on: the function's identity
@@ -38,15 +38,13 @@ MAX_ARTEFACTS = 2000
 
 
 def folder() -> str | None:
-    """The artefacts' folder: beside JAX's compilation cache folder (``<cache>-exported``);
-    None while the compilation cache is off (the program would be compiled anyway)."""
+    """The artefacts' folder: ``exported`` in JAX's compilation cache folder (JAX reads and
+    evicts only its own ``*-cache`` files there); None while the compilation cache is off
+    (the program would be compiled anyway)."""
     import jax
 
     cache = jax.config.jax_compilation_cache_dir
-    if not cache:
-        return None
-    cache = os.path.abspath(cache).rstrip(os.sep)
-    return cache + "-exported"
+    return os.path.join(cache, "exported") if cache else None
 
 
 @functools.lru_cache(maxsize=1)
