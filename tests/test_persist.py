@@ -100,36 +100,39 @@ def test_a_kept_program_is_found_by_its_identity_and_shapes_only(folder, monkeyp
     x, y = np.linspace(0.0, 1.0, 6).reshape(2, 3), np.arange(3.0)
     f, traces = _counted()
     expected = np.sin(x) @ y
-    np.testing.assert_allclose(Persisted(f, "toy")(x, y), expected, rtol=1e-15)
+    np.testing.assert_allclose(Persisted(f, "toy", "v1")(x, y), expected, rtol=1e-15)
     assert len(traces) == 1 and len(_artefacts(folder)) == 1
 
     g, traces_g = _counted()  # another process's function of the same identity
-    np.testing.assert_allclose(Persisted(g, "toy")(x, y), expected, rtol=1e-15)
+    np.testing.assert_allclose(Persisted(g, "toy", "v1")(x, y), expected, rtol=1e-15)
     assert traces_g == []
 
     h, traces_h = _counted()
-    kept = Persisted(h, "toy")
+    kept = Persisted(h, "toy", "v1")
     kept(np.ones((4, 3)), y)  # other shapes: a program of their own
     kept(x, y)
     kept(x, y)
     assert len(traces_h) == 1 and len(_artefacts(folder)) == 2
 
     other, traces_other = _counted()
-    Persisted(other, "other")(x, y)  # another function
+    Persisted(other, "other", "v1")(x, y)  # another function
+    structure, traces_structure = _counted()
+    Persisted(structure, "toy", "v2")(x, y)  # the same function of another model structure
     monkeypatch.setattr(persist, "code_digest", lambda: "edited")
     edited, traces_edited = _counted()
-    Persisted(edited, "toy")(x, y)  # the same function after an edit of vibid
-    assert len(traces_other) == len(traces_edited) == 1 and len(_artefacts(folder)) == 4
+    Persisted(edited, "toy", "v1")(x, y)  # the same function after an edit of vibid
+    assert len(traces_other) == len(traces_structure) == len(traces_edited) == 1
+    assert len(_artefacts(folder)) == 5
 
 
 def test_a_damaged_artefact_is_traced_again_and_rewritten(folder):
     x, y = np.eye(3), np.ones(3)
     f, traces = _counted()
-    Persisted(f, "toy")(x, y)
+    Persisted(f, "toy", "v1")(x, y)
     (path,) = folder.glob("*.jaxexport")
     path.write_bytes(path.read_bytes()[:100])
     g, traces_g = _counted()
-    np.testing.assert_allclose(Persisted(g, "toy")(x, y), np.sin(x) @ y, rtol=1e-15)
+    np.testing.assert_allclose(Persisted(g, "toy", "v1")(x, y), np.sin(x) @ y, rtol=1e-15)
     assert len(traces_g) == 1 and path.stat().st_size > 100
 
 
@@ -137,11 +140,11 @@ def test_without_an_identity_a_folder_or_vibids_source_the_function_is_traced_as
         tmp_path, monkeypatch):
     monkeypatch.setattr(persist, "folder", lambda: None)
     f, traces = _counted()
-    Persisted(f, "toy")(np.eye(2), np.ones(2))
+    Persisted(f, "toy", "v1")(np.eye(2), np.ones(2))
     monkeypatch.setattr(persist, "folder", lambda: str(tmp_path))
-    Persisted(f, None)(np.eye(2), np.ones(2))
+    Persisted(f, "toy", None)(np.eye(2), np.ones(2))
     monkeypatch.setattr(persist, "code_digest", lambda: None)  # vibid in a zip archive
-    Persisted(f, "toy")(np.eye(2), np.ones(2))
+    Persisted(f, "toy", "v1")(np.eye(2), np.ones(2))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -176,7 +179,7 @@ def test_the_folder_keeps_the_most_recently_used(tmp_path):
 
 def test_inside_a_transformation_it_is_the_function_itself(folder):
     f, traces = _counted()
-    kept = Persisted(f, "toy")
+    kept = Persisted(f, "toy", "v1")
     x, y = np.eye(2), np.array([1.0, 2.0])
     J = jax.jacfwd(lambda x: kept(x, y))(x)  # a kept program has no derivative rule
     expected = jax.jacfwd(lambda x: jnp.sin(x) @ y)(x)

@@ -43,7 +43,7 @@ def kernel_functions(kernel) -> KernelFunctions:
     identity = identity_of(kernel)
 
     def kept(name, fn):
-        return Persisted(jax.jit(fn), identity and f"kernel.{name}|{identity}")
+        return Persisted(jax.jit(fn), f"kernel.{name}", identity)
 
     return KernelFunctions(
         afc=kept("afc", kernel),
@@ -66,6 +66,6 @@ def problem_functions(kernel, magnitude: bool = False):
     functions = compile_problem(kernel, magnitude)
     identity = identity_of(kernel)
     return replace(functions, **{
-        f.name: Persisted(getattr(functions, f.name),
-                          identity and f"problem.{f.name}|magnitude={magnitude}|{identity}")
+        f.name: Persisted(getattr(functions, f.name), f"problem.{f.name}",
+                          identity and f"magnitude={magnitude}|{identity}")
         for f in fields(functions)})

@@ -94,12 +94,13 @@ def _made_by_vibid(obj, depth: int = 0) -> bool:
 
 
 class Persisted:
-    """``fn`` (a ``jax.jit`` function) whose traced programs are kept on disk under
-    ``identity`` (module doc); called like ``fn``. Without an identity, for arguments that
-    are not all arrays, or inside a transformation (``jax.jacfwd`` of it), it is ``fn``."""
+    """``fn`` (a ``jax.jit`` function) whose traced programs are kept on disk as ``name``
+    (``"problem.hessian"``) of ``identity`` (:func:`identity_of` its model structure; module
+    doc); called like ``fn``. Without an identity, for arguments that are not all arrays,
+    or inside a transformation (``jax.jacfwd`` of it), it is ``fn``."""
 
-    def __init__(self, fn, identity: str | None):
-        self.fn, self.identity = fn, identity
+    def __init__(self, fn, name: str, identity: str | None):
+        self.fn, self.name, self.identity = fn, name, identity
         self._calls = {}  # argument signature -> the callable for it
 
     def __call__(self, *args):
@@ -120,7 +121,7 @@ class Persisted:
         try:
             return call(*args)
         except Exception as exc:  # noqa: BLE001 - a kept program JAX will not run: trace
-            log.debug("persist: %s is traced as usual (%s)", self.identity, exc)
+            log.debug("persist: %s is traced as usual (%s)", self.name, exc)
             self._calls[signature] = self.fn
             return self.fn(*args)
 
@@ -131,7 +132,7 @@ class Persisted:
         if where is None or code is None:
             return self.fn
         x64 = jax.config.jax_enable_x64  # the dtypes a program makes inside
-        key = hashlib.sha256(f"{code}|{x64}|{self.identity}|{signature}".encode())
+        key = hashlib.sha256(f"{code}|{x64}|{self.name}|{self.identity}|{signature}".encode())
         path = os.path.join(where, key.hexdigest()[:40] + ".jaxexport")
         try:
             from jax import export
@@ -140,9 +141,9 @@ class Persisted:
             if exported is None:
                 exported = export.export(self.fn)(*args)
                 _write(where, path, exported.serialize())
-            return jax.jit(_named(exported.call, self.identity.split("|")[0]))
+            return jax.jit(_named(exported.call, self.name))
         except Exception as exc:  # noqa: BLE001 - persisting only saves time
-            log.debug("persist: %s is traced as usual (%s)", self.identity, exc)
+            log.debug("persist: %s is traced as usual (%s)", self.name, exc)
             return self.fn
 
 
