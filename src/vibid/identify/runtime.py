@@ -117,8 +117,9 @@ def limit_blas_threads(threads: int = 1) -> None:
 
 #: XLA flags vibid compiles with. XLA's older CPU code generators for fusions (its newer
 #: MLIR emitters off): the reduced model's Hessian compiles in 1.7-1.9 s instead of
-#: 2.6-2.8 s, its gradient in 0.6 instead of 1.0-1.2 s, and they run as fast, to the same
-#: digits (BENCHMARKS.md). The closed loop on a plate compiles about 30 functions cold.
+#: 2.6-2.8 s, its gradient in 0.6 instead of 1.0-1.2 s, and with 6 parameters they run
+#: 15-20 % faster, to the same digits (BENCHMARKS.md). The closed loop on a plate compiles
+#: about 30 functions cold.
 XLA_CPU_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
 
 
