@@ -65,7 +65,7 @@ def problem_functions(kernel, magnitude: bool = False):
 
     functions = compile_problem(kernel, magnitude)
     identity = identity_of(kernel)
+    prefix = "problem.magnitude" if magnitude else "problem"
     return replace(functions, **{
-        f.name: Persisted(getattr(functions, f.name), f"problem.{f.name}",
-                          identity and f"magnitude={magnitude}|{identity}")
+        f.name: Persisted(getattr(functions, f.name), f"{prefix}.{f.name}", identity)
         for f in fields(functions)})

@@ -31,6 +31,8 @@ import os
 import tempfile
 from pathlib import Path
 
+import jax
+
 log = logging.getLogger(__name__)
 
 #: Artefacts kept at most; beyond it the least recently used are removed (about 50 kB each).
@@ -41,8 +43,6 @@ def folder() -> str | None:
     """The artefacts' folder: ``exported`` in JAX's compilation cache folder (JAX reads and
     evicts only its own ``*-cache`` files there); None while the compilation cache is off
     (the program would be compiled anyway)."""
-    import jax
-
     cache = jax.config.jax_compilation_cache_dir
     return os.path.join(cache, "exported") if cache else None
 
@@ -52,7 +52,6 @@ def code_digest() -> str | None:
     """A hash of the versions of JAX and jaxlib and of every source file of vibid; None
     where vibid's source files cannot be read (an installation in a zip archive): then
     nothing is persisted, since no edit could be told apart."""
-    import jax
     import jaxlib
 
     import vibid
@@ -104,14 +103,16 @@ class Persisted:
         self._calls = {}  # argument signature -> the callable for it
 
     def __call__(self, *args):
-        import jax
-
+        # on every call (a Hessian's or a gradient's, thousands in a loop): kept cheap
         leaves, tree = jax.tree_util.tree_flatten(args)
-        if self.identity is None or not all(_concrete_array(x) for x in leaves):
-            return self.fn(*args)  # called inside a transformation (a kept program has
-            # no derivative rule), or with Python numbers: traced as usual
-        signature = (tree, tuple((tuple(x.shape), str(x.dtype), bool(getattr(
-            x, "weak_type", False))) for x in leaves))
+        try:
+            signature = (tree, tuple([(x.shape, x.dtype, getattr(x, "weak_type", False))
+                                      for x in leaves]))
+        except AttributeError:  # a Python number among the arguments
+            return self.fn(*args)
+        if self.identity is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
+            return self.fn(*args)  # inside a transformation: a kept program has no
+            # derivative rule, traced as usual
         call = self._calls.get(signature)
         if call is not None:
             return call(*args)
@@ -126,8 +127,6 @@ class Persisted:
             return self.fn(*args)
 
     def _load(self, args, signature):
-        import jax
-
         where, code = folder(), code_digest()
         if where is None or code is None:
             return self.fn
@@ -145,13 +144,6 @@ class Persisted:
         except Exception as exc:  # noqa: BLE001 - persisting only saves time
             log.debug("persist: %s is traced as usual (%s)", self.name, exc)
             return self.fn
-
-
-def _concrete_array(x) -> bool:
-    """Whether ``x`` is an array with values (not a tracer of an enclosing transformation)."""
-    import jax
-
-    return hasattr(x, "shape") and hasattr(x, "dtype") and not isinstance(x, jax.core.Tracer)
 
 
 def _named(call, name: str):
