@@ -171,18 +171,26 @@ class PlateMatrices:
     rigid_mass_kg: dict
     free: np.ndarray = field(repr=False)
 
-    def stiffness_matrix(self, coefficients: dict) -> sp.csr_matrix:
-        """``Σ c_k K_k`` for a dict of (possibly complex) coefficients by name."""
-        out = None
-        for name, value in coefficients.items():
-            term = value * self.stiffness[name]
-            out = term if out is None else out + term
-        return out.tocsr()
+    def stiffness_matrix(self, coefficients: dict) -> sp.csc_matrix:
+        """``Σ c_k K_k`` for a dict of (possibly complex) coefficients by name (CSC, on the
+        pattern all the matrices share: :attr:`pattern`)."""
+        return self.pattern.combine(coefficients)
 
-    def inertia_matrix(self, coefficients: dict | None = None) -> sp.csr_matrix:
-        """``Σ m_k M_k`` (default: every inertia matrix with coefficient 1)."""
-        c = coefficients or {k: 1.0 for k in self.inertia}
-        return functools.reduce(lambda a, b: a + b, (v * self.inertia[k] for k, v in c.items())).tocsr()
+    def inertia_matrix(self, coefficients: dict | None = None) -> sp.csc_matrix:
+        """``Σ m_k M_k`` (default: every inertia matrix with coefficient 1), as
+        :meth:`stiffness_matrix`."""
+        return self.pattern.combine({}, coefficients or {k: 1.0 for k in self.inertia})
+
+    def dynamic_matrix(self, stiffness: dict, inertia: dict | None, omega: float) -> sp.csc_matrix:
+        """``Σ c_k K_k − ω² Σ m_k M_k`` (CSC), the full model's matrix at ``omega`` rad/s."""
+        m = inertia or {k: 1.0 for k in self.inertia}
+        return self.pattern.combine(stiffness, {k: -omega**2 * v for k, v in m.items()})
+
+    @functools.cached_property
+    def pattern(self) -> "SharedPattern":
+        """Every stiffness and inertia matrix on one sparsity pattern (made on first use)."""
+        return SharedPattern.of({**{("K", k): v for k, v in self.stiffness.items()},
+                                 **{("M", k): v for k, v in self.inertia.items()}})
 
     def inertia_load(self, coefficients: dict | None = None, *,
                      rotation: bool = False) -> np.ndarray:
@@ -210,6 +218,50 @@ class PlateMatrices:
         """``Σ c_k probe_k · x``: the probe's value on the rigid unit rotation (m/rad)."""
         c = coefficients or {"sensor": 1.0}
         return float(sum(v * self.probes_rotation[k] for k, v in c.items()))
+
+
+@dataclass(frozen=True, eq=False)
+class SharedPattern:
+    """Sparse matrices of one size stored on the union of their patterns (CSC, sorted):
+    a weighted sum of them is one product of the coefficients with their stacked values,
+    where summing scipy matrices merges patterns term by term (on the titanium strip's
+    2861 unknowns 3.6 ms per ``Σ c_k K_k`` of seven matrices, thousands per loop)."""
+
+    indices: np.ndarray
+    indptr: np.ndarray
+    shape: tuple
+    #: ("K" or "M", name) -> row of :attr:`values`
+    rows: dict
+    #: (matrices, nnz) each matrix's values on the pattern, zero where it has none
+    values: np.ndarray
+
+    @staticmethod
+    def of(matrices: dict) -> "SharedPattern":
+        mats = {k: sp.csc_matrix(v) for k, v in matrices.items()}
+        for m in mats.values():
+            m.sum_duplicates()  # canonical: sorted indices, no duplicates
+        union = functools.reduce(lambda a, b: a + b, (abs(m) for m in mats.values())).tocsc()
+        union.sum_duplicates()
+        n_rows = union.shape[0]
+        cols = np.repeat(np.arange(union.shape[1]), np.diff(union.indptr))
+        keys = cols.astype(np.int64) * n_rows + union.indices
+        values = np.zeros((len(mats), union.nnz))
+        for j, m in enumerate(mats.values()):
+            mc = np.repeat(np.arange(m.shape[1]), np.diff(m.indptr))
+            values[j, np.searchsorted(keys, mc.astype(np.int64) * n_rows + m.indices)] = m.data
+        return SharedPattern(union.indices.copy(), union.indptr.copy(), union.shape,
+                             {k: j for j, k in enumerate(mats)}, values)
+
+    def combine(self, stiffness: dict, inertia: dict | None = None) -> sp.csc_matrix:
+        """``Σ c_k K_k + Σ m_k M_k`` for coefficients by name (either dict may be empty)."""
+        c = np.zeros(len(self.rows), complex)
+        for kind, coefficients in (("K", stiffness), ("M", inertia or {})):
+            for k, v in coefficients.items():
+                c[self.rows[kind, k]] += v
+        data = c.real @ self.values
+        if np.any(c.imag):
+            data = data + 1j * (c.imag @ self.values)
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
 
 
 def make_element(kind: str):

@@ -40,18 +40,14 @@ def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=F
     names = list(mats.stiffness)
     omega = 2 * np.pi * np.asarray(frequencies_hz, float)
     C = np.broadcast_to(np.asarray(coefficients, complex), (omega.size, len(names)))
-    M = mats.inertia_matrix(inertia)
     f = mats.inertia_load(inertia, rotation=rotation)
     c, c_rigid = mats.probe_vector(probe)
     if rotation:
         c_rigid = mats.probe_rotation(probe)
     H = np.empty(omega.size, complex)
     S = np.empty((omega.size, len(names)), complex) if sensitivities else None
-    K = None
     for k, w in enumerate(omega):
-        if K is None or not np.array_equal(C[k], C[k - 1]):
-            K = mats.stiffness_matrix(dict(zip(names, C[k])))
-        lu = spla.splu((K - w**2 * M).tocsc())
+        lu = spla.splu(mats.dynamic_matrix(dict(zip(names, C[k])), inertia, w))
         u = lu.solve((w**2 * f).astype(complex))
         H[k] = c_rigid + c @ u
         if sensitivities:
