@@ -269,13 +269,15 @@ class ForwardModel:
         """JAX ``theta -> H`` of the full model (first derivatives exact)."""
         return _full_afc_jax(self.mats, self.param, self.frequencies_hz.tobytes())
 
-    def check_frequencies(self, theta) -> np.ndarray:
-        """Indices of the grid frequencies used by the a-posteriori check."""
-        mag = np.abs(np.asarray(self.afc(theta)))
-        peaks = [i for i in range(1, mag.size - 1) if mag[i] >= mag[i - 1] and mag[i] >= mag[i + 1]]
-        peaks = sorted(peaks, key=lambda i: -mag[i])[:2]
-        idx = set(peaks) | {mag.size // 2, mag.size - 1}
-        return np.array(sorted(idx))
+    def check_frequencies(self, theta, H=None) -> np.ndarray:
+        """Indices of the grid frequencies used by the a-posteriori check: the two highest
+        local maxima of ``|H|`` (``H``: the reduced AFC at ``theta``, computed if not
+        given), the middle of the grid and its end."""
+        mag = np.abs(np.asarray(self.afc(theta) if H is None else H))
+        inner = np.arange(1, mag.size - 1)
+        peaks = inner[(mag[1:-1] >= mag[:-2]) & (mag[1:-1] >= mag[2:])]
+        peaks = peaks[np.argsort(-mag[peaks], kind="stable")][:2]
+        return np.array(sorted(set(peaks.tolist()) | {mag.size // 2, mag.size - 1}))
 
     def _check_points(self, theta):
         """(reduced AFC on the grid, check indices, full AFC at them), kept for the last
@@ -365,8 +367,8 @@ MAX_CHECKS = 8
 @functools.lru_cache(maxsize=MAX_CHECKS)
 def _check_points(model: ForwardModel, theta_bytes: bytes):
     theta = np.frombuffer(theta_bytes, float)
-    idx = model.check_frequencies(theta)
     Hr = np.asarray(model.afc(theta))
+    idx = model.check_frequencies(theta, Hr)
     Hf = model_afc_full(model.mats, model.param, theta, model.frequencies_hz[idx])
     return Hr, idx, Hf
 
