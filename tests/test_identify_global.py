@@ -181,3 +181,24 @@ def test_a_few_precise_points_at_the_resonances_do_not_trap_the_global_search(mo
     monkeypatch.setattr(strategy, "differential_evolution", chi2_only)
     wrong = fit()
     assert wrong.chi2_reduced > 1e4 and wrong.parameters["nu"] > 0.49
+
+
+def test_the_robust_search_is_kept_for_grids_too_coarse_to_resolve_a_resonance():
+    """An FFT grid of 0.12 Hz bins resolves a resonance of loss factor 0.009 (its
+    half-power band, 0.36 Hz at 40 Hz, spans several bins): no robust search. The adaptive
+    campaign's 18 steps 30 % apart do not, nor do the same bins at a loss factor of 1e-4."""
+    from types import SimpleNamespace
+
+    from vibid.identify.fit.strategy import resolves_resonances
+
+    def problem(f_hz, beta):
+        param = SimpleNamespace(losses=lambda theta, xp: np.array([beta, beta]))
+        data = SimpleNamespace(frequency_hz=np.asarray(f_hz), used=np.ones(len(f_hz), bool))
+        return SimpleNamespace(data=data, model=SimpleNamespace(param=param))
+
+    fft = np.arange(40.0, 1500.0, 0.1220703125)
+    _, adaptive = _adaptive_strip_afc()
+    assert resolves_resonances(problem(fft, 0.009), [0.0])
+    assert not resolves_resonances(problem(fft, 1e-4), [0.0])
+    assert not resolves_resonances(problem(adaptive.frequency_hz, ADAPTIVE_TRUTH["beta"]), [0.0])
+    assert not resolves_resonances(problem(fft[::-1], 0.0), [0.0])  # no loss factor: no verdict

@@ -144,3 +144,26 @@ def test_edge_rotation_matrix_integrates_the_slope_along_the_clamp():
     w = plate_basis(GEOM, DISC).project(lambda x: x[0] + x[0] * x[1])
     W = GEOM.width_m
     assert w @ (K @ w) == pytest.approx(((1 + W) ** 3 - 1) / 3, rel=1e-8)
+
+
+def test_shared_pattern_sums_match_scipys_term_by_term():
+    """Matrices of different patterns, stored on their union, combine with real and complex
+    coefficients into the same matrix scipy's term-by-term sum gives."""
+    import scipy.sparse as sp
+
+    from vibid.identify.model.assembly import SharedPattern
+
+    rng = np.random.default_rng(3)
+    mats = {("K", f"k{i}"): sp.random(40, 40, density=0.1, random_state=i, format="csr")
+            for i in range(3)} | {("M", "m"): sp.identity(40, format="csr")}
+    pattern = SharedPattern.of(mats)
+    c = {"k0": 2.0 + 0.5j, "k1": -1.5, "k2": 0.25j}
+    m = {"m": -(2 * math.pi * 30.0) ** 2}
+    got = pattern.combine(c, m)
+    want = sum(v * mats["K", k] for k, v in c.items()) + m["m"] * mats["M", "m"]
+    assert got.format == "csc" and got.shape == (40, 40)
+    assert abs(got - want).max() <= 1e-14 * abs(want).max()
+    assert abs(pattern.combine({}, {"m": 1.0}) - mats["M", "m"]).max() == 0.0
+    assert abs(pattern.combine({"k1": 3.0}) - 3.0 * mats["K", "k1"]).max() <= 1e-15
+    x = rng.standard_normal(40)
+    assert np.allclose(got @ x, want @ x, rtol=1e-13, atol=1e-13)
