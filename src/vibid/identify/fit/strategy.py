@@ -203,10 +203,10 @@ def resolves_resonances(problem: LeastSquaresProblem, theta) -> bool:
     f = f[f > 0]
     if f.size < 3:
         return False
-    try:
-        losses = np.asarray(problem.model.param.losses(np.asarray(theta, float), np), float)
-    except Exception:  # noqa: BLE001 - a model without loss factors: no such judgement
+    param = getattr(problem.model, "param", None)
+    if param is None:  # a model without loss factors: no such judgement
         return False
+    losses = np.asarray(param.losses(np.asarray(theta, float), np), float)
     losses = losses[np.isfinite(losses) & (losses > 0)]
     if losses.size == 0:
         return False
