@@ -181,12 +181,6 @@ class PlateMatrices:
         :meth:`stiffness_matrix`."""
         return self.pattern.combine({}, coefficients or {k: 1.0 for k in self.inertia})
 
-    def dynamic_matrix(self, stiffness: dict, inertia: dict | None, omega: float) -> sp.csc_matrix:
-        """``Σ c_k K_k − ω² Σ m_k M_k`` (CSC), the full model's matrix at ``omega`` rad/s."""
-        p = self.pattern
-        M = p.data("M", inertia or {k: 1.0 for k in self.inertia})
-        return p.matrix(p.data("K", stiffness) - omega**2 * M)
-
     @functools.cached_property
     def pattern(self) -> "SharedPattern":
         """Every stiffness and inertia matrix on one sparsity pattern (made on first use)."""

@@ -46,8 +46,15 @@ def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=F
         c_rigid = mats.probe_rotation(probe)
     H = np.empty(omega.size, complex)
     S = np.empty((omega.size, len(names)), complex) if sensitivities else None
+    # K - w^2 M on the matrices' shared pattern (assembly.SharedPattern), M's values summed
+    # once and K's again only where its coefficients change
+    pattern = mats.pattern
+    M = pattern.data("M", inertia or {k: 1.0 for k in mats.inertia})
+    K = None
     for k, w in enumerate(omega):
-        lu = spla.splu(mats.dynamic_matrix(dict(zip(names, C[k])), inertia, w))
+        if K is None or not np.array_equal(C[k], C[k - 1]):
+            K = pattern.data("K", dict(zip(names, C[k])))
+        lu = spla.splu(pattern.matrix(K - w**2 * M))
         u = lu.solve((w**2 * f).astype(complex))
         H[k] = c_rigid + c @ u
         if sensitivities:
