@@ -104,13 +104,15 @@ class Persisted:
 
     def __call__(self, *args):
         # on every call (a Hessian's or a gradient's, thousands in a loop): kept cheap
+        if self.identity is None:
+            return self.fn(*args)
         leaves, tree = jax.tree_util.tree_flatten(args)
         try:
             signature = (tree, tuple([(x.shape, x.dtype, getattr(x, "weak_type", False))
                                       for x in leaves]))
         except AttributeError:  # a Python number among the arguments
             return self.fn(*args)
-        if self.identity is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
+        if any(isinstance(x, jax.core.Tracer) for x in leaves):
             return self.fn(*args)  # inside a transformation: a kept program has no
             # derivative rule, traced as usual
         call = self._calls.get(signature)

@@ -174,12 +174,14 @@ class PlateMatrices:
     def stiffness_matrix(self, coefficients: dict) -> sp.csc_matrix:
         """``Σ c_k K_k`` for a dict of (possibly complex) coefficients by name (CSC, on the
         pattern all the matrices share: :attr:`pattern`)."""
-        return self.pattern.combine(coefficients)
+        p = self.pattern
+        return p.matrix(p.data("K", coefficients))
 
     def inertia_matrix(self, coefficients: dict | None = None) -> sp.csc_matrix:
         """``Σ m_k M_k`` (default: every inertia matrix with coefficient 1), as
         :meth:`stiffness_matrix`."""
-        return self.pattern.combine({}, coefficients or {k: 1.0 for k in self.inertia})
+        p = self.pattern
+        return p.matrix(p.data("M", coefficients or {k: 1.0 for k in self.inertia}))
 
     @functools.cached_property
     def pattern(self) -> "SharedPattern":
@@ -265,14 +267,6 @@ class SharedPattern:
         A = sp.csc_matrix((data, self.indices.copy(), self.indptr.copy()), shape=self.shape)
         A.eliminate_zeros()
         return A
-
-    def combine(self, stiffness: dict, inertia: dict | None = None) -> sp.csc_matrix:
-        """``Σ c_k K_k + Σ m_k M_k`` for coefficients by name (either dict may be empty)."""
-        if not inertia:
-            return self.matrix(self.data("K", stiffness))
-        if not stiffness:
-            return self.matrix(self.data("M", inertia))
-        return self.matrix(self.data("K", stiffness) + self.data("M", inertia))
 
 
 def make_element(kind: str):
