@@ -10,7 +10,9 @@ from JAX's own monitoring events). The numerical code marks its expensive steps 
     print(prof.table())
 
 Sections nest: the seconds of an inner section are also counted in the outer one's (a
-section inside one of the same name counts once). The
+section inside one of the same name, on the same thread, counts once). Sections that run
+at once on several threads (a loop round's refits, :mod:`vibid.identify.threads`) each
+count their own seconds, so a section's seconds may exceed the wall time. The
 section names used by vibid are :data:`SECTIONS`; compilation is measured by JAX, not by a
 section (it happens inside whatever section first calls a function).
 """
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -37,6 +40,8 @@ _CACHE_HIT_EVENT = "/jax/compilation_cache/cache_hits"
 #: worker thread and JAX's compilation callbacks must reach it too).
 _active: "Profile | None" = None
 _listening = False
+#: Guards a recording's counters against two threads adding at once.
+_adding = threading.Lock()
 
 
 @dataclass
@@ -84,16 +89,18 @@ def _on_duration(event: str, duration: float, **_) -> None:
     prof = _active
     if prof is None:
         return
-    if event == _COMPILE_EVENT:
-        prof.compilations += 1
-    if event in (_TRACE_EVENT, _LOWER_EVENT, _COMPILE_EVENT):
-        prof.compile_seconds += duration
+    with _adding:
+        if event == _COMPILE_EVENT:
+            prof.compilations += 1
+        if event in (_TRACE_EVENT, _LOWER_EVENT, _COMPILE_EVENT):
+            prof.compile_seconds += duration
 
 
 def _on_event(event: str, **_) -> None:
     prof = _active
     if prof is not None and event == _CACHE_HIT_EVENT:
-        prof.cache_hits += 1
+        with _adding:
+            prof.cache_hits += 1
 
 
 def _listen() -> None:
@@ -124,17 +131,19 @@ def recording():
 def section(name: str):
     """Count the time inside as ``name`` in the active recording (if any)."""
     prof = _active
-    if prof is None or name in prof.open:  # a section inside itself counts once
+    key = (threading.get_ident(), name)
+    if prof is None or key in prof.open:  # a section inside itself counts once
         yield
         return
     t0 = time.perf_counter()
-    prof.open.add(name)
+    prof.open.add(key)
     try:
         yield
     finally:
-        prof.open.discard(name)
-        prof.seconds[name] += time.perf_counter() - t0
-        prof.calls[name] += 1
+        with _adding:
+            prof.open.discard(key)
+            prof.seconds[name] += time.perf_counter() - t0
+            prof.calls[name] += 1
 
 
 def timed(name: str):

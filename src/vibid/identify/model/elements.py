@@ -16,10 +16,20 @@ on any mesh. Derivatives pick up the factors ``1 / s**k`` by the chain rule.
 from __future__ import annotations
 
 import itertools
+import threading
 
 import numpy as np
 from skfem import ElementTriArgyris
 from skfem.element.discrete_field import DiscreteField
+
+
+#: An element keeps state on its instance between calls (the monomials at the last points,
+#: the parent's functionals swapped out while the basis is built), and one instance serves
+#: every model of a mesh; the closed loop builds models on two threads
+#: (:mod:`vibid.identify.threads`), so its basis is evaluated under this lock. (Without
+#: it, two threads' monomials met in one ``einsum``: a candidate's score failed with
+#: "operands could not be broadcast together".)
+_STATE = threading.RLock()
 
 
 class ElementTriArgyrisLocal(ElementTriArgyris):
@@ -48,6 +58,10 @@ class ElementTriArgyrisLocal(ElementTriArgyris):
         return out
 
     def _eval_dofs(self, mesh, tind=None):
+        with _STATE:
+            return self._eval_local_dofs(mesh, tind)
+
+    def _eval_local_dofs(self, mesh, tind):
         self._centre, self._scale = self._frame(mesh)
         if tind is not None:
             raise NotImplementedError("ElementTriArgyrisLocal builds the basis of every cell")
@@ -63,6 +77,10 @@ class ElementTriArgyrisLocal(ElementTriArgyris):
             self._pbasis = original
 
     def gbasis(self, mapping, X, i, tind=None):
+        with _STATE:
+            return self._gbasis(mapping, X, i, tind)
+
+    def _gbasis(self, mapping, X, i, tind):
         if tind is None:
             tind = np.arange(mapping.mesh.t.shape[1])
         if self.V is None:

@@ -37,6 +37,7 @@ load in place of the translation's; then the terms' maps on H (delay, gain).
 from __future__ import annotations
 
 import logging
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
@@ -321,6 +322,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
 #: How many reduced bases are kept (each a few MB on the paper's strip).
 MAX_BASES = 12
 _BASES: "OrderedDict[tuple, ReducedBasis]" = OrderedDict()
+_BASES_LOCK = threading.Lock()  # the loop's rounds refit on threads (threads)
 
 
 def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tuple:
@@ -350,14 +352,17 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
     """:func:`build_basis`, or the basis already built for the same key
     (:func:`basis_key`), with ``theta0`` this model's."""
     key = basis_key(mats, model, theta0, bounds, f_max_hz, options)
-    basis = _BASES.get(key)
-    if basis is None:
+    with _BASES_LOCK:
+        basis = _BASES.get(key)
+        if basis is not None:
+            _BASES.move_to_end(key)
+    if basis is None:  # built outside the lock: two threads may build two bases at once
         basis = build_basis(mats, model, theta0, bounds, f_max_hz, **options)
-        _BASES[key] = basis
-        while len(_BASES) > MAX_BASES:
-            _BASES.popitem(last=False)
+        with _BASES_LOCK:
+            _BASES[key] = basis
+            while len(_BASES) > MAX_BASES:
+                _BASES.popitem(last=False)
     else:
-        _BASES.move_to_end(key)
         log.info("reduced basis: reused (size %d)", basis.size)
     return replace(basis, theta0=np.asarray(theta0, float))
 

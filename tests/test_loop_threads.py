@@ -1,0 +1,106 @@
+"""A round's scores and refits on two threads (vibid.identify.threads): taken in the
+round's order, stopped where the round stops, and the loop's result the same to the last
+digit as one after the other."""
+
+import contextlib
+import threading
+
+import numpy as np
+import pytest
+from loop_data import F, data, declared_fit, strip_on
+
+from vibid.errors import VibidError
+from vibid.identify.loop import close_loop
+from vibid.identify.threads import in_order, threads
+
+
+def test_results_come_in_the_items_order_while_the_next_one_runs_at_once():
+    second_done = threading.Event()
+    running, most = [0], [0]
+    lock = threading.Lock()
+
+    def fn(i):
+        with lock:
+            running[0] += 1
+            most[0] = max(most[0], running[0])
+        if i == 0:  # the first waits until the second has finished: they ran at once
+            assert second_done.wait(timeout=60)
+        if i == 1:
+            second_done.set()
+        with lock:
+            running[0] -= 1
+        return i * i
+
+    assert list(in_order(fn, range(6), workers=2)) == [0, 1, 4, 9, 16, 25]
+    assert most[0] == 2
+
+
+def test_closing_early_starts_no_more_items_and_waits_for_the_running_one():
+    started, finished = [], []
+
+    def fn(i):
+        started.append(i)
+        finished.append(i)
+        return i
+
+    with contextlib.closing(in_order(fn, range(10), workers=2)) as runs:
+        for i in runs:
+            if i == 1:
+                break
+    # 0 and 1 consumed, 2 (and 3 at most) started early; nothing after it
+    assert set(started) <= {0, 1, 2, 3} and sorted(finished) == sorted(started)
+
+
+def test_an_error_is_raised_where_its_item_is_taken():
+    def fn(i):
+        if i == 2:
+            raise ValueError("item 2")
+        return i
+
+    taken = []
+    with pytest.raises(ValueError, match="item 2"):
+        for i in in_order(fn, range(5), workers=2):
+            taken.append(i)
+    assert taken == [0, 1]
+
+
+def test_one_thread_runs_every_item_on_the_calling_thread():
+    me = threading.get_ident()
+    assert list(in_order(lambda i: threading.get_ident() == me, range(3), workers=1)) == [
+        True] * 3
+
+
+def test_the_thread_count_is_read_from_the_environment(monkeypatch):
+    monkeypatch.setenv("VIBID_THREADS", "1")
+    assert threads() == 1
+    monkeypatch.setenv("VIBID_THREADS", "two")
+    with pytest.raises(VibidError, match="whole number"):
+        threads()
+    monkeypatch.setenv("VIBID_THREADS", "0")
+    with pytest.raises(VibidError, match="1 or more"):
+        threads()
+    monkeypatch.delenv("VIBID_THREADS")
+    assert 1 <= threads() <= 2
+
+
+@pytest.mark.slow
+def test_a_loop_on_two_threads_is_the_loop_on_one(monkeypatch):
+    """Two undeclared effects (a channel delay and an elastic clamp): each round scores
+    every candidate and refits several. Every stage, chi2 and verdict the same, bit for
+    bit."""
+    effects = {"tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4}
+    H, sd = data(effects, 11)
+    declared = declared_fit(effects, 11)
+    loops = {}
+    for n in ("1", "2"):
+        monkeypatch.setenv("VIBID_THREADS", n)
+        loops[n] = close_loop(strip_on(), F, H, sd, seed=0, declared=declared)
+    one, two = loops["1"], loops["2"]
+    assert set(one.effects) == {"channel_delay", "clamp_compliance"}
+    assert one.effects == two.effects
+    for a, b in zip(one.stages, two.stages):
+        assert a.result.chi2 == b.result.chi2
+        np.testing.assert_array_equal(a.result.values, b.result.values)
+        np.testing.assert_array_equal(a.result.std, b.result.std)
+    assert [[(s.name, s.verdict) for s in r] for r in one.rounds] == [
+        [(s.name, s.verdict) for s in r] for r in two.rounds]
