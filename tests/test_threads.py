@@ -1,6 +1,7 @@
-"""A round's scores and refits on two threads (vibid.identify.threads): taken in the
-round's order, stopped where the round stops, and the loop's result the same to the last
-digit as one after the other."""
+"""Work on two threads (vibid.identify.threads): a loop round's scores and refits taken in
+the round's order, stopped where the round stops, a global search's population in equal
+shares, and the loop's and the search's results the same to the last digit as on one
+thread."""
 
 import contextlib
 import threading
@@ -104,3 +105,39 @@ def test_a_loop_on_two_threads_is_the_loop_on_one(monkeypatch):
         np.testing.assert_array_equal(a.result.std, b.result.std)
     assert [[(s.name, s.verdict) for s in r] for r in one.rounds] == [
         [(s.name, s.verdict) for s in r] for r in two.rounds]
+
+
+def test_equal_shares_cover_the_population_in_one_shape():
+    from vibid.identify.fit.global_search import equal_shares
+
+    U = np.arange(45.0 * 3).reshape(45, 3)
+    shares = equal_shares(U, 2)
+    assert [s.shape for s in shares] == [(23, 3), (23, 3)]
+    np.testing.assert_array_equal(np.concatenate(shares)[:45], U)
+    np.testing.assert_array_equal(shares[1][-1], U[-1])  # the filler repeats the last row
+    assert equal_shares(U, 1)[0] is U
+
+
+def test_a_global_search_on_two_threads_is_the_search_on_one(monkeypatch):
+    """A generation's population in two shares: every restart ends where it ended in one
+    call, with the same chi2 to the last digit (scipy's evolution sees the same values)."""
+    from vibid.identify.fit.data import fit_data
+    from vibid.identify.fit.global_search import differential_evolution
+    from vibid.identify.fit.problem import LeastSquaresProblem
+    from vibid.identify.fit.space import ParameterSpace
+    from vibid.identify.model.forward import build_forward_model
+
+    setup = strip_on()
+    H, sd = data({}, 1)
+    d = fit_data(F, H, sd, None)
+    box = dict(setup.identification.bounds)
+    fm = build_forward_model(setup, d.frequency_hz[d.used], model=setup.identification.model,
+                             bounds=box)
+    space = ParameterSpace.from_bounds(tuple(fm.parameter_names), fm.param.default_bounds(box))
+    problem = LeastSquaresProblem(fm, d, space)
+    found = {}
+    for n in ("1", "2"):
+        monkeypatch.setenv("VIBID_THREADS", n)
+        found[n] = differential_evolution(problem, restarts=2, rng=3, max_generations=20)
+    np.testing.assert_array_equal(found["1"].u, found["2"].u)
+    np.testing.assert_array_equal(found["1"].loss, found["2"].loss)
