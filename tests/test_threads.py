@@ -141,3 +141,22 @@ def test_a_global_search_on_two_threads_is_the_search_on_one(monkeypatch):
         found[n] = differential_evolution(problem, restarts=2, rng=3, max_generations=20)
     np.testing.assert_array_equal(found["1"].u, found["2"].u)
     np.testing.assert_array_equal(found["1"].loss, found["2"].loss)
+
+
+def test_a_section_open_on_two_threads_at_once_counts_on_each():
+    """Profile sections are per thread: the second thread's section is not taken for one
+    nested in the first's (it was, and counted once), and a section inside itself on one
+    thread still counts once."""
+    from vibid.identify.profile import recording, section
+
+    both_inside = threading.Barrier(2)
+
+    def work(_):
+        with section("local fits"):
+            both_inside.wait(timeout=60)
+            with section("local fits"):
+                pass
+
+    with recording() as prof:
+        list(in_order(work, range(2), workers=2))
+    assert prof.calls["local fits"] == 2

@@ -77,6 +77,9 @@ class Profile:
             n for n in self.seconds if n not in SECTIONS)
         for n in names:
             lines.append(f"  {n:<22} {self.seconds[n]:7.1f} s  {self.calls[n]} x")
+        if any(self.seconds[n] > wall for n in names):
+            lines.append("  (a section run on several threads at once counts each thread's "
+                         "seconds)")
         return "\n".join(lines)
 
     def as_dict(self) -> dict:
