@@ -322,7 +322,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
 #: How many reduced bases are kept (each a few MB on the paper's strip).
 MAX_BASES = 12
 _BASES: "OrderedDict[tuple, ReducedBasis]" = OrderedDict()
-_BASES_LOCK = threading.Lock()  # the loop's rounds refit on threads (threads)
+_BASES_LOCK = threading.Lock()  # a loop round refits on threads (vibid.identify.threads)
 
 
 def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tuple:
