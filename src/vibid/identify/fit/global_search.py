@@ -16,9 +16,7 @@ search with beta free lands in the right basin in most restarts. Every restart's
 polished (vibid.identify.fit), not only the best one. ``fixed`` holds parameters at a
 physical value during the search when wanted. The initial population is a Latin
 hypercube that is uniform in each parameter's natural scale (log for log parameters)
-over its prior box, mapped to ``u``. A generation's population is evaluated in equal
-shares on the machine's cores (:func:`equal_shares`, :mod:`vibid.identify.threads`): the
-same values, so the same search.
+over its prior box, mapped to ``u``.
 """
 
 from __future__ import annotations
@@ -30,7 +28,6 @@ import numpy as np
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import GlobalResult
 from vibid.identify.profile import timed
-from vibid.identify.threads import in_order, threads
 
 log = logging.getLogger(__name__)
 
@@ -123,14 +120,11 @@ def differential_evolution(
         U[:, free] = U_free.T
         return U
 
-    def evaluate(U):
-        return problem.chi2_batch(U) if score is None else np.asarray(score(U))
-
     def objective(U_free):
         U_free = np.atleast_2d(U_free.T).T if U_free.ndim == 1 else U_free
         n_eval[0] += U_free.shape[1]
-        shares = equal_shares(full(U_free), threads())
-        return np.concatenate(list(in_order(evaluate, shares)))[:U_free.shape[1]]
+        U = full(U_free)
+        return problem.chi2_batch(U) if score is None else np.asarray(score(U))
 
     total = restarts * max_generations
     done = [0]
@@ -174,18 +168,6 @@ def differential_evolution(
     U = np.array(us)[order]
     return GlobalResult(U, space.theta(U), np.array(losses)[order], n_eval[0],
                         tuple(messages[i] for i in order))
-
-
-def equal_shares(U: np.ndarray, n: int) -> list[np.ndarray]:
-    """The rows of ``U`` in ``n`` shares of one size (the last row repeated to fill the
-    last share), so that every share is one compiled shape: a population evaluated on
-    ``n`` threads (:mod:`vibid.identify.threads`), each member's value the same to the last
-    digit as in one call."""
-    if n <= 1 or len(U) < 2:
-        return [U]
-    size = -(-len(U) // n)
-    padded = np.concatenate([U, np.repeat(U[-1:], size * n - len(U), axis=0)])
-    return [padded[k * size:(k + 1) * size] for k in range(n)]
 
 
 def robust_score(problem: LeastSquaresProblem, scale: float = 1.0):

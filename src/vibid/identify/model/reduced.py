@@ -322,7 +322,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
 #: How many reduced bases are kept (each a few MB on the paper's strip).
 MAX_BASES = 12
 _BASES: "OrderedDict[tuple, ReducedBasis]" = OrderedDict()
-_BASES_LOCK = threading.Lock()  # a loop round refits on threads (vibid.identify.threads)
+_BASES_LOCK = threading.Lock()  # identifications on threads (a batch's sessions)
 
 
 def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tuple:
@@ -356,7 +356,7 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
         basis = _BASES.get(key)
         if basis is not None:
             _BASES.move_to_end(key)
-    if basis is None:  # built outside the lock: two threads may build two bases at once
+    if basis is None:  # built outside the lock: two threads may build one basis twice
         basis = build_basis(mats, model, theta0, bounds, f_max_hz, **options)
         with _BASES_LOCK:
             _BASES[key] = basis
