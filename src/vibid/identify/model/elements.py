@@ -29,7 +29,7 @@ from skfem.element.discrete_field import DiscreteField
 #: thread runner) build models at once, so its basis is evaluated under this lock.
 #: (Without it, two threads' monomials met in one ``einsum``: a closed-loop candidate's
 #: score failed with "operands could not be broadcast together".)
-_STATE = threading.RLock()
+_STATE = threading.Lock()
 
 
 class ElementTriArgyrisLocal(ElementTriArgyris):
@@ -57,11 +57,7 @@ class ElementTriArgyrisLocal(ElementTriArgyris):
                                                         (y - centre[1]) / scale) / scale**k_)(f, k)
         return out
 
-    def _eval_dofs(self, mesh, tind=None):
-        with _STATE:
-            return self._eval_local_dofs(mesh, tind)
-
-    def _eval_local_dofs(self, mesh, tind):
+    def _eval_dofs(self, mesh, tind=None):  # called from gbasis alone: under its lock
         self._centre, self._scale = self._frame(mesh)
         if tind is not None:
             raise NotImplementedError("ElementTriArgyrisLocal builds the basis of every cell")
