@@ -43,6 +43,10 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    explanation the data cannot tell from the best: an effect whose feature the diagnosis
    found before one without, an effect of the stand before a new material.
 
+A round's scores and refits start from the same state, so the next ones run beside the
+one the round is judging (on the machine's second core: :mod:`vibid.identify.threads`);
+the round takes them in its own order, so it decides as it would one after the other.
+
 The loop ends when the fit explains the data, when no candidate passes, or after
 ``max_rounds``. A residual that remains is reported (``unexplained_residual``) and the
 final covariance is scaled by its reduced chi2 (the Birge ratio squared) and by the

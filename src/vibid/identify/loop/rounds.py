@@ -3,6 +3,7 @@ a frozen :class:`State` (the algorithm: :mod:`vibid.identify.loop`)."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -19,6 +20,7 @@ from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
+from vibid.identify.threads import in_order
 from vibid.identify.loop.candidates import all_candidates, distance_from_null
 from vibid.identify.loop.scoring import score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
@@ -125,11 +127,12 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     """One round: every candidate scored, the best refitted and judged, one chosen. Returns
     the next state and whether a candidate was added."""
     current = state.current
-    scores = [scored(inputs, current, c, state.box) for c in todo]
+    scores = list(in_order(lambda c: scored(inputs, current, c, state.box), todo))
     judged = refit_and_judge(inputs, state, todo, scores)
     kinds = {c.name: c.explains for c in todo}
     after = {n: diagnosis_of(inputs.setup, j.fit.result) for n, j in judged.items()
-             if j.verdict.passes}  # each passing refit's residual, read once
+             if j.verdict.passes}  # each passing refit's residual, read once (one thread:
+    # the diagnosis silences scikit-rf's warnings, and Python's warning filters are global)
     removes = {n: removed_feature(current.diagnosis, d, kinds[n]) for n, d in after.items()}
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
@@ -309,15 +312,19 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
     basin = next((s for s in asking if by_name[s.name].moves_basin), None)
     later = None if outside else basin  # judged after the rest
     first = [s for s in ranked if s is not later]
-    for k, s in enumerate(first):
-        judged[s.name] = attempt(s, bool(outside) and k == 0 and by_name[s.name].moves_basin)
-        j = judged[s.name]
-        if j.verdict.passes and Stage.of(s.name, j.fit.result).fits_noise:
-            for rest in first[k + 1:] + ([later] if later in ranked else []):
-                # another could at best tie, for a refit's price
-                judged[rest.name] = Judgement(Verdict.NOT_REFITTED, (("by", s.name),))
-            break
-    else:
+    searched_first = bool(outside) and bool(first) and by_name[first[0].name].moves_basin
+    fits_noise = False
+    with contextlib.closing(in_order(  # the next refits start early (vibid.identify.threads)
+            lambda k: attempt(first[k], searched_first and k == 0), range(len(first)))) as runs:
+        for k, (s, j) in enumerate(zip(first, runs)):
+            judged[s.name] = j
+            fits_noise = j.verdict.passes and Stage.of(s.name, j.fit.result).fits_noise
+            if fits_noise:
+                for rest in first[k + 1:] + ([later] if later in ranked else []):
+                    # another could at best tie, for a refit's price
+                    judged[rest.name] = Judgement(Verdict.NOT_REFITTED, (("by", s.name),))
+                break
+    if not fits_noise:
         explained = max((j.gain for j in judged.values() if j.verdict.passes), default=0.0)
         if later is not None:
             search = explained < SEARCH_SHARE * excess  # its local refit only if unsettled

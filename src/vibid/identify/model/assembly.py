@@ -45,6 +45,7 @@ from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, ro
 from vibid.identify.model.mesh import Discretisation, plate_mesh
 from vibid.identify.model.terms import clash
 from vibid.identify.profile import timed
+from vibid.identify.threads import numpy_only
 
 log = logging.getLogger(__name__)
 
@@ -302,6 +303,7 @@ class _AllDofs:
 #: error's finer one: caches that hold them all keep each assembled once per run
 @functools.lru_cache(maxsize=16)
 @timed("matrices")
+@numpy_only
 def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs:
     """Assemble the plate's bending and inertia matrices on all degrees of freedom."""
     from skfem import Basis
@@ -375,6 +377,7 @@ def _term_matrices(term, geometry: Geometry, discretisation: Discretisation) -> 
 
 @functools.lru_cache(maxsize=32)
 @timed("matrices")
+@numpy_only
 def _model_matrices(geometry: Geometry, discretisation: Discretisation,
                     effects: tuple) -> PlateMatrices:
     full = assemble_all(geometry, discretisation)

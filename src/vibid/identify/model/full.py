@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from vibid.identify.profile import timed
+from vibid.identify.threads import numpy_only
 
 
 def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=False,
@@ -104,6 +105,7 @@ def stiffness_coefficients(model, theta, omega, xp=np):
 
 
 @timed("full-model checks")
+@numpy_only
 def model_afc_full(mats, model, theta, frequencies_hz) -> np.ndarray:
     """(nf,) the observed AFC of ``model`` (a PlateModel) at ``theta``, full FE model."""
     theta = np.asarray(theta, float)

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse.linalg as spla
 
+from vibid.identify.threads import numpy_only
+
 
 def arpack_start(n: int) -> np.ndarray:
     """ARPACK's start vector: fixed, so that the same model gives the same modes to the
@@ -50,6 +52,7 @@ def complex_eigenvalues(mats, moduli, losses, n: int = 6, inertia=None) -> np.nd
     return lam
 
 
+@numpy_only
 def model_eigenvalues(mats, model, theta, n: int = 6) -> np.ndarray:
     """``Λ`` of a PlateModel at ``theta`` (its loss law applied at each mode's frequency)."""
     theta = np.asarray(theta, float)
@@ -74,6 +77,7 @@ def seen(height) -> np.ndarray:
     return height >= HIDDEN_HEIGHT * np.max(height)
 
 
+@numpy_only
 def mode_heights(mats, model, theta, n: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """``(frequency_hz, height)`` of the ``n`` lowest real modes of a PlateModel at
     ``theta`` (its storage moduli; loss and any loss law left out): ``height_k = |c φ_k|

@@ -47,6 +47,7 @@ import scipy.sparse.linalg as spla
 
 from vibid.identify.model.modal import arpack_start
 from vibid.identify.profile import timed
+from vibid.identify.threads import numpy_only
 
 log = logging.getLogger(__name__)
 
@@ -229,6 +230,7 @@ def _orthonormal(V, E, tol):
 
 
 @timed("reduced bases")
+@numpy_only
 def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
                 max_modes: int = 96, min_modes: int = 6, krylov: int = 2,
                 snapshots: bool = True, tol: float = 1e-13,
