@@ -194,3 +194,16 @@ def test_a_loop_on_two_threads_is_the_loop_on_one(monkeypatch):
     assert [[(s.name, s.verdict) for s in r] for r in one.rounds] == [
         [(s.name, s.verdict) for s in r] for r in two.rounds]
     assert seen == set()
+
+
+def test_an_in_order_inside_an_item_runs_on_that_items_thread():
+    """A polish inside a loop's refit: the inner items run one after the other on the
+    outer item's worker thread (no third thread waiting for the turn)."""
+    def inner(j):
+        return threading.get_ident()
+
+    def outer(i):
+        me = threading.get_ident()
+        return all(t == me for t in in_order(inner, range(3), workers=2))
+
+    assert list(in_order(outer, range(3), workers=2)) == [True] * 3

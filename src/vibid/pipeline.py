@@ -10,21 +10,21 @@ console text (:attr:`Identified.summary`) is the caller's to show.
 from __future__ import annotations
 
 import os
-import threading
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from vibid.errors import VibidError
+from vibid.identify.threads import jax_turn
 
-#: One JAX computation at a time per process: two identifications running in two threads
-#: of one process (a thread-pool task runner, an in-process Dask cluster) deadlocked inside
-#: XLA's CPU executions on the project's 2-core machine (both threads waiting in
-#: ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike). The stages
-#: that run the model hold this lock; the signal stage and file writing run beside them.
-#: Batches gain parallelism from worker *processes* (a Dask cluster), not threads.
-COMPUTE_LOCK = threading.RLock()
+#: One compiled JAX program at a time per process: two identifications running in two
+#: threads of one process (a thread-pool task runner, an in-process Dask cluster)
+#: deadlocked inside XLA's CPU executions on the project's 2-core machine (both threads
+#: waiting in ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike).
+#: The stages that run the model hold the JAX turn (:mod:`vibid.identify.threads`); the
+#: signal stage, file writing and the model's numpy-only work (assembly, reduced bases)
+#: run beside them.
 
 #: Default options of the identification stage (those of ``vibid identify``).
 RESTARTS = 5
@@ -141,7 +141,7 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     names = parse_candidates(candidates)
     configure()
     setup, afc = data.setup, data.afc
-    with COMPUTE_LOCK:
+    with jax_turn():
         result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, method=method,
                           local=local, restarts=restarts, seed=seed, progress=progress,
                           magnitude=magnitude_only)
@@ -181,7 +181,7 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
     report and the paths written, by file name (``"json"`` for ``json_path``)."""
     from vibid.report import write_report
 
-    with COMPUTE_LOCK:  # engineering constants differentiate with JAX
+    with jax_turn():  # engineering constants differentiate with JAX
         report = build_session_report(data, identified)
     paths: dict[str, str] = {}
     if json_path is not None:
@@ -190,7 +190,7 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
     if report_dir is not None:
         from vibid.report import write_lab_report
 
-        with COMPUTE_LOCK:  # the figures evaluate the model
+        with jax_turn():  # the figures evaluate the model
             paths |= write_lab_report(report_dir, data, identified, report,
                                       session_path=None if session_path is None
                                       else os.fspath(session_path))

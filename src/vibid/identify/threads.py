@@ -41,7 +41,7 @@ from vibid.errors import VibidError
 MAX_THREADS = 2
 
 _TURN = threading.Lock()  # the right to run compiled JAX code (module doc)
-_held = threading.local()  # .depth: how many jax_turn() this thread is inside
+_held = threading.local()  # .depth: how many jax_turn() this thread is inside; .worker
 
 
 def threads() -> int:
@@ -121,12 +121,13 @@ def in_order(fn: Callable, items: Iterable, workers: int | None = None) -> Itera
     consumed."""
     items = list(items)
     n = threads() if workers is None else workers
-    if n <= 1 or len(items) <= 1:
+    if n <= 1 or len(items) <= 1 or getattr(_held, "worker", False):  # not nested in one
         for item in items:
             yield fn(item)
         return
 
     def taking_turns(item):
+        _held.worker = True  # an in_order inside this item runs on this thread
         with jax_turn():
             return fn(item)
 

@@ -57,6 +57,7 @@ from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
 from vibid.identify.profile import timed
+from vibid.identify.threads import in_order
 
 log = logging.getLogger(__name__)
 
@@ -105,14 +106,16 @@ class Options:
 def polish(problem: LeastSquaresProblem, starts, opts: Options, *,
            continuation: bool = True) -> list[Fit]:
     """Local fits from each start, each on a model rebuilt around its start (the search's
-    model only has to find basins; models of one shape share their compiled functions)."""
-    out = []
-    for u0 in starts:
+    model only has to find basins; models of one shape share their compiled functions).
+    The starts are independent: the next one's runs on the second core
+    (:mod:`vibid.identify.threads`), the fits come back in the starts' order."""
+    def from_start(u0):
         p = refreshed(problem, problem.space.theta(u0)) if opts.refresh else problem
         runs = (polish_by_continuation(p, u0, opts.local) if continuation
                 else [LOCAL_METHODS[opts.local](p, u0)])
-        out += [Fit(r, p) for r in runs]
-    return out
+        return [Fit(r, p) for r in runs]
+
+    return [fit for fits in in_order(from_start, starts) for fit in fits]
 
 
 def refreshed(problem: LeastSquaresProblem, theta) -> LeastSquaresProblem:

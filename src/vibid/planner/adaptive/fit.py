@@ -78,10 +78,10 @@ def fit_steps(setup, afc, previous: CurrentFit | None = None, *, loop: bool = Tr
     Without ``previous``, the report's own identification (``restarts``, ``seed``)."""
     from vibid.identify.fit import identify
     from vibid.identify.fit.noise import explains
-    from vibid.pipeline import COMPUTE_LOCK
+    from vibid.identify.threads import jax_turn
 
     t0 = time.perf_counter()
-    with COMPUTE_LOCK:
+    with jax_turn():
         if previous is not None:
             warm = _local(setup, afc, previous.result)
             if warm is not None and explains(warm):
