@@ -45,6 +45,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import threading
 import warnings
 from dataclasses import dataclass
 
@@ -124,17 +125,24 @@ class Diagnosis:
         return [x.as_report() for x in self.features]
 
 
+#: Python's warning filters are global: two threads' ``catch_warnings`` that interleave
+#: can leave the other's "ignore" behind for good, so one diagnosis is quiet at a time.
+_QUIET = threading.Lock()
+
+
 @contextlib.contextmanager
 def _quiet():
+    """scikit-rf's warnings and log silenced (while held, another thread's warnings too)."""
     log = logging.getLogger("skrf")
-    level = log.level
-    log.setLevel(logging.CRITICAL)
-    try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            yield
-    finally:
-        log.setLevel(level)
+    with _QUIET:
+        level = log.level
+        log.setLevel(logging.CRITICAL)
+        try:
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore")
+                yield
+        finally:
+            log.setLevel(level)
 
 
 def _columns(f_hz, poles) -> list[np.ndarray]:

@@ -20,7 +20,7 @@ from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
-from vibid.identify.threads import in_order
+from vibid.identify.threads import in_order, numpy_only
 from vibid.identify.loop.candidates import all_candidates, distance_from_null
 from vibid.identify.loop.scoring import score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
@@ -130,9 +130,7 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     scores = list(in_order(lambda c: scored(inputs, current, c, state.box), todo))
     judged = refit_and_judge(inputs, state, todo, scores)
     kinds = {c.name: c.explains for c in todo}
-    after = {n: diagnosis_of(inputs.setup, j.fit.result) for n, j in judged.items()
-             if j.verdict.passes}  # each passing refit's residual, read once (one thread:
-    # the diagnosis silences scikit-rf's warnings, and Python's warning filters are global)
+    after = {n: j.diagnosis for n, j in judged.items() if j.verdict.passes}
     removes = {n: removed_feature(current.diagnosis, d, kinds[n]) for n, d in after.items()}
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
@@ -182,6 +180,7 @@ def diagnosed(setup, stage: Stage) -> Stage:
     return replace(stage, diagnosis=diagnosis_of(setup, stage.result))
 
 
+@numpy_only
 def diagnosis_of(setup, r: IdentificationResult):
     """The diagnosis of a fit's residual (:mod:`vibid.identify.diagnosis`), or None."""
     from vibid.identify.diagnosis import diagnose
@@ -306,8 +305,9 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                                state.current.diagnosis, inputs.local, search=search)
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
-        return judge(cand, s, fit, res, state.box, outside, excess,
-                     state.current.diagnosis)
+        j = judge(cand, s, fit, res, state.box, outside, excess, state.current.diagnosis)
+        # each passing refit's residual, read once, beside the next refit
+        return replace(j, diagnosis=diagnosis_of(inputs.setup, fit.result)) if j.verdict.passes else j
 
     basin = next((s for s in asking if by_name[s.name].moves_basin), None)
     later = None if outside else basin  # judged after the rest

@@ -132,13 +132,15 @@ class Score:
 @dataclass(frozen=True)
 class Judgement:
     """The judge's word on one candidate in a round: its verdict, the numbers the
-    verdict's sentence quotes, its refit (None where it was not refitted) and the names of
-    the refit's parameters outside their prior box."""
+    verdict's sentence quotes, its refit (None where it was not refitted), the names of
+    the refit's parameters outside their prior box, and the diagnosis of a passing refit's
+    residual (read on the refit's own thread)."""
 
     verdict: Verdict
     detail: tuple = ()
     fit: object = None  # :class:`vibid.identify.loop.refit.Refit`
     left: tuple[str, ...] = ()
+    diagnosis: object = None  # :class:`vibid.identify.diagnosis.Diagnosis`
 
     @property
     def gain(self) -> float:
@@ -147,7 +149,8 @@ class Judgement:
 
     def becomes(self, verdict: Verdict, **more) -> "Judgement":
         """This judgement with another verdict and more numbers for its sentence."""
-        return Judgement(verdict, self.detail + tuple(more.items()), self.fit, self.left)
+        return Judgement(verdict, self.detail + tuple(more.items()), self.fit, self.left,
+                         self.diagnosis)
 
 
 @dataclass(frozen=True)
