@@ -148,7 +148,7 @@ def _jax_calls_while_lent(monkeypatch) -> set:
     vibid's persisted programs) it calls are collected (a numpy-only mark on a function
     that runs compiled code would let two programs run at once)."""
     seen = set()
-    lent = th.lent_turn
+    lent = th.numpy_section
 
     def hook(frame, event, arg):
         if event == "call" and frame.f_code.co_name != "_xla_gc_callback":  # Python's gc
@@ -166,7 +166,7 @@ def _jax_calls_while_lent(monkeypatch) -> set:
             finally:
                 sys.setprofile(before)
 
-    monkeypatch.setattr(th, "lent_turn", watched)
+    monkeypatch.setattr(th, "numpy_section", watched)
     return seen
 
 

@@ -33,6 +33,8 @@ from pathlib import Path
 
 import jax
 
+from vibid.identify.threads import compiled
+
 log = logging.getLogger(__name__)
 
 #: Artefacts kept at most; beyond it the least recently used are removed (about 50 kB each).
@@ -142,7 +144,7 @@ class Persisted:
             if exported is None:
                 exported = export.export(self.fn)(*args)
                 _write(where, path, exported.serialize())
-            return jax.jit(_named(exported.call, self.name))
+            return compiled(jax.jit(_named(exported.call, self.name)), args)
         except Exception as exc:  # noqa: BLE001 - persisting only saves time
             log.debug("persist: %s is traced as usual (%s)", self.name, exc)
             return self.fn
