@@ -207,3 +207,31 @@ def test_an_in_order_inside_an_item_runs_on_that_items_thread():
         return all(t == me for t in in_order(inner, range(3), workers=2))
 
     assert list(in_order(outer, range(3), workers=2)) == [True] * 3
+
+
+def test_a_lock_is_waited_for_with_the_turn_lent():
+    """The lock's holder needs the turn to finish (it compiled with the turn lent): the
+    waiter lends it while it waits, or neither would go on."""
+    from vibid.identify.threads import holding
+
+    lock, order = threading.Lock(), []
+
+    def holder(i):
+        if i == 0:
+            with holding(lock):
+                numpy_only(lambda: time.sleep(0.1))()  # the turn lent: the other waits
+                order.append("holder done")  # with the turn back
+        else:
+            time.sleep(0.02)
+            with holding(lock):
+                order.append("waiter in")
+        return i
+
+    results = []
+    run = threading.Thread(target=lambda: results.extend(in_order(holder, range(2), workers=2)),
+                           daemon=True)
+    run.start()
+    run.join(timeout=30)
+    assert not run.is_alive(), "deadlocked: the waiter held the turn the holder needed"
+    assert results == [0, 1]
+    assert order == ["holder done", "waiter in"]

@@ -29,11 +29,12 @@ import hashlib
 import logging
 import os
 import tempfile
+import threading
 from pathlib import Path
 
 import jax
 
-from vibid.identify.threads import compiled
+from vibid.identify.threads import compiled, holding
 
 log = logging.getLogger(__name__)
 
@@ -103,6 +104,7 @@ class Persisted:
     def __init__(self, fn, name: str, identity: str | None):
         self.fn, self.name, self.identity = fn, name, identity
         self._calls = {}  # argument signature -> the callable for it
+        self._loading = threading.Lock()  # one thread loads and compiles, the others wait
 
     def __call__(self, *args):
         # on every call (a Hessian's or a gradient's, thousands in a loop): kept cheap
@@ -120,7 +122,10 @@ class Persisted:
         call = self._calls.get(signature)
         if call is not None:
             return call(*args)
-        call = self._calls[signature] = self._load(args, signature)
+        with holding(self._loading):  # two polishes' first Hessians: compiled once
+            call = self._calls.get(signature)
+            if call is None:
+                call = self._calls[signature] = self._load(args, signature)
         if call is self.fn:
             return call(*args)
         try:

@@ -112,6 +112,19 @@ def numpy_only(fn: Callable) -> Callable:
     return lending
 
 
+@contextlib.contextmanager
+def holding(lock):
+    """Hold ``lock``; waiting for it, the turn is lent (its holder may need the turn to
+    finish what it holds the lock for)."""
+    if not lock.acquire(blocking=False):
+        with lent_turn():
+            lock.acquire()
+    try:
+        yield
+    finally:
+        lock.release()
+
+
 #: What :func:`numpy_only` functions run inside (a test watches these sections for JAX).
 numpy_section = lent_turn
 
