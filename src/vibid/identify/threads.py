@@ -16,11 +16,11 @@ titanium strip those take about half the time (the profile's "matrices", "reduce
 and "full-model checks"). XLA's compilation of a program, which runs none, lends it too
 (:func:`compiled`).
 
-Outside :func:`in_order` nobody holds the turn and the marks cost one attribute look-up:
-one thread runs as it always did. Work started by :func:`in_order` holds it (each item on
-its worker thread, the consuming thread between items), and so does any code that calls
-JAX from threads of its own (a batch's sessions on Prefect's thread runner) and wraps it
-in :func:`jax_turn`.
+Who holds the turn: work started by :func:`in_order` (each item on its worker thread, the
+consuming thread between items), and the pipeline's stages that run the model
+(:func:`vibid.pipeline.identify_afc`: a batch's sessions on Prefect's thread runner take
+turns the same way). Where no thread holds it (a script on one thread) the marks cost one
+attribute look-up, and everything runs as it did before there were threads.
 
 :func:`threads`: ``VIBID_THREADS`` if set, else the cores this process may use, at most
 :data:`MAX_THREADS`; 1 runs everything on the calling thread, one after the other.

@@ -20,10 +20,10 @@ from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
-from vibid.identify.threads import in_order, numpy_only
 from vibid.identify.loop.candidates import all_candidates, distance_from_null
 from vibid.identify.loop.scoring import score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
+from vibid.identify.threads import in_order, numpy_only
 
 log = logging.getLogger(__name__)
 
@@ -306,8 +306,10 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
         j = judge(cand, s, fit, res, state.box, outside, excess, state.current.diagnosis)
-        # each passing refit's residual, read once, beside the next refit
-        return replace(j, diagnosis=diagnosis_of(inputs.setup, fit.result)) if j.verdict.passes else j
+        if not j.verdict.passes:
+            return j
+        # a passing refit's residual, read once, on its own thread beside the next refit
+        return replace(j, diagnosis=diagnosis_of(inputs.setup, fit.result))
 
     basin = next((s for s in asking if by_name[s.name].moves_basin), None)
     later = None if outside else basin  # judged after the rest
