@@ -18,13 +18,13 @@ import numpy as np
 from vibid.errors import VibidError
 from vibid.identify.threads import jax_turn
 
-#: One compiled JAX program at a time per process: two identifications running in two
-#: threads of one process (a thread-pool task runner, an in-process Dask cluster)
-#: deadlocked inside XLA's CPU executions on the project's 2-core machine (both threads
-#: waiting in ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike).
-#: The stages that run the model hold the JAX turn (:mod:`vibid.identify.threads`); the
-#: signal stage, file writing and the model's numpy-only work (assembly, reduced bases)
-#: run beside them.
+# One compiled JAX program at a time per process: two identifications running in two
+# threads of one process (a thread-pool task runner, an in-process Dask cluster)
+# deadlocked inside XLA's CPU executions on the project's 2-core machine (both threads
+# waiting in ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike).
+# The stages that run the model hold the JAX turn (:mod:`vibid.identify.threads`); the
+# signal stage, file writing and the model's numpy-only work (assembly, reduced bases)
+# run beside them.
 
 #: Default options of the identification stage (those of ``vibid identify``).
 RESTARTS = 5
