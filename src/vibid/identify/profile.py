@@ -11,7 +11,7 @@ from JAX's own monitoring events). The numerical code marks its expensive steps 
 
 Sections nest: the seconds of an inner section are also counted in the outer one's (a
 section inside one of the same name, on the same thread, counts once). Sections that run
-at once on several threads (a batch's sessions on Prefect's thread runner) each count
+at once on several threads (a loop round's refits, a batch's sessions) each count
 their own seconds, so a section's seconds may exceed the wall time. The
 section names used by vibid are :data:`SECTIONS`; compilation is measured by JAX, not by a
 section (it happens inside whatever section first calls a function).

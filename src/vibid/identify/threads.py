@@ -86,8 +86,9 @@ def jax_turn():
 
 @contextlib.contextmanager
 def lent_turn():
-    """Inside the block the calling thread runs no JAX: its turn (if it holds it) is lent
-    to the other threads and taken back after."""
+    """Inside the block the calling thread runs no compiled program (it works without
+    JAX, compiles, or waits): its turn (if it holds it) is lent to the other threads and
+    taken back after."""
     depth = getattr(_held, "depth", 0)
     if depth == 0:
         yield
@@ -103,7 +104,8 @@ def lent_turn():
 
 def numpy_only(fn: Callable) -> Callable:
     """Mark ``fn`` as running no JAX code (numpy, scipy, scikit-fem only): while it runs,
-    its thread lends the JAX turn to the others (module doc)."""
+    its thread lends the JAX turn to the others (module doc). Put it outside a profile's
+    ``timed``: the section then counts the work, not the wait for the turn back."""
     @functools.wraps(fn)
     def lending(*args, **kwargs):
         with numpy_section():

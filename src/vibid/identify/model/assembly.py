@@ -302,8 +302,8 @@ class _AllDofs:
 #: a loop's refits visit a dozen effect structures, each on its mesh and on the model
 #: error's finer one: caches that hold them all keep each assembled once per run
 @functools.lru_cache(maxsize=16)
-@timed("matrices")
 @numpy_only
+@timed("matrices")
 def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs:
     """Assemble the plate's bending and inertia matrices on all degrees of freedom."""
     from skfem import Basis
@@ -376,8 +376,8 @@ def _term_matrices(term, geometry: Geometry, discretisation: Discretisation) -> 
 
 
 @functools.lru_cache(maxsize=32)
-@timed("matrices")
 @numpy_only
+@timed("matrices")
 def _model_matrices(geometry: Geometry, discretisation: Discretisation,
                     effects: tuple) -> PlateMatrices:
     full = assemble_all(geometry, discretisation)

@@ -104,8 +104,8 @@ def stiffness_coefficients(model, theta, omega, xp=np):
     return s[None, :] * (1.0 + 1j * b[None, :] * law[:, None])
 
 
-@timed("full-model checks")
 @numpy_only
+@timed("full-model checks")
 def model_afc_full(mats, model, theta, frequencies_hz) -> np.ndarray:
     """(nf,) the observed AFC of ``model`` (a PlateModel) at ``theta``, full FE model."""
     theta = np.asarray(theta, float)

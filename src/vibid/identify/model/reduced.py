@@ -229,8 +229,8 @@ def _orthonormal(V, E, tol):
     return V
 
 
-@timed("reduced bases")
 @numpy_only
+@timed("reduced bases")
 def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
                 max_modes: int = 96, min_modes: int = 6, krylov: int = 2,
                 snapshots: bool = True, tol: float = 1e-13,
@@ -324,7 +324,7 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
 #: How many reduced bases are kept (each a few MB on the paper's strip).
 MAX_BASES = 12
 _BASES: "OrderedDict[tuple, ReducedBasis]" = OrderedDict()
-_BASES_LOCK = threading.Lock()  # identifications on threads (a batch's sessions)
+_BASES_LOCK = threading.Lock()  # a loop round's refits on threads, a batch's sessions
 
 
 def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tuple:
