@@ -8,6 +8,8 @@ import logging
 import math
 import warnings
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -107,7 +109,12 @@ def test_on_an_fft_grid_a_causal_extra_pole_is_causal_and_a_time_reversed_one_is
     """On a uniform 0.5 Hz grid (an FFT's bins) the extra resonance multiplying H is causal;
     the same factor time-reversed (its complex conjugate: the same magnitude, the phase
     mirrored) is found at the same pole but marked not causal, and its note says no
-    resonance of the stand or the plate makes it."""
+    resonance of the stand or the plate makes it: it is then nothing a candidate explains,
+    so no stand resonance is placed at it (the loop placed one at the titanium strip's
+    661 Hz feature, which the diagnosis had called not causal)."""
+    from vibid.identify.loop.candidates import EffectCandidate
+
+    stand = EffectCandidate("stand_resonance")
     rng = np.random.default_rng(0)
     f = rng.permutation(np.arange(40.0, 1500.0, 0.5))
     H = modal_afc(f)
@@ -118,6 +125,9 @@ def test_on_an_fft_grid_a_causal_extra_pole_is_causal_and_a_time_reversed_one_is
         assert abs(x.f_hz / 660 - 1) < 0.01 and x.causal is expected
         assert x.as_report()["causal"] is expected
         assert ("no resonance of the stand or the plate makes it" in x.note) is reversed_
+        d = SimpleNamespace(features=(x,))
+        assert x.kinds == (() if reversed_ else ("extra_pole",))
+        assert (stand.feature(d) is None) is reversed_
 
 
 def test_on_a_stepped_grid_causality_is_not_judged():
