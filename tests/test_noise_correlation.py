@@ -50,3 +50,50 @@ def test_the_scatter_of_a_fit_to_correlated_residuals_grows_by_sqrt_tau():
         std.append(np.sqrt(np.diag(cov)))
     ratio = np.std(est, axis=0) / np.mean(std, axis=0)
     assert ratio == pytest.approx([1.0, 1.0], abs=0.12)
+
+
+def test_a_parameter_that_explains_nothing_gains_about_the_misfit_scale_times_chi2():
+    """Monte Carlo of what the loop's judge assumes (``fit.noise.misfit_scale``): a residual
+    50 times the noise's variance and correlated along frequency (AR(1), rho 0.9, tau 19,
+    800 points on a shuffled grid), and a refit of one parameter that explains nothing (a
+    smooth shape, fitted by least squares as a refit does). The likelihood ratio passes
+    the white-noise test (chi-square's 0.99 quantile) in nearly every draw; in units of
+    the reduced chi2 times tau, both estimated from each draw's own residual, it passes
+    about as often as that quantile allows (4 of 400 expected; 12 is beyond 3.5 sigma)."""
+    from types import SimpleNamespace
+
+    from scipy.stats import chi2
+
+    from vibid.identify.fit.noise import misfit_scale
+
+    rng = np.random.default_rng(17)
+    n, birge = 800, 50.0
+    x = np.linspace(-1.0, 1.0, n)
+    order = rng.permutation(n)
+    shape = np.cos(np.pi * x) + 0.5 * x
+    q = chi2.ppf(0.99, 1)
+    white = scaled = 0
+    taus = []
+    for _ in range(400):
+        r = np.sqrt(birge) * _ar1(rng, 0.9, n)
+        gain = (shape @ r) ** 2 / (shape @ shape)
+        result = SimpleNamespace(used=np.ones(n, bool), frequency_hz=(100.0 + 800.0 * x)[order],
+                                 model_afc=r[order], H=np.zeros(n), weights=np.ones(n),
+                                 magnitude=True, noise_known=True, chi2_reduced=r @ r / n)
+        b, tau = misfit_scale(result)
+        taus.append(tau)
+        white += gain > q
+        scaled += gain > q * b * tau
+    assert np.mean(taus) == pytest.approx(19.0, rel=0.15)
+    assert white / 400 > 0.8
+    assert scaled / 400 <= 0.03
+
+
+def test_a_fit_at_the_noise_has_no_misfit_scale():
+    from types import SimpleNamespace
+
+    from vibid.identify.fit.noise import misfit_scale
+
+    fit = SimpleNamespace(noise_known=True, chi2_reduced=0.97)
+    assert misfit_scale(fit) == (1.0, 1.0)
+    assert misfit_scale(SimpleNamespace(noise_known=False, chi2_reduced=40.0)) == (1.0, 1.0)

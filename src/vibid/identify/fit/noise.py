@@ -135,6 +135,22 @@ def residual_correlation(result) -> float:
     return float(np.mean([autocorrelation_time(x) for x in parts]))
 
 
+def misfit_scale(result) -> tuple[float, float]:
+    """``(reduced chi2, tau)`` of a fit whose residual holds more than the noise (reduced
+    chi2 above 1, the noise known), tau its :func:`residual_correlation`; ``(1, 1)``
+    otherwise. Their product is the variance a residual above the noise carries per
+    independent point, in units of the noise's: the misfit measures the error, and its
+    ``n / tau`` independent points carry it. The loop scales the final covariance by it
+    (:func:`vibid.identify.loop.scaled_by_misfit`), and its judge asks a new effect's
+    likelihood ratio to pass chi-square's quantile in its units: a parameter that explains
+    nothing lowers chi2 by about this product times a chi-square variable with its
+    parameters' count as degrees of freedom (``test_noise_correlation.py``)."""
+    birge = float(result.chi2_reduced)
+    if not (result.noise_known and np.isfinite(birge) and birge > 1.0):
+        return 1.0, 1.0
+    return birge, residual_correlation(result)
+
+
 def fits(chi2: float, dof: int, n_residuals: int, noise_known: bool) -> bool:
     """The strategy's verdict on a polished minimum: :func:`fits_noise` with a known noise;
     without one (every weight the RMS |H|, so chi2 / m, m the real numbers fitted, is about

@@ -32,8 +32,11 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
 5. **Judge** each refit (:class:`Verdict`): a placed resonance inside the spans around
    its pole, not on their faces; significant, away from its null, every parameter the
    current fit had inside its prior box still inside it (a refit that reaches the data
-   only with a non-physical value explains nothing), and explaining a real share of the
-   misfit; or bringing a parameter the declared model bent out of its prior box back
+   only with a non-physical value explains nothing), and significant twice: against the
+   noise, and against the misfit that remains (its likelihood ratio in units of that
+   misfit's reduced chi2 times its autocorrelation time along frequency, what a parameter
+   that explains nothing removes from it; the final covariance is scaled by the same
+   two); or bringing a parameter the declared model bent out of its prior box back
    inside it.
 6. **Choose** among the passing refits one for the structure it explains: those that
    explain nearly all the misfit where there are any, else those that remove a diagnosed

@@ -15,7 +15,7 @@ from scipy.stats import chi2 as chi2_dist
 from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.minima import indistinct_chi2
-from vibid.identify.fit.noise import residual_correlation
+from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
@@ -30,11 +30,9 @@ log = logging.getLogger(__name__)
 #: A candidate's score must pass this quantile of chi-square to be refitted, and its
 #: refit's likelihood ratio the same to be kept.
 KEEP_QUANTILE = 0.99
-#: A kept effect must explain at least this share of the chi2 above the noise (chi2 - dof):
-#: where a residual no candidate explains remains, every extra parameter lowers chi2 a
-#: little and passes the likelihood-ratio test, which assumes the extended model right; an
-#: effect that removes a few per cent of a misfit is no explanation of it.
-KEEP_SHARE = 0.10
+#: A refit that explains this share of the chi2 above the noise (chi2 - dof) answers the
+#: residual as a whole: where one does, only such refits compete (:func:`choose`).
+WHOLE_SHARE = 0.90
 #: A kept effect must lie this many standard deviations from its null value (Wald): a
 #: refit that lowers chi2 while its effect stays at the null adds nothing physical.
 KEEP_Z = 3.0
@@ -305,7 +303,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                                state.current.diagnosis, inputs.local, search=search)
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
-        j = judge(cand, s, fit, res, state.box, outside, excess, state.current.diagnosis)
+        j = judge(cand, s, fit, res, state.box, outside, state.current.diagnosis)
         if not j.verdict.passes:
             return j
         # a passing refit's residual, read once, on its own thread beside the next refit
@@ -344,7 +342,7 @@ def refit_order(asking: list[Score], outside: bool) -> list[Score]:
     return ranked + [s for s in asking[len(ranked):] if s.asked][:ASKED_SLOTS]
 
 
-def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess,
+def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
           diagnosis=None) -> Judgement:
     """The verdict on one refit: converged, a resonance the diagnosis placed still at its
     pole (inside the spans :data:`~vibid.identify.loop.candidates.POLE_SPAN` and
@@ -353,7 +351,13 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess,
     its prior box still inside it (an orthotropic refit of a steel beam whose D22 fell to
     2 % of D11 explains a residual with no physical material), significant under the
     current weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its
-    own weights, and :data:`KEEP_SHARE` of the misfit explained; or,
+    own weights, and significant under the residual's own error too: where a misfit no
+    candidate explains remains, every extra parameter lowers chi2 a little and passes the
+    likelihood-ratio test, which takes the residual for white noise; the misfit's reduced
+    chi2 and its correlation along frequency
+    (:func:`~vibid.identify.fit.noise.misfit_scale`) say how much a parameter that
+    explains nothing removes from it, and the likelihood ratio must pass the same quantile
+    in those units (the loop's final covariance is scaled by the same two); or,
     while the estimate is outside its prior box, one that brings it back inside at a chi2
     the data cannot tell from the current one (the excursion was this effect)."""
     r, gain = fit.result, fit.gain
@@ -366,22 +370,25 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside, excess,
     z = cand.distance_from_null(r)
     if z <= KEEP_Z:
         return Judgement(Verdict.AT_NULL, detail + (("z", z),), fit)
-    significant = gain > chi2_dist.ppf(KEEP_QUANTILE, s.dof) and r.chi2 < res.chi2
+    need = float(chi2_dist.ppf(KEEP_QUANTILE, s.dof))
+    significant = gain > need and r.chi2 < res.chi2
+    birge, tau = misfit_scale(res)
     own = box | cand.bounds(box, res.parameters, diagnosis)
     left = tuple(n for n in outside_prior(r, own) if n not in idle_parameters(r, cand.name))
     strayed = [n for n in left if n not in outside]
     if strayed:
         return Judgement(Verdict.OUTSIDE_PRIOR, detail + (("left", _values(r, strayed, own)),),
                          fit, left)
-    if significant and gain >= KEEP_SHARE * excess:
+    if significant and gain > need * birge * tau:
         return Judgement(Verdict.OUTRANKED, detail, fit, left)  # passes; choose() decides
     if outside and not left and gain >= -indistinct_chi2(len(r.values),
                                                          max(1.0, float(res.chi2_reduced))):
         return Judgement(Verdict.EXPLAINS_EXCURSION,
                          detail + (("outside", ", ".join(outside)),), fit, left)
     if significant:
-        return Judgement(Verdict.SMALL_SHARE, detail + (("share", 100 * gain / excess),
-                                                        ("need", 100 * KEEP_SHARE)), fit, left)
+        return Judgement(Verdict.WITHIN_MISFIT, detail + (
+            ("gain", gain), ("need", need * birge * tau), ("birge", birge), ("tau", tau)),
+            fit, left)
     return Judgement(Verdict.NOT_SIGNIFICANT, detail, fit, left)
 
 
@@ -478,7 +485,7 @@ def choose(scores, judged: dict, res, plainness: dict,
 
     One that brings the estimate back inside its prior box and competes (below) goes
     first (an effect that leaves it outside is kept back). Among the rest, the refits that
-    explain all but :data:`KEEP_SHARE` of the misfit compete where there are any; where
+    explain :data:`WHOLE_SHARE` of the misfit compete where there are any; where
     there are none, only those whose refit removes a diagnosed feature (``removes``:
     name -> the feature it removed) or explains a bent estimate's excursion compete, and
     the others are ``no_structure`` (a share of a misfit that remains is no explanation:
@@ -494,15 +501,15 @@ def choose(scores, judged: dict, res, plainness: dict,
     excess = max(float(res.chi2 - res.dof), 0.0)
 
     def competitors(names):
-        """``(whole, competing)``: a refit that leaves less of the misfit than an effect
-        must explain to be kept answers the residual as a whole, and only such refits
+        """``(whole, competing)``: a refit that explains :data:`WHOLE_SHARE` of the misfit
+        answers the residual as a whole, and only such refits
         compete where there are any (the orthotropic plate's anisotropy, 99.99998 % of the
         misfit, against a stand resonance, 18 %, that removed the isotropic fit's most
         significant pole); else only a refit that removes a diagnosed structure (or brings
         a bent estimate back inside its box) explains something: shaving a share off a
         misfit that remains is what any extra parameter does (a free length on a
         crosstalk)."""
-        whole = [n for n in names if judged[n].gain >= (1 - KEEP_SHARE) * excess]
+        whole = [n for n in names if judged[n].gain >= WHOLE_SHARE * excess]
         return whole, whole or [n for n in names if removes.get(n)
                                 or judged[n].verdict is Verdict.EXPLAINS_EXCURSION]
 
@@ -563,10 +570,9 @@ def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:
     (:func:`~vibid.identify.fit.noise.residual_correlation`: a misfit that is a smooth
     model-form error spans ``tau`` neighbouring points, which then count as one), the
     warning saying so in place of the one that they understate the error."""
-    birge = float(result.chi2_reduced)
-    if not (result.noise_known and np.isfinite(birge) and birge > 1.0):
+    birge, tau = misfit_scale(result)
+    if birge <= 1.0:
         return result
-    tau = residual_correlation(result)
     k = birge * tau
     note = (f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(birge):.3g}"
             f" and by sqrt(tau) = {math.sqrt(tau):.3g} for the residual's correlation along "

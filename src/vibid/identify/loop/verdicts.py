@@ -31,7 +31,7 @@ class Verdict(enum.Enum):
     AT_NULL = "at_null"
     LEFT_ITS_FEATURE = "left_its_feature"
     OUTSIDE_PRIOR = "outside_prior"
-    SMALL_SHARE = "small_share"
+    WITHIN_MISFIT = "within_misfit"
     NO_STRUCTURE = "no_structure"
     NOT_SIGNIFICANT = "not_significant"
     WITHDRAWN = "withdrawn"
@@ -47,7 +47,7 @@ class Verdict(enum.Enum):
         """Whether the refit is a model the data support (converged, away from its null,
         significant), kept or not: the budget's spread is over these
         (:func:`vibid.identify.budget.model_spread`)."""
-        return self.passes or self in (Verdict.SMALL_SHARE, Verdict.NO_STRUCTURE)
+        return self.passes or self in (Verdict.WITHIN_MISFIT, Verdict.NO_STRUCTURE)
 
     def sentence(self, **d) -> str:
         """The report's note; ``d`` holds the numbers it quotes."""
@@ -88,9 +88,12 @@ class Verdict(enum.Enum):
                 f"its refit explains the residual only with {d.get('left', 'a parameter')} "
                 "outside the prior box, which the current fit kept inside: no physical "
                 "explanation"),
-            Verdict.SMALL_SHARE: (
-                f"it explains only {d.get('share', math.nan):.2g} % of the chi2 above the "
-                f"noise (an effect must explain {d.get('need', math.nan):.0f} %)"),
+            Verdict.WITHIN_MISFIT: (
+                f"it lowers chi2 by {d.get('gain', math.nan):.3g}, no more than a parameter "
+                "that explains nothing removes from a misfit this large and this smooth (needs "
+                f"{d.get('need', math.nan):.3g}: chi-square's 0.99 quantile times the reduced "
+                f"chi2 {d.get('birge', math.nan):.3g} times {d.get('tau', math.nan):.3g} "
+                "neighbouring points per independent one)"),
             Verdict.NO_STRUCTURE: (
                 f"it lowers chi2 significantly but removes no structure the diagnosis found "
                 f"and leaves {d.get('left_share', math.nan):.2g} % of the misfit: a share of "
