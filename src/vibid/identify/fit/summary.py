@@ -61,12 +61,17 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
     status, message = best.status, f"{best.method} {best.message}"
     if not status.ok:
         warnings.append(f"the local optimisation {message}")
+    reaches_noise = fits_noise(chi2, dof, data.noise_known) is not False
     for name in space.out_of_bounds(theta):
         t = space.transforms[space.names.index(name)]
         v = theta[space.names.index(name)]
         warnings.append(
             f"{name} = {v:.6g} lies on or outside its prior bounds [{t.low:g}, {t.high:g}]: "
-            "the bounds may exclude the true value; widen them and identify again"
+            + ("the bounds may exclude the true value; widen them and identify again"
+               if reaches_noise else
+               "the model does not reach the data's noise, so it may stand in for what the "
+               "model lacks rather than lie outside them (widening them would explain "
+               "nothing)")
         )
     for name, v, s in zip(space.names, theta, std):
         if np.isfinite(s) and abs(v) > 0 and s > 0.3 * abs(v):
