@@ -20,7 +20,8 @@ root sum of squares of independent parts:
   the constant across the models the loop compared (its stages and the refits the data
   support, :attr:`~vibid.identify.loop.verdicts.Verdict.compared`) whose parameters lie
   inside their prior box (a model that bends a parameter
-  out of it is no defensible one), weighted as Burnham & Anderson average models, by
+  out of it is no defensible one; where the final model bends one too, all of them),
+  weighted as Burnham & Anderson average models, by
   exp(−ΔQAIC/2), QAIC = χ²/ĉ + 2p with ĉ the final model's reduced χ² (the data's
   weights) times its residual's autocorrelation time along frequency (a smooth misfit
   spans many points, which then count as one: :func:`vibid.identify.fit.noise.
@@ -125,12 +126,17 @@ def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
     """constant -> the between-model standard deviation across the loop's models of the
     final material (module doc); empty without a loop or where the final model explains
     the data. ``tau``: the final residual's autocorrelation time; ``box``: the prior box
-    (the setup's bounds) outside which a model is not defensible (None: every model)."""
+    (the setup's bounds) outside which a model is not defensible (None: every model; every
+    model too where the final one lies outside it: on the titanium strip every model the
+    loop compared keeps the declared fit's nu below the box, and weighing the final alone
+    would make the choice of model cost nothing)."""
     if loop is None or not loop.unexplained_residual:
         return {}
     from vibid.identify.loop.rounds import outside_prior
 
     final = loop.final
+    if box is not None and outside_prior(final, box):
+        box = None  # the final model is outside it too: the box tells no model from another
     fits = [st.result for st in loop.stages] + list(loop.alternatives)
     fits = [r for r in fits if getattr(r.plate_model, "model", None) == model
             and math.isfinite(r.chi2_reduced_reported) and r.dof > 0
