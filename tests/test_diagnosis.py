@@ -7,7 +7,6 @@ import json
 import logging
 import math
 import warnings
-
 from types import SimpleNamespace
 
 import numpy as np

@@ -105,8 +105,8 @@ def test_an_effect_leaving_a_bent_estimate_is_kept_back_only_for_one_that_compet
 def test_the_models_compared_are_the_refits_the_data_support_kept_or_not():
     """The budget's model spread runs over every refit the data support: passing ones and
     significant ones whose gain lies within what the misfit gives any parameter (the
-    titanium strip's stand resonance, 8 % of its misfit); not over one that failed, stayed at its null or did not
-    improve chi2 significantly."""
+    titanium strip's stand resonance, 8 % of its misfit); not over one that failed, stayed
+    at its null or did not improve chi2 significantly."""
     compared = {v for v in Verdict if v.compared}
     assert compared == {Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
                         Verdict.OUTRANKED, Verdict.WITHIN_MISFIT, Verdict.NO_STRUCTURE}
@@ -285,3 +285,33 @@ def test_refits_weigh_their_own_model_error_only_where_it_changes_chi2():
     assert not model_error_weighs_in(fit(9175.0, 8963.0))
     assert model_error_weighs_in(fit(27.3, 2.0))
     assert model_error_weighs_in(fit(1.12, 1.0))  # 12 %: near the noise it weighs in
+
+
+def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypatch):
+    """The judge's second test: a refit that lowers chi2 by 1e4 passes the white-noise
+    test (6.63 for one parameter), but where the misfit's reduced chi2 is 40 and its
+    autocorrelation time 50 points, a parameter that explains nothing lowers chi2 by about
+    40 x 50 x chi-square(1): the 0.99 quantile is 13 266, so it is within_misfit, and its
+    sentence quotes the numbers. With a residual of 2 points per independent one (5 305)
+    it passes."""
+    monkeypatch.setattr(rounds, "outside_prior", lambda r, box: [])
+    cand = SimpleNamespace(name="clamp_compliance", strayed=lambda *a: None,
+                           distance_from_null=lambda r: 50.0,
+                           bounds=lambda box, values, diagnosis=None: {})
+    result = SimpleNamespace(converged=True, chi2=1.0e5, values=(18.0, 0.3, 1e-3),
+                             parameters={"D": 18.0, "nu": 0.3, "k_clamp": 1e-3},
+                             plate_model=SimpleNamespace(default_bounds=lambda box: box,
+                                                         effects=()))
+    refit = SimpleNamespace(gain=1e4, searched=False, result=result)
+    res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.3}, chi2=1.1e5, chi2_reduced=40.0)
+    score = Score("clamp_compliance", 1e4, 1, 0.0, 0.1)
+    monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 50.0))
+    j = rounds.judge(cand, score, refit, res, {}, [])
+    assert j.verdict is Verdict.WITHIN_MISFIT and j.verdict.compared and not j.verdict.passes
+    assert dict(j.detail)["need"] == pytest.approx(6.6349 * 2000, rel=1e-4)
+    assert j.verdict.sentence(**dict(j.detail)).startswith(
+        "it lowers chi2 by 1e+04, no more than a parameter that explains nothing removes "
+        "from a misfit this large and this smooth (needs 1.33e+04: chi-square's 0.99 "
+        "quantile times the reduced chi2 40 times 50 neighbouring points")
+    monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 2.0))
+    assert rounds.judge(cand, score, refit, res, {}, []).verdict is Verdict.OUTRANKED
