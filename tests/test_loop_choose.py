@@ -34,7 +34,7 @@ def _choose(refits, removes, left=None):
     scores = [Score(n, 1e3, 1, 0.0, 0.1) for n in refits]
     judged = {n: Judgement(Verdict.OUTRANKED, (), f, left.get(n, ()))
               for n, f in refits.items()}
-    current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF)
+    current = SimpleNamespace(chi2=CHI2, dof=DOF, chi2_reduced=CHI2 / DOF, noise_known=False)
     plainness = {n: 0 for n in refits} | {"anisotropy": 1}
     return rounds.choose(scores, judged, current, plainness, removes)
 

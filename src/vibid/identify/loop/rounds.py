@@ -550,15 +550,16 @@ def choose(scores, judged: dict, res, plainness: dict,
 def plainest(competing, judged: dict, removes: dict, res, asked: dict, plainness: dict):
     """Of the ``competing`` refits, those that remove the most significant diagnosed
     feature (all where none removes one); of those whose chi2 the data cannot tell from
-    the best's, the plainest: asked for by the diagnosis, then an effect before a new
+    the best's (in the units of the misfit that remains, :func:`judge`), the plainest: asked for by the diagnosis, then an effect before a new
     material, then the larger likelihood ratio."""
     top = max((f.significance for n, f in removes.items() if n in competing and f),
               default=None)
     pool = [n for n in competing if top is None or (removes.get(n) and
                                                    removes[n].significance == top)]
-    # gains are all under the current fit's weights: comparable
+    # gains are all under the current fit's weights: comparable, and told apart in the
+    # units of the misfit that remains (the judge's second test)
     best = max(judged[n].gain for n in pool)
-    tie = indistinct_chi2(1, max(1.0, float(res.chi2_reduced)))
+    tie = indistinct_chi2(1, math.prod(misfit_scale(res)))
     rivals = [n for n in pool if judged[n].gain >= best - tie]
     return min(rivals, key=lambda n: (not asked[n], plainness[n], -judged[n].gain))
 
