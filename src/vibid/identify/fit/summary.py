@@ -79,7 +79,7 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
                 f"{name} is poorly determined by these data (std {s:.2g} = "
                 f"{100 * s / abs(v):.0f} % of its value)"
             )
-    if fits_noise(chi2, dof, data.noise_known) is False:
+    if not reaches_noise:
         warnings.append(
             f"the model does not fit the data to their noise level (reduced chi2 = "
             f"{chi2_red:.3g}): the standard deviations understate the error"

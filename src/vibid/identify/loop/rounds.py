@@ -550,8 +550,9 @@ def choose(scores, judged: dict, res, plainness: dict,
 def plainest(competing, judged: dict, removes: dict, res, asked: dict, plainness: dict):
     """Of the ``competing`` refits, those that remove the most significant diagnosed
     feature (all where none removes one); of those whose chi2 the data cannot tell from
-    the best's (in the units of the misfit that remains, :func:`judge`), the plainest: asked for by the diagnosis, then an effect before a new
-    material, then the larger likelihood ratio."""
+    the best's (in the units of the misfit that remains, :func:`judge`), the plainest:
+    asked for by the diagnosis, then an effect before a new material, then the larger
+    likelihood ratio."""
     top = max((f.significance for n, f in removes.items() if n in competing and f),
               default=None)
     pool = [n for n in competing if top is None or (removes.get(n) and
