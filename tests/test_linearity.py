@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vibid.identify.linearity import resonance_linearity
+from vibid.identify.linearity import linear_part, resonance_linearity
 
 F_HZ = np.arange(150.0, 260.0, 0.122)  # the titanium AFC's FFT grid near its first mode
 S = 2j * np.pi * F_HZ
@@ -142,3 +142,10 @@ def test_the_titanium_strips_resonances_are_no_sums_of_linear_modes():
     assert first.flanks[2] < 3 * np.sqrt(2) * first.scatter
     assert first.flanks[1] > 4 * first.top[1] and first.flanks[0] > first.top[0]
     assert "sticks at small amplitude and slips at large" in first.note
+    # so a linear model is not asked to fit its top (six of its half-power widths either
+    # side); the second's flanks tell no amplitude dependence, and its top stays
+    used, tested = linear_part(f, H, std)
+    assert [t.left_out_hz is None for t in tested] == [False, True]
+    assert tested[0].left_out_hz == pytest.approx((178.1, 216.3), abs=0.2)
+    lo, hi = tested[0].left_out_hz
+    assert np.array_equal(~used, (f > lo) & (f < hi))

@@ -73,6 +73,19 @@ class Linearity:
     #: flanks hold too few points
     top: tuple[float, float] | None = None
     flanks: tuple[float, float, float] | None = None
+    #: (lo, hi) Hz of the top that a linear model is not asked to fit (:func:`linear_part`);
+    #: None where the top stays
+    left_out_hz: tuple[float, float] | None = None
+
+    @property
+    def left_out_note(self) -> str:
+        """What the fit leaves out here, in a lab's words ("" where nothing)."""
+        if self.left_out_hz is None:
+            return ""
+        lo, hi = self.left_out_hz
+        return (f"left out of the fit: {lo:.4g}-{hi:.4g} Hz, the top of the resonance at "
+                f"{self.f_hz:.4g} Hz, whose response depends on its amplitude (a linear model "
+                "fits its flanks, where the motion is small)")
 
     def as_report(self) -> dict:
         out = {"f_hz": self.f_hz, "n_points": self.n_points, "scatter": self.scatter,
@@ -81,6 +94,8 @@ class Linearity:
             out["top"] = {"f_hz": self.top[0], "q": self.top[1]}
             out["flanks"] = {"f_hz": self.flanks[0], "q": self.flanks[1],
                              "rms": self.flanks[2]}
+        if self.left_out_hz is not None:
+            out["left_out_hz"] = list(self.left_out_hz)
         return out
 
 
@@ -105,10 +120,16 @@ def resonance_linearity(frequency_hz, H, peaks_hz) -> list[Linearity]:
 
 def _separated(f, mag, peaks_hz) -> np.ndarray:
     """The peaks, highest first, without those within :data:`HALF_BAND` of a higher one (a
-    noisy top has many local maxima; close modes are tested together), sorted."""
-    height = mag[np.clip(np.searchsorted(f, peaks_hz), 0, f.size - 1)]
+    noisy top has many local maxima; close modes are tested together) and without those
+    that are not the highest point of ``mag`` within :data:`HALF_BAND` of themselves (a
+    noisy flank's bumps, which would cut a resonance's band short), sorted."""
+    index = np.clip(np.searchsorted(f, peaks_hz), 1, f.size - 1)
+    height = np.maximum(mag[index - 1], mag[index])  # the grid points either side of each
     kept = []
-    for fp in peaks_hz[np.argsort(-height)]:
+    for fp, h in zip(peaks_hz[np.argsort(-height)], np.sort(height)[::-1]):
+        near = np.abs(f - fp) <= HALF_BAND * fp
+        if h < mag[near].max():
+            continue
         if all(abs(fp - k) > HALF_BAND * k for k in kept):
             kept.append(fp)
     return np.sort(np.array(kept, float))
@@ -139,7 +160,7 @@ def _test(f, H, fp) -> Linearity | None:
     scatter = relative_scatter(H)
     best, limit = min(rms), FACTOR * math.sqrt(2) * scatter
     linear = best <= limit
-    top = flanks = None
+    top = flanks = left_out = None
     if linear:
         n = next(k for k, r in enumerate(rms, start=1) if r <= limit)  # the fewest that fit
         best = rms[n - 1]
@@ -153,8 +174,29 @@ def _test(f, H, fp) -> Linearity | None:
         top = tuple(float(v) for v in fits[0][1][0])
         flanks = flank_mode(f, H, *top)
         note += "; " + amplitude_sentence(top, flanks, limit)
+        if amplitude_told(top, flanks, limit):
+            width = FLANK_WIDTHS * top[0] / top[1]
+            left_out = (top[0] - width, top[0] + width)
     return Linearity(float(fp), int(f.size), scatter, tuple(rms), bool(linear), note, top,
-                     flanks)
+                     flanks, left_out)
+
+
+def linear_part(frequency_hz, H, std=None, used=None) -> tuple[np.ndarray, tuple[Linearity, ...]]:
+    """The points a linear model can be asked to fit, and the test at each resolved
+    resonance of the measured peaks (module doc): ``used`` (default: every finite point)
+    less the tops whose response is shown to depend on its amplitude."""
+    from vibid.identify.fit.peaks import measured_peaks
+
+    f = np.asarray(frequency_hz, float)
+    H = np.asarray(H, complex)
+    used = np.isfinite(f) & np.isfinite(H) if used is None else np.asarray(used, bool).copy()
+    s = None if std is None else np.asarray(std, float)[used]
+    peaks_hz = measured_peaks(f[used], H[used], s).frequency_hz
+    tests = tuple(resonance_linearity(f[used], H[used], peaks_hz))
+    for t in tests:
+        if t.left_out_hz is not None:
+            used &= ~((f > t.left_out_hz[0]) & (f < t.left_out_hz[1]))
+    return used, tests
 
 
 def flank_mode(f, H, f_top, q_top) -> tuple[float, float, float] | None:
@@ -172,6 +214,14 @@ def flank_mode(f, H, f_top, q_top) -> tuple[float, float, float] | None:
         return None
     rms, ((f_hz, q),) = fitted
     return float(f_hz), float(q), float(rms)
+
+
+def amplitude_told(top, flanks, limit: float) -> bool:
+    """Whether the flanks show the response to depend on its amplitude: one linear mode
+    fits them to ``limit`` and its Q differs from the top's beyond :data:`Q_RATIO`."""
+    if flanks is None or flanks[2] > limit:
+        return False
+    return flanks[1] > Q_RATIO * top[1] or flanks[1] * Q_RATIO < top[1]
 
 
 def amplitude_sentence(top, flanks, limit: float) -> str:
