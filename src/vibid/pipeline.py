@@ -10,7 +10,7 @@ console text (:attr:`Identified.summary`) is the caller's to show.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -46,11 +46,14 @@ class Identified:
     """The identification stage's result: ``result`` the final
     :class:`~vibid.identify.fit.result.IdentificationResult` (the loop's last stage when
     the loop ran), ``loop`` the :class:`~vibid.identify.loop.LoopResult` or None, and
-    ``summary`` the lines for the console."""
+    ``summary`` the lines for the console; ``linearity`` the tests of the measured
+    resonances made before the fit (:func:`vibid.identify.linearity.linear_part`), some of
+    whose tops the fit may have left out."""
 
     result: Any
     loop: Any
     summary: str
+    linearity: tuple = ()
 
     @property
     def converged(self) -> bool:
@@ -122,7 +125,8 @@ def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
 
 def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
                  method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                 seed: int = SEED, progress=None, magnitude_only: bool = False) -> Identified:
+                 seed: int = SEED, progress=None, magnitude_only: bool = False,
+                 nonlinear_tops: bool = False) -> Identified:
     """Identify the declared model from ``data.afc`` (global search, then the local polish),
     then, with ``loop``, close the loop (:func:`vibid.identify.loop.close_loop`): the
     effects the residual asks for, among ``candidates`` (names; default all).
@@ -132,6 +136,11 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     ``progress`` is the search's ``progress(label, done, total, best)`` callback.
     ``magnitude_only``: fit |H| alone (stands whose channels are not synchronised or whose
     phase is not trusted); the loop then tries the candidates |H| can see.
+
+    A resonance whose top is shown to depend on its amplitude (on an FFT analyser's dense
+    grid: :func:`vibid.identify.linearity.linear_part`) has its top left out of every fit,
+    unless ``nonlinear_tops``: the plate model is linear, and the flanks hold the structure
+    at small motion.
     """
     from vibid.identify import configure
     from vibid.identify.fit import identify
@@ -141,21 +150,33 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     names = parse_candidates(candidates)
     configure()
     setup, afc = data.setup, data.afc
+    used, tests, said = afc.used, (), ""
+    if not magnitude_only:
+        from vibid.identify.linearity import linear_part
+
+        kept, tests = linear_part(afc.frequency_hz, afc.H, afc.std, afc.used)
+        left = [t for t in tests if t.left_out_hz is not None]
+        if left and not nonlinear_tops:
+            used = kept
+            said = "".join(t.left_out_note + "\n" for t in left)
+        elif left:
+            tests = tuple(replace(t, left_out_hz=None) for t in tests)
     with jax_turn():
-        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, method=method,
+        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=used, method=method,
                           local=local, restarts=restarts, seed=seed, progress=progress,
                           magnitude=magnitude_only)
         if loop and result.converged and afc.std is None:
-            return Identified(result, None, "no loop: the AFC has no std column, so the "
-                              "residual cannot be tested against the noise\n" + result.summary())
+            return Identified(result, None, said + "no loop: the AFC has no std column, so the "
+                              "residual cannot be tested against the noise\n" + result.summary(),
+                              tests)
         if loop and result.converged:
             from vibid.identify.loop import close_loop
 
-            closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
+            closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=used,
                                 candidates=names, local=local, declared=result,
                                 magnitude=magnitude_only)
-            return Identified(closed.final, closed, closed.summary())
-    return Identified(result, None, result.summary())
+            return Identified(closed.final, closed, said + closed.summary(), tests)
+    return Identified(result, None, said + result.summary(), tests)
 
 
 def build_session_report(data: SessionAfc, identified: Identified) -> dict[str, Any]:
@@ -164,7 +185,8 @@ def build_session_report(data: SessionAfc, identified: Identified) -> dict[str, 
 
     return build_report(identified.result, session_id=data.session_id,
                         declared_model=data.setup.identification.model,
-                        afc=data.afc.to_report_block(), loop=identified.loop, setup=data.setup)
+                        afc=data.afc.to_report_block(), loop=identified.loop, setup=data.setup,
+                        linearity=identified.linearity)
 
 
 def require_converged(identified: Identified) -> None:

@@ -4,7 +4,9 @@ loop (effects the residual asks for, :mod:`vibid.identify.loop`); writes the rep
 shared/spec/report-format.md.
 
 `vibid identify --afc AFC.csv|AFC.uff --setup SETUP.json [...]` does the same on an AFC
-measured by another system, CSV or UFF58 (:mod:`vibid.signal.imported`)."""
+measured by another system, CSV or UFF58 (:mod:`vibid.signal.imported`). On such an AFC's
+dense grid, the top of a resonance whose response depends on its amplitude is left out of
+the fit unless ``--nonlinear-tops`` (:func:`vibid.identify.linearity.linear_part`)."""
 
 from __future__ import annotations
 
@@ -27,6 +29,10 @@ def add_parser(sub):
     p.add_argument("--setup", metavar="SETUP.json", help="the declared setup of --afc")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
     add_identification_options(p)
+    p.add_argument("--nonlinear-tops", action="store_true",
+                   help="fit the tops of resonances whose response depends on its amplitude "
+                   "too (by default they are left out: the plate model is linear, and their "
+                   "flanks hold the structure at small motion)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
@@ -50,7 +56,8 @@ def run(args) -> int:
             identified = identify_afc(data, loop=not args.no_loop, candidates=candidates,
                                       method=args.method, local=args.local,
                                       restarts=args.restarts, seed=args.seed,
-                                      progress=progress, magnitude_only=args.magnitude_only)
+                                      progress=progress, magnitude_only=args.magnitude_only,
+                                      nonlinear_tops=args.nonlinear_tops)
         print(identified.summary)
     from vibid.report import plausibility_lines
 

@@ -95,19 +95,20 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
     return block, block["violations"] + block["outside_handbook"]
 
 
-def linearity_block(result) -> list[dict]:
+def linearity_block(result, tests=None) -> list[dict]:
     """The ``linearity`` block: whether each measured resonance the grid resolves is the
-    response of a linear structure (:mod:`vibid.identify.linearity`; the measured AFC alone,
-    complex data only); empty where no resonance is resolved."""
-    from vibid.identify.fit.peaks import measured_peaks
-    from vibid.identify.linearity import resonance_linearity
+    response of a linear structure, and which tops were left out of the fit
+    (:mod:`vibid.identify.linearity`; the measured AFC alone, complex data only); empty
+    where no resonance is resolved. ``tests``: the tests made before the fit
+    (:func:`vibid.pipeline.identify_afc`), whose points the fit's own no longer hold."""
+    from vibid.identify.linearity import linear_part
 
-    if result.magnitude:
-        return []
-    u = np.asarray(result.used, bool)
-    f, H = np.asarray(result.frequency_hz)[u], np.asarray(result.H)[u]
-    peaks = measured_peaks(f, H, None if result.H_std is None else np.asarray(result.H_std)[u])
-    return [t.as_report() for t in resonance_linearity(f, H, peaks.frequency_hz)]
+    if tests is None:
+        if result.magnitude:
+            return []
+        std = None if result.H_std is None else np.asarray(result.H_std)
+        tests = linear_part(result.frequency_hz, result.H, std, result.used)[1]
+    return [t.as_report() for t in tests]
 
 
 def _stage_block(added, result) -> dict[str, Any]:
@@ -167,7 +168,8 @@ def _loop_block(loop) -> tuple[list, dict]:
 
 
 def build_report(result, *, session_id: str = "", declared_model: str | None = None,
-                 afc: dict | None = None, loop=None, setup=None) -> dict[str, Any]:
+                 afc: dict | None = None, loop=None, setup=None,
+                 linearity=None) -> dict[str, Any]:
     """The report of one identification: with ``loop`` (a
     :class:`~vibid.identify.loop.LoopResult`) every stage of the closed loop and the
     effects it added, ``result`` then being its final stage; without, the declared model
@@ -183,6 +185,7 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     setup: the declared setup; with it the report gains the ``engineering`` block (E, nu,
         G from the stiffnesses and the declared thickness) with its uncertainty budget
         (:mod:`vibid.identify.budget`).
+    linearity: the linearity tests made before the fit (:func:`linearity_block`).
     """
     if loop is not None:
         result = loop.final
@@ -208,9 +211,10 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
     g = result.global_result
     extra, notes = {}, []
-    if tested := linearity_block(result):
+    if tested := linearity_block(result, linearity):
         extra["linearity"] = tested
         warnings.extend(t["note"] for t in tested if not t["linear"])
+        warnings.extend(t.left_out_note for t in linearity or () if t.left_out_hz is not None)
     if setup is not None:
         from vibid.identify.budget import engineering_budget
 

@@ -156,7 +156,10 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
     lines += _diagnosis_text(report)
     if report.get("linearity"):
         lines += ["", "Are the measured resonances linear? (rational fits of the AFC alone):", ""]
-        lines += [f"- {t['note']}" for t in report["linearity"]]
+        for t in report["linearity"]:
+            lo_hi = t.get("left_out_hz")
+            lines.append(f"- {t['note']}" + ("" if lo_hi is None else
+                         f" (its top, {lo_hi[0]:.4g}-{lo_hi[1]:.4g} Hz, is left out of the fit)"))
     if figures:
         lines += ["", "## Figures", ""]
         lines += [line for fig in report_figures.FIGURES if fig.file in figures
