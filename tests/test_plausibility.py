@@ -150,3 +150,36 @@ def test_the_table_is_consistent():
         assert material_class(cls) == cls
         for lo, hi in ranges.values():
             assert 0 < lo < hi
+
+
+def test_a_modulus_far_outside_says_what_the_declared_strip_would_need():
+    """Checked against the Euler-Bernoulli cantilever in closed form: f1 = (1.8751² / 2π)
+    √(E h² / 12 ρ) / L². Each change the sentence names, applied to the declared strip with
+    the range's edge for E, gives back the first natural frequency of the identified E."""
+    import math
+    import re
+    from types import SimpleNamespace
+
+    strip = SimpleNamespace(length_m=0.0996, thickness_m=0.003, density_kg_m3=4550.0)
+
+    def f1(E, L=strip.length_m, h=strip.thickness_m, rho=strip.density_kg_m3):
+        return 1.8751**2 / (2 * math.pi) * math.sqrt(E * h**2 / (12 * rho)) / L**2
+
+    r = plausibility("isotropic", {}, {}, _iso(E=89.4 * GPa, nu=0.30, E_std=3.2 * GPa),
+                     specimen_name="titanium strip", specimen=strip)
+    (said,) = [s for s in r.outside_handbook if s.startswith("E =")]
+    rho, L, L_mm, h, h_mm = map(float, re.search(
+        r"density ([-+][\d.]+) %, the free length ([-+][\d.]+) % \(([-+][\d.]+) mm\) or the "
+        r"thickness ([-+][\d.]+) % \(([-+][\d.]+) mm\)", said).groups())
+    target = f1(89.4 * GPa)
+    denser = strip.density_kg_m3 * (1 + rho / 100)
+    assert f1(100 * GPa, rho=denser) == pytest.approx(target, rel=0.01)  # "+12 %": 2 digits
+    assert f1(100 * GPa, L=strip.length_m * (1 + L / 100)) == pytest.approx(target, rel=1e-3)
+    assert f1(100 * GPa, h=strip.thickness_m * (1 + h / 100)) == pytest.approx(target, rel=1e-3)
+    assert L_mm == pytest.approx(L / 100 * 99.6, abs=0.05)
+    assert h_mm == pytest.approx(h / 100 * 3.0, abs=0.005)
+    assert "clamp less rigid" in said  # a compliant clamp lowers the apparent E too
+    # within 2 std of the range, or inside it, nothing is asked of the declaration
+    near = plausibility("isotropic", {}, {}, _iso(E=95 * GPa, nu=0.30, E_std=3.2 * GPa),
+                        specimen_name="titanium strip", specimen=strip)
+    assert "would need" not in " ".join(near.outside_handbook)

@@ -11,7 +11,11 @@ logs nothing (the report, the console and the loop say them).
   factor (the plate would feed energy into its vibration); a modulus ``≤ 0``.
 * Handbook ranges: where ``specimen.material`` or, without it, the specimen's name names a
   class (steel, aluminium, titanium, CFRP), each constant with a range in :data:`HANDBOOK`
-  lies in it or outside it, by so many standard deviations.
+  lies in it or outside it, by so many standard deviations. A modulus along the length (E,
+  E1) more than 2 std outside says what the declared specimen would need to reach the
+  range: from bending resonances, ``ω ∝ √(D / ρ h) / L²`` gives ``E ∝ ρ L⁴ / h²`` (the
+  sensor's mass aside), so the range's edge needs the density, the free length or the
+  thickness off by the factor ``r``, ``r^¼`` or ``r^-½`` (``r`` the edge over the value).
 
 Sources of the ranges (room temperature, typical values, not design allowables): ASM
 Handbook Vol. 1 (Properties and Selection: Irons, Steels) and Vol. 2 (Nonferrous Alloys);
@@ -89,9 +93,11 @@ def material_class(specimen_name: str = "", material: str | None = None) -> str 
 
 def plausibility(model: str, parameters: dict[str, float], std: dict[str, float],
                  constants: dict[str, dict], *, specimen_name: str = "",
-                 material: str | None = None) -> Plausibility:
+                 material: str | None = None, specimen=None) -> Plausibility:
     """Judge ``parameters`` (by name, N·m and 1) with their ``std`` and the engineering
-    ``constants`` (``{name: {"value", "std"}}``, values may be None) of a ``model`` plate."""
+    ``constants`` (``{name: {"value", "std"}}``, values may be None) of a ``model`` plate;
+    ``specimen`` (``length_m``, ``thickness_m``, ``density_kg_m3``: the declared one) lets a
+    modulus far outside its range say what the declaration would need (module doc)."""
     p = {k: v for k, v in (parameters or {}).items() if _finite(v)}
     std = std or {}
     known = {k: c for k, c in (constants or {}).items()  # the constants with a value
@@ -107,7 +113,8 @@ def plausibility(model: str, parameters: dict[str, float], std: dict[str, float]
         rng = table.get(key) or table.get(_ISOTROPIC_NAME.get(key))
         if rng is not None and key in _SYMBOL:
             (inside if rng[0] <= c["value"] <= rng[1] else outside).append(
-                _compare(cls, key, c["value"], c.get("std"), rng))
+                _compare(cls, key, c["value"], c.get("std"), rng)
+                + _declared_would_need(key, c["value"], c.get("std"), rng, specimen))
     return Plausibility(cls, tuple(violations), tuple(outside), tuple(inside))
 
 
@@ -155,6 +162,24 @@ def _compare(cls: str, key: str, value: float, sd, rng: tuple[float, float]) -> 
         note = ": consistent with the range within its uncertainty" if n <= 2 else ""
         by = f" (by {n:.1f} std{note})"
     return f"{_show(key, value, sd)} lies {side} {cls}'s handbook range {span}{by}"
+
+
+def _declared_would_need(key: str, value: float, sd, rng, specimen) -> str:
+    """``; from its bending resonances E goes as ρ L⁴ / h²: …`` where a modulus along the
+    length lies more than 2 std outside its range (module doc); "" otherwise."""
+    if key not in ("E_Pa", "E1_Pa") or specimen is None or rng[0] <= value <= rng[1]:
+        return ""
+    edge = rng[0] if value < rng[0] else rng[1]
+    if _finite(sd) and sd > 0 and abs(value - edge) <= 2 * sd:
+        return ""
+    r = edge / value
+    L, h = specimen.length_m, specimen.thickness_m
+    dL, dh = L * (r**0.25 - 1), h * (r**-0.5 - 1)
+    clamp = " (or a clamp less rigid than the model's)" if r > 1 else ""
+    return (f"; from bending resonances {_SYMBOL[key]} goes as ρ L⁴ / h²: "
+            f"{edge / GPa:g} GPa would need the declared density {100 * (r - 1):+.0f} %, "
+            f"the free length {100 * (r**0.25 - 1):+.1f} % ({1e3 * dL:+.2g} mm) or the "
+            f"thickness {100 * (r**-0.5 - 1):+.1f} % ({1e3 * dh:+.2g} mm){clamp}")
 
 
 def _beyond(value: float, sd, limit: float) -> str:

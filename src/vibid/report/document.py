@@ -81,7 +81,7 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
     sp = setup.specimen
     found = plausibility(model, result.parameters, result.parameter_std,
                          constants,
-                         specimen_name=sp.name, material=sp.material)
+                         specimen_name=sp.name, material=sp.material, specimen=sp)
     if loop is None:
         tried = " (the closed loop did not run)"
     else:
