@@ -149,3 +149,13 @@ def test_the_titanium_strips_resonances_are_no_sums_of_linear_modes():
     assert tested[0].left_out_hz == pytest.approx((178.1, 216.3), abs=0.2)
     lo, hi = tested[0].left_out_hz
     assert np.array_equal(~used, (f > lo) & (f < hi))
+
+
+def test_a_grid_coarser_than_the_band_is_not_tested_and_does_not_fail():
+    """A stepped sine's few steps at low frequency lie further apart than HALF_BAND of a
+    peak found between them (the soak test's campaign once stopped here)."""
+    f = np.array([5.0, 10.0, 20.0, 40.0, 80.0])
+    H = np.array([1.0, 1.5, 3.0, 1.4, 0.9]) + 0j
+    assert resonance_linearity(f, H, [15.0]) == []  # no step within 20 % of 15 Hz
+    used, tested = linear_part(f, H)
+    assert used.all() and tested == ()

@@ -127,8 +127,8 @@ def _separated(f, mag, peaks_hz) -> np.ndarray:
     height = np.maximum(mag[index - 1], mag[index])  # the grid points either side of each
     kept = []
     for fp, h in zip(peaks_hz[np.argsort(-height)], np.sort(height)[::-1]):
-        near = np.abs(f - fp) <= HALF_BAND * fp
-        if h < mag[near].max():
+        near = np.abs(f - fp) <= HALF_BAND * fp  # empty on a grid coarser than the band
+        if near.any() and h < mag[near].max():
             continue
         if all(abs(fp - k) > HALF_BAND * k for k in kept):
             kept.append(fp)
