@@ -101,6 +101,7 @@ def analyse(case: Case, source: dict, seed: int) -> dict:
     from vibid.identify.fit import identify
     from vibid.identify.loop import close_loop
     from vibid.identify.profile import recording
+    from vibid.pipeline import fit_points
 
     configure()
     seed = case.seed if case.seed is not None else seed
@@ -111,11 +112,12 @@ def analyse(case: Case, source: dict, seed: int) -> dict:
     else:
         with recording() as sig:
             setup, afc = signal_stage(case, source)
+    used = fit_points(afc)[0]  # as `vibid identify`: a top that slips is left out
     with recording() as ident:
-        declared = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, seed=seed,
+        declared = identify(setup, afc.frequency_hz, afc.H, afc.std, used=used, seed=seed,
                             forward_model=fm)
     with recording() as lp:
-        loop = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
+        loop = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=used,
                           declared=declared, seed=seed)
     final = loop.final
     truth = case.truth_material

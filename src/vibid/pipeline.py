@@ -123,6 +123,24 @@ def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
     return int(used.sum())
 
 
+def fit_points(afc, *, magnitude_only: bool = False, nonlinear_tops: bool = False):
+    """(the points to fit, the linearity tests, what was left out in a line each): ``afc.used``
+    less the tops of resonances whose response depends on their amplitude
+    (:func:`vibid.identify.linearity.linear_part`), unless ``nonlinear_tops``; |H| alone is
+    not tested (the test needs the complex AFC)."""
+    if magnitude_only:
+        return afc.used, (), ""
+    from vibid.identify.linearity import linear_part
+
+    kept, tests = linear_part(afc.frequency_hz, afc.H, afc.std, afc.used)
+    left = [t for t in tests if t.left_out_hz is not None]
+    if not left:
+        return afc.used, tests, ""
+    if nonlinear_tops:
+        return afc.used, tuple(replace(t, left_out_hz=None) for t in tests), ""
+    return kept, tests, "".join(t.left_out_note + "\n" for t in left)
+
+
 def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
                  method: str = "global", local: str = "newton", restarts: int = RESTARTS,
                  seed: int = SEED, progress=None, magnitude_only: bool = False,
@@ -150,17 +168,8 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     names = parse_candidates(candidates)
     configure()
     setup, afc = data.setup, data.afc
-    used, tests, said = afc.used, (), ""
-    if not magnitude_only:
-        from vibid.identify.linearity import linear_part
-
-        kept, tests = linear_part(afc.frequency_hz, afc.H, afc.std, afc.used)
-        left = [t for t in tests if t.left_out_hz is not None]
-        if left and not nonlinear_tops:
-            used = kept
-            said = "".join(t.left_out_note + "\n" for t in left)
-        elif left:
-            tests = tuple(replace(t, left_out_hz=None) for t in tests)
+    used, tests, said = fit_points(afc, magnitude_only=magnitude_only,
+                                   nonlinear_tops=nonlinear_tops)
     with jax_turn():
         result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=used, method=method,
                           local=local, restarts=restarts, seed=seed, progress=progress,
