@@ -62,6 +62,11 @@ def test_the_thickness_and_density_move_E_as_the_plate_scales(massless):
         rss = math.sqrt(sum(v**2 for v in block["budget"][k].values()))
         assert block[k]["std"] == pytest.approx(rss, rel=1e-12)
     assert "mostly the declared length" in " ".join(block["notes"])
+    # what the setup gives no uncertainty for is said, not silently left at zero
+    (unknown,) = [n for n in block["notes"] if n.startswith("the setup declares no")]
+    assert ("for the width, sensor position (x), sensor position (y), sensor mass: the "
+            "budget leaves them out") in unknown
+    assert not {"thickness_m", "density_kg_m3", "length_m"} - set(parts)
 
 
 def test_the_model_part_is_the_weighted_spread_of_the_compared_models():

@@ -194,6 +194,10 @@ def engineering_budget(setup, result, loop=None) -> dict:
                     "std": float(math.sqrt(total)) if math.isfinite(total) else None}
     block["budget"] = parts
     block["notes"] = [n for k in keys if (n := largest_part(k, parts[k], std))]
+    if unknown := [WORDS.get(n, n) for n in DECLARED if n not in std]:
+        block["notes"].append(
+            f"the setup declares no uncertainty for the {', '.join(unknown)}: the budget "
+            "leaves them out (give the setup's *_std fields to have them counted)")
     return block
 
 
