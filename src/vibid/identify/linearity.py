@@ -181,7 +181,8 @@ def _test(f, H, fp) -> Linearity | None:
                      flanks, left_out)
 
 
-def linear_part(frequency_hz, H, std=None, used=None) -> tuple[np.ndarray, tuple[Linearity, ...]]:
+def linear_part(frequency_hz, H, std=None,
+                used=None) -> tuple[np.ndarray, tuple[Linearity, ...]]:
     """The points a linear model can be asked to fit, and the test at each resolved
     resonance of the measured peaks (module doc): ``used`` (default: every finite point)
     less the tops whose response is shown to depend on its amplitude."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -103,11 +104,12 @@ def linearity_block(result, tests=None) -> list[dict]:
     (:func:`vibid.pipeline.identify_afc`), whose points the fit's own no longer hold."""
     from vibid.identify.linearity import linear_part
 
-    if tests is None:
+    if tests is None:  # tested here, after a fit that left nothing out
         if result.magnitude:
             return []
         std = None if result.H_std is None else np.asarray(result.H_std)
-        tests = linear_part(result.frequency_hz, result.H, std, result.used)[1]
+        tests = [replace(t, left_out_hz=None)
+                 for t in linear_part(result.frequency_hz, result.H, std, result.used)[1]]
     return [t.as_report() for t in tests]
 
 
