@@ -149,3 +149,12 @@ def test_report_error_names_the_users_path_not_a_temporary_file(tmp_path):
     with pytest.raises(VibidError, match=rf"^{a_dir}: cannot write the report"):
         write_report({"a": 1}, a_dir)
     assert list(a_dir.iterdir()) == [] and sorted(p.name for p in tmp_path.iterdir()) == ["a-folder"]
+
+
+def test_identify_refuses_a_report_folder_that_is_a_file_before_any_work(tmp_path, capsys,
+                                                                          no_work):
+    target = tmp_path / "report"
+    target.write_text("a file, not a folder")
+    assert main(["identify", str(tmp_path / "s.h5"), "--report", str(target),
+                 "--no-progress"]) == 1
+    assert capsys.readouterr().err == f"vibid identify: error: {target}: exists and is not a folder\n"

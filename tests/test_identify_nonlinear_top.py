@@ -110,3 +110,27 @@ def test_the_pipeline_leaves_the_top_out_and_says_so_unless_asked_not_to(afcs, t
 
     (alone, *_) = build_report(kept.result)["linearity"]
     assert not alone["linear"] and "left_out_hz" not in alone
+
+
+def test_vibid_identify_writes_a_readable_report_that_shows_the_band_left_out(afcs, tmp_path):
+    """`vibid identify --afc … --report DIR`: the console's first line, report.md's linearity
+    note and the AFC figure (drawn) say which band was left out."""
+    import dataclasses
+    import json
+
+    from vibid.cli import main
+
+    _, (H, sd) = afcs
+    csv = tmp_path / "afc.csv"
+    np.savetxt(csv, np.column_stack([F, H.real, H.imag, sd]), delimiter=",",
+               header="frequency_hz,re,im,std", comments="")
+    setup = dataclasses.replace(bs.setup(), excitation=None)  # the AFC was measured elsewhere
+    (tmp_path / "setup.json").write_text(json.dumps(setup.to_dict()))
+    out = tmp_path / "report"
+    assert main(["identify", "--afc", str(csv), "--setup", str(tmp_path / "setup.json"),
+                 "--no-loop", "--restarts", "1", "--no-progress", "--report", str(out)]) == 0
+    text = (out / "report.md").read_text()
+    assert "Hz, is left out of the fit)" in text and "left out of the fit: " in text
+    assert (out / "afc.png").stat().st_size > 10_000
+    lo, hi = json.loads((out / "report.json").read_text())["linearity"][0]["left_out_hz"]
+    assert lo < _f1_hz() < hi

@@ -1,7 +1,7 @@
-"""`vibid identify SESSION.h5 --json REPORT.json [--no-loop] [--candidates A,B]
+"""`vibid identify SESSION.h5 --json REPORT.json [--report DIR] [--no-loop] [--candidates A,B]
 [--magnitude-only]`: signal stage, identification of the declared model, then the closed
 loop (effects the residual asks for, :mod:`vibid.identify.loop`); writes the report of
-shared/spec/report-format.md.
+shared/spec/report-format.md, and with ``--report`` a readable report.md with figures.
 
 `vibid identify --afc AFC.csv|AFC.uff --setup SETUP.json [...]` does the same on an AFC
 measured by another system, CSV or UFF58 (:mod:`vibid.signal.imported`). On such an AFC's
@@ -28,6 +28,9 @@ def add_parser(sub):
                    "needs --setup")
     p.add_argument("--setup", metavar="SETUP.json", help="the declared setup of --afc")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
+    p.add_argument("--report", metavar="DIR",
+                   help="also write a readable report.md with PNG figures (and report.json) "
+                   "into DIR")
     add_identification_options(p)
     p.add_argument("--nonlinear-tops", action="store_true",
                    help="fit the tops of resonances whose response depends on its amplitude "
@@ -38,17 +41,17 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from vibid.cli.paths import check_output_file
+    from vibid.cli.paths import check_output_dir, check_output_file
     from vibid.cli.progress import search_progress
     from vibid.errors import VibidError
-    from vibid.pipeline import (build_session_report, identify_afc, parse_candidates,
-                                require_converged)
-    from vibid.report import write_report
+    from vibid.pipeline import identify_afc, parse_candidates, require_converged, write_outputs
 
     if args.restarts < 1:
         raise VibidError("--restarts must be at least 1")
     if args.json:
         check_output_file(args.json, overwrite=True)  # before the minutes of identification
+    if args.report:
+        check_output_dir(args.report)
     candidates = parse_candidates(args.candidates)
     with profiled(args.profile):
         data = _source(args)
@@ -61,12 +64,14 @@ def run(args) -> int:
         print(identified.summary)
     from vibid.report import plausibility_lines
 
-    report = build_session_report(data, identified)
+    report, paths = write_outputs(data, identified, json_path=args.json,
+                                  report_dir=args.report, session_path=args.session)
     for line in plausibility_lines(report):  # never silent
         print(line)
     if args.json:
-        write_report(report, args.json)
         print(f"report written to {args.json}")
+    if args.report:
+        print(f"readable report: {paths['report.md']}")
     # the report is written (it says why); the job itself failed
     require_converged(identified)
     return 0

@@ -136,6 +136,8 @@ def draw_afc(source: Source):
         None if measured.std is None else np.asarray(measured.std)[used],
         model_frequency_hz=grid, model_H=Hm, natural_hz=natural, flagged=_flagged(measured),
         values_text=values_text(report),
+        left_out_hz=[t.left_out_hz for t in getattr(source.identified, "linearity", ())
+                     if t.left_out_hz is not None],
         title=f"{name}: measured AFC and the identified model ({report['model']}"
               + "".join(f" + {e['name']}" for e in report["effects"]) + ")")
 
@@ -164,7 +166,8 @@ def draw_convergence(source: Source):
 #: The report's figures, in the order report.md and the Prefect UI show them.
 FIGURES: tuple[ReportFigure, ...] = (
     ReportFigure("afc.png", "Measured AFC (±2 std) and the identified model on a fine grid; "
-                 "natural frequencies dotted, flagged steps crossed", draw_afc),
+                 "natural frequencies dotted, flagged steps crossed, bands left out of the "
+                 "fit shaded", draw_afc),
     ReportFigure("residuals.png",
                  "Normalised residual with its ±2 band, before and after each effect", draw_residuals),
     ReportFigure("convergence.png", "The local optimiser's χ² per iteration", draw_convergence,

@@ -57,12 +57,14 @@ def phase_near(phase_rad, reference_rad):
 
 def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
                natural_hz: Sequence[float] = (), flagged: Sequence[Flagged] = (),
-               values_text: str = "", title: str = ""):
+               values_text: str = "", title: str = "",
+               left_out_hz: Sequence[tuple[float, float]] = ()):
     """|H| and phase against frequency: the measured points with ±2 std error bars (their
     standard uncertainty per real and imaginary part, ``std``; None if unknown), the model
     as a line on its own (fine) grid ``model_frequency_hz``, the model's natural
-    frequencies ``natural_hz`` as dotted lines, the flagged steps as labelled crosses, and
-    ``values_text`` (the identified values with units) in a box.
+    frequencies ``natural_hz`` as dotted lines, the flagged steps as labelled crosses, the
+    bands ``left_out_hz`` (Hz) that the fit left out shaded, and ``values_text`` (the
+    identified values with units) in a box.
 
     The model's phase is unwrapped along its fine grid; every measured phase is drawn
     within half a turn of the model's at its frequency, so a resonance's phase turn is
@@ -94,6 +96,11 @@ def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
         ax_mag.annotate(fx.label, (fx.frequency_hz, max(abs(fx.H), 1e-300)), fontsize=7,
                         color="C3", xytext=(3, 6), textcoords="offset points")
         ax_ph.plot(fx.frequency_hz, np.degrees(p), "x", color="C3", ms=7, mew=1.5)
+    for i, (lo, hi) in enumerate(left_out_hz):
+        for ax in (ax_mag, ax_ph):
+            kw = {"label": "left out of the fit (response depends on its amplitude)"} if (
+                i == 0 and ax is ax_mag) else {}
+            ax.axvspan(lo, hi, color="0.85", zorder=0, **kw)
     for k, fn in enumerate(natural_hz, start=1):
         for ax in (ax_mag, ax_ph):
             ax.axvline(fn, color="0.5", ls=":", lw=0.9)
