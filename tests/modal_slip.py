@@ -37,19 +37,31 @@ def afc(omega, *, kappa, slip, f1_hz, **beam_kw):
     kj = kappa * w0_sq
     slip_amp = slip / (loss * w1**2)  # the stuck mode's peak |z| is 1 / (β ω₁²)
 
-    def joint(a):
-        if a <= slip_amp:
-            return kj + 0j
-        phi = np.arccos(1 - 2 * slip_amp / a)
-        return (kj * (phi - 0.5 * np.sin(2 * phi)) / np.pi
-                + 4j * kj * slip_amp * (a - slip_amp) / (np.pi * a * a))
-
+    z = stepped_sine(omega, lambda w: w0_sq + 1j * loss * w1**2 - w * w, kj, slip_amp)
     z_lin = 1 / (w1**2 * (1 + 1j * loss) - omega**2)
-    z, a = np.empty(omega.size, complex), 0.0
-    for i, w in enumerate(omega):  # a stepped sine upwards
+    return H + c * omega**2 * (z - z_lin)
+
+
+def jenkins(a, k_j, slip):
+    """Iwan's describing function of a Jenkins joint (a spring ``k_j`` in series with a
+    Coulomb slider that slips once the spring stretches by ``slip``) at amplitude ``a``."""
+    if a <= slip:
+        return k_j + 0j
+    phi = np.arccos(1 - 2 * slip / a)
+    return (k_j * (phi - 0.5 * np.sin(2 * phi)) / np.pi
+            + 4j * k_j * slip * (a - slip) / (np.pi * a * a))
+
+
+def stepped_sine(omega, linear, k_j, slip):
+    """The coordinate ``z`` at each of ``omega`` (a sweep upwards) of a mode whose stiffness
+    holds a Jenkins joint: ``z = 1 / (linear(ω) + jenkins(|z|))``, ``linear(ω)`` the rest
+    of its dynamic stiffness, the amplitude the fixed point reached from the previous
+    step's (first harmonic balance)."""
+    z, a = np.empty(np.size(omega), complex), 0.0
+    for i, w in enumerate(omega):
         for _ in range(2000):
-            z[i] = 1 / (w0_sq + joint(a) + 1j * loss * w1**2 - w * w)
+            z[i] = 1 / (linear(w) + jenkins(a, k_j, slip))
             if abs(abs(z[i]) - a) <= 1e-12 * abs(z[i]):
                 break
             a = 0.5 * (a + abs(z[i]))
-    return H + c * omega**2 * (z - z_lin)
+    return z

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from modal_slip import stepped_sine
 
 from vibid.identify.linearity import linear_part, resonance_linearity
 
@@ -56,24 +57,9 @@ def _with_microslip(kappa, slip_m, zeta=0.002, f0=197.0):
     4 F_s (a − slip_m) a cycle. Stuck, the oscillator is linear: frequency f0 √(1 + kappa),
     Q √(1 + kappa) / (2 zeta)."""
     w0 = 2 * np.pi * f0
-    kj = kappa * w0**2
-
-    def joint(a):
-        if a <= slip_m:
-            return kj + 0j
-        phi = np.arccos(1 - 2 * slip_m / a)
-        return (kj * (phi - 0.5 * np.sin(2 * phi)) / np.pi
-                + 4j * kj * slip_m * (a - slip_m) / (np.pi * a * a))
-
-    H, a = np.empty(F_HZ.size, complex), 0.0
-    for i, w in enumerate(2 * np.pi * F_HZ):  # a stepped sine upwards
-        for _ in range(2000):
-            z = 1.0 / (w0**2 + joint(a) + 2j * zeta * w0 * w - w * w)
-            if abs(abs(z) - a) <= 1e-12 * abs(z):
-                break
-            a = 0.5 * (a + abs(z))
-        H[i] = 1 + w * w * z
-    return H
+    w = 2 * np.pi * F_HZ
+    z = stepped_sine(w, lambda w: w0**2 + 2j * zeta * w0 * w - w * w, kappa * w0**2, slip_m)
+    return 1 + w * w * z
 
 
 def _peak(H):
