@@ -124,21 +124,19 @@ def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
 
 
 def fit_points(afc, *, magnitude_only: bool = False, nonlinear_tops: bool = False):
-    """(the points to fit, the linearity tests, what was left out in a line each): ``afc.used``
-    less the tops of resonances whose response depends on their amplitude
-    (:func:`vibid.identify.linearity.linear_part`), unless ``nonlinear_tops``; |H| alone is
-    not tested (the test needs the complex AFC)."""
+    """(the points to fit, the linearity tests): ``afc.used`` less the tops of resonances
+    whose response depends on their amplitude (:func:`vibid.identify.linearity.linear_part`),
+    unless ``nonlinear_tops``; |H| alone is not tested (the test needs the complex AFC)."""
     if magnitude_only:
-        return afc.used, (), ""
+        return afc.used, ()
     from vibid.identify.linearity import linear_part
 
     kept, tests = linear_part(afc.frequency_hz, afc.H, afc.std, afc.used)
-    left = [t for t in tests if t.left_out_hz is not None]
-    if not left:
-        return afc.used, tests, ""
+    if not any(t.left_out_hz is not None for t in tests):
+        return afc.used, tests
     if nonlinear_tops:
-        return afc.used, tuple(replace(t, left_out_hz=None) for t in tests), ""
-    return kept, tests, "".join(t.left_out_note + "\n" for t in left)
+        return afc.used, tuple(replace(t, left_out_hz=None) for t in tests)
+    return kept, tests
 
 
 def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
@@ -168,8 +166,8 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     names = parse_candidates(candidates)
     configure()
     setup, afc = data.setup, data.afc
-    used, tests, said = fit_points(afc, magnitude_only=magnitude_only,
-                                   nonlinear_tops=nonlinear_tops)
+    used, tests = fit_points(afc, magnitude_only=magnitude_only, nonlinear_tops=nonlinear_tops)
+    said = "".join(t.left_out_note + "\n" for t in tests if t.left_out_hz is not None)
     with jax_turn():
         result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=used, method=method,
                           local=local, restarts=restarts, seed=seed, progress=progress,

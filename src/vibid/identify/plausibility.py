@@ -173,13 +173,13 @@ def _declared_would_need(key: str, value: float, sd, rng, specimen) -> str:
     if _finite(sd) and sd > 0 and abs(value - edge) <= 2 * sd:
         return ""
     r = edge / value
-    L, h = specimen.length_m, specimen.thickness_m
-    dL, dh = L * (r**0.25 - 1), h * (r**-0.5 - 1)
+    longer, thinner = r**0.25 - 1, r**-0.5 - 1  # relative changes of L and h
     clamp = " (or a clamp less rigid than the model's)" if r > 1 else ""
     return (f"; from bending resonances {_SYMBOL[key]} goes as ρ L⁴ / h²: "
             f"{edge / GPa:g} GPa would need the declared density {100 * (r - 1):+.0f} %, "
-            f"the free length {100 * (r**0.25 - 1):+.1f} % ({1e3 * dL:+.2g} mm) or the "
-            f"thickness {100 * (r**-0.5 - 1):+.1f} % ({1e3 * dh:+.2g} mm){clamp}")
+            f"the free length {100 * longer:+.1f} % ({1e3 * specimen.length_m * longer:+.2g} "
+            f"mm) or the thickness {100 * thinner:+.1f} % "
+            f"({1e3 * specimen.thickness_m * thinner:+.2g} mm){clamp}")
 
 
 def _beyond(value: float, sd, limit: float) -> str:
