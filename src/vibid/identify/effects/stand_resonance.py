@@ -40,6 +40,7 @@ class StandResonance(Term):
     name = "stand_resonance"
     explains = ("extra_pole",)
     needs_feature = True
+    feature_places = {"f_hz": "f_hz", "q": "q"}
     meaning = "a resonance of the shaker table or fixture (the base rocks about the clamp line)"
     rotates_base = True
     in_every_structure = False

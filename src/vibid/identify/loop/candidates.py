@@ -110,12 +110,11 @@ class EffectCandidate:
         return 0
 
     def feature(self, diagnosis):
-        """The diagnosed feature that places its new parameters (the strongest pole the
-        model has no resonance for), or None."""
+        """The diagnosed feature that places its new parameters (the term's choice,
+        ``Term.placed_at``: the strongest pole the model has no resonance for), or None."""
         if diagnosis is None or not self.term.needs_feature:
             return None
-        found = [f for f in diagnosis.features if set(f.kinds) & set(self.explains)]
-        return max(found, key=lambda f: f.significance, default=None)
+        return self.term.placed_at(diagnosis)
 
     def extend(self, model: PlateModel) -> PlateModel:
         return model.with_effect(self.term_after(model.names))
@@ -152,9 +151,10 @@ class EffectCandidate:
         from vibid.parameters import split_instance
 
         spans = {"f_hz": (feature.f_hz, POLE_SPAN), "q": (feature.q, Q_SPAN)}
+        places = self.term.feature_places
         out = {}
         for name in self.placed(values):
-            centre, factor = spans.get(split_instance(name)[0], (math.nan, 1.0))
+            centre, factor = spans.get(places.get(split_instance(name)[0]), (math.nan, 1.0))
             if np.isfinite(centre) and centre > 0:
                 out[name] = (centre / factor, centre * factor)
         return out
@@ -175,7 +175,7 @@ class EffectCandidate:
                 out[q.name] = 100.0 * own[q.name][1] if math.isinf(null) else null
                 continue
             lo, hi = own[q.name]
-            placed = _from_feature(q.name, feature)
+            placed = _from_feature(q.name, feature, term.feature_places)
             out[q.name] = (min(max(placed, lo), hi) if placed is not None
                            else math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi))
         return out
@@ -198,7 +198,7 @@ class EffectCandidate:
             v = fitted.get(name)
             if v is None:
                 continue
-            if split_instance(name)[0] == "q":
+            if self.term.feature_places.get(split_instance(name)[0]) == "q":
                 its, value, pole = "its Q", f"{v:.3g}", f"the diagnosed pole's Q {feature.q:.3g}"
             else:
                 its, value, pole = ("its resonance", f"{v:.4g} Hz",
@@ -235,15 +235,14 @@ def distance_from_null(term, result) -> float:
     return max(z) if z else math.inf
 
 
-def _from_feature(name: str, feature) -> float | None:
-    """A resonance's frequency or Q from a diagnosed pole (names ``f_hz``/``q``, any
-    instance suffix)."""
+def _from_feature(name: str, feature, places: dict) -> float | None:
+    """A resonance's frequency or Q from a diagnosed pole: the value ``places`` (a term's
+    ``feature_places``) names for ``name`` (any instance suffix), or None."""
     if feature is None:
         return None
     from vibid.parameters import split_instance
 
-    base = split_instance(name)[0]
-    value = {"f_hz": feature.f_hz, "q": feature.q}.get(base)
+    value = {"f_hz": feature.f_hz, "q": feature.q}.get(places.get(split_instance(name)[0]))
     return float(value) if value is not None and np.isfinite(value) else None
 
 

@@ -81,6 +81,10 @@ class Term:
     #: True for an effect the loop tries only where the diagnosis found its feature (a
     #: stand resonance: a pole where the plate has none, which also places its start)
     needs_feature = False
+    #: which of its parameters (unsuffixed names) the diagnosed feature places, and by
+    #: which of the feature's values (``"f_hz"``, ``"q"``): the loop starts them there and
+    #: holds them within its span of them
+    feature_places: dict = {}
     #: True for an effect that changes only H's phase (a delay between the channels): a fit
     #: of |H| alone cannot see it, and its loop does not try it
     phase_only = False
@@ -115,6 +119,12 @@ class Term:
 
     def afc_map(self, p: dict, omega, H, xp):
         return H
+
+    def placed_at(self, diagnosis):
+        """The diagnosed feature (:mod:`vibid.identify.diagnosis`) that places a term that
+        ``needs_feature``: the most significant one it explains, or None."""
+        found = [f for f in diagnosis.features if set(f.kinds) & set(self.explains)]
+        return max(found, key=lambda f: f.significance, default=None)
 
     def for_material(self, material) -> "Term":
         """This term's form for a plate of ``material`` (a term whose parameters depend on
