@@ -15,12 +15,14 @@ F = np.linspace(10.0, 1500.0, 30)
 #: A size a lab meets, per effect (issue #11): 20 us delay, 2 % gain, a clamp that lowers
 #: the first frequency by about 3 %, 0.3 g of glue, alpha = 0.3, a sensor 2 mm off its
 #: declared place across the width; (issue #24) a stand resonance at 660 Hz, a clamp that
-#: loses 0.05, a free span 2 mm longer, a sensor's centre of mass 5 mm above the plate.
+#: loses 0.05, a free span 2 mm longer, a sensor's centre of mass 5 mm above the plate;
+#: (issue #26) a fixture resonance at 660 Hz of which the clamp carries 5 %.
 TYPICAL = {
     "added_mass": {"mass_kg": 3e-4},
     "channel_delay": {"tau_s": 2e-5},
     "clamp_compliance": {"k_theta_N_per_rad": 1.6e4},
     "clamp_loss": {"beta_clamp": 0.05},
+    "fixture_resonance": {"f_fixture_hz": 660.0, "q_fixture": 30.0, "a_fixture": 0.05},
     "free_length": {"dL_m": 2e-3},
     "frequency_dependent_loss": {"alpha": 0.3},
     "sensor_gain": {"gain": 1.02},
@@ -46,7 +48,8 @@ def test_every_effect_has_a_typical_size_and_declares_its_parameters():
         # a null value for every parameter, but a resonance's frequency and quality factor,
         # which have none once its size is null (a clamp's loss: the plate's)
         nulls = term.null_values(STRIP)
-        assert nulls and set(term.names) - set(nulls) <= {"f_hz_1", "q_1"}
+        assert nulls and set(term.names) - set(nulls) <= {"f_hz_1", "q_1", "f_fixture_hz",
+                                                           "q_fixture"}
 
 
 @pytest.fixture(scope="module")

@@ -180,6 +180,15 @@ Q = Parameter("q", "1", ("log",), bounds=(2.0, 500.0), null=None, rule="positive
               noun="a quality factor")
 THETA = Parameter("theta_rad_per_m", "rad/m", ("linear",), bounds=(-5.0, 5.0), null=0.0,
                   noun="the base rotation per base translation")
+#: ``fixture_resonance``: a resonance of the fixture that carries the clamp, which the base
+#: sensor beside it does not share: its frequency, quality factor and the clamp's share of
+#: it (the fixture's motion at the clamp per unit table motion, quasi-statically; null 0).
+F_FIXTURE = Parameter("f_fixture_hz", "Hz", ("log",), bounds=(5.0, 5000.0), null=None,
+                      rule="positive", noun="a resonance frequency")
+Q_FIXTURE = Parameter("q_fixture", "1", ("log",), bounds=(2.0, 500.0), null=None,
+                      rule="positive", noun="a quality factor")
+A_FIXTURE = Parameter("a_fixture", "1", ("linear",), bounds=(-2.0, 2.0), null=0.0,
+                      noun="the clamp's share of the fixture's mode")
 #: ``clamp_loss``: the clamp's own loss factor (its null is the plate's beta, not a
 #: fixed number).
 BETA_CLAMP = Parameter("beta_clamp", "1", ("log",), bounds=(1e-4, 0.5), null=None,
@@ -198,6 +207,7 @@ EFFECT_PARAMETERS_BY_EFFECT: dict[str, tuple[Parameter, ...]] = {
     "channel_delay": (TAU,),
     "clamp_compliance": (K_THETA,),
     "clamp_loss": (BETA_CLAMP,),
+    "fixture_resonance": (F_FIXTURE, Q_FIXTURE, A_FIXTURE),
     "free_length": (DL,),
     "frequency_dependent_loss": (ALPHA,),
     "sensor_gain": (GAIN,),
@@ -336,6 +346,9 @@ DESCRIPTIONS: dict[str, str] = {
     "theta_rad_per_m": "stand resonance's base rotation per base translation",
     "beta_clamp": "clamp's loss factor", "dL_m": "change of the free length",
     "height_m": "sensor's height",
+    "f_fixture_hz": "fixture resonance's frequency",
+    "q_fixture": "fixture resonance's quality factor",
+    "a_fixture": "clamp's share of the fixture resonance",
 }
 
 
@@ -360,6 +373,7 @@ __all__ = [
     # effects
     "MASS", "TAU", "K_THETA", "ALPHA", "GAIN", "DY", "G13",
     "F_HZ", "Q", "THETA", "BETA_CLAMP", "DL", "HEIGHT",
+    "F_FIXTURE", "Q_FIXTURE", "A_FIXTURE",
     "EFFECT_PARAMETERS_BY_EFFECT", "EFFECT_PARAMETERS", "EFFECT_OF", "MULTI_INSTANCE",
     "effect_parameters",
     # instances and look-ups
