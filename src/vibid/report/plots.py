@@ -10,6 +10,7 @@ What each report figure draws, from an identification, is :mod:`vibid.report.fig
 from __future__ import annotations
 
 import os
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -144,8 +145,11 @@ def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
             ax.annotate(text, (f_hz, 1.0), xycoords=("data", "axes fraction"),
                         rotation=90, va="top", ha="right", fontsize=7, color="C3")
         if st.trend:
-            ax.text(0.02, 0.02, "trend: " + st.trend, transform=ax.transAxes, fontsize=7,
-                    color="C3", va="bottom", wrap=True)
+            # wrapped to the panel and kept out of the layout: a long note laid out as one
+            # line squeezed every panel to a sliver
+            note = ax.text(0.02, 0.02, textwrap.fill("trend: " + st.trend, 62),
+                           transform=ax.transAxes, fontsize=7, color="C3", va="bottom")
+            note.set_in_layout(False)
         if np.nanmax(np.abs(np.concatenate([st.re, st.im])), initial=0.0) > 20:
             # linear within the band, logarithmic beyond: a misfit of thousands of std and
             # the ±2 band show on one axis
