@@ -53,6 +53,11 @@ def test_it_is_placed_at_the_pole_across_which_the_ratio_steps():
     assert EFFECTS["fixture_resonance"].placed_at(d).f_hz == 660.0
     assert EFFECTS["stand_resonance"].placed_at(d).f_hz == 980.0  # causal poles only
     assert EFFECTS["fixture_resonance"].placed_at(Diagnosis()) is None
+    # a pole beside a mode the model's sensor does not see is that mode (the Ritz plate's
+    # torsion with its sensor off the centre line, test_identify_loop_ritz.py)
+    hidden = Fitted(features=(Feature("extra_pole", 660.0, 30.0, significance=40.0,
+                                      hidden_mode_hz=700.0),))
+    assert EFFECTS["fixture_resonance"].placed_at(hidden) is None
 
 
 @pytest.mark.slow

@@ -63,8 +63,12 @@ class FixtureResonance(Term):
         ``f / STEP_SPAN`` against ``f STEP_SPAN``, in the diagnosis's rational fit. Any
         extra pole, also one whose phase is no causal factor's: a ratio of two sensors'
         motions divides by the base sensor's, which is weak where the base shares a mode
-        the clamp does not (the diagnosis's own reading of such a pole)."""
-        poles = [x for x in diagnosis.extra_poles() if math.isfinite(x.f_hz)]
+        the clamp does not (the diagnosis's own reading of such a pole). Not a pole beside
+        a mode of the model that its sensor does not see (``hidden_mode_hz``): that is the
+        mode, more plainly (a sensor off its declared place), and a fixture's pole and zero
+        would mimic it."""
+        poles = [x for x in diagnosis.extra_poles()
+                 if math.isfinite(x.f_hz) and not math.isfinite(x.hidden_mode_hz)]
         if not poles:
             return None
 
