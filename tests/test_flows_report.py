@@ -184,6 +184,33 @@ def _html(markdown_text):
     return markdown_it.MarkdownIt("commonmark").enable("table").render(markdown_text)
 
 
+def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not():
+    """The titanium strip's report: a fixture resonance took 47 % of the misfit but bent
+    nu out of its box; the report names it first, its share from the stage's chi2, and
+    says how many points a left-out top took from the fit."""
+    r = _report("a", 17.97)
+    r["loop"]["unexplained_residual"] = True
+    r["identification"] = {"dof": 1000}
+    tried = {"score": 1e5, "p_value": 0.0, "kept": False}
+    r["loop"]["rounds"] = [[
+        tried | {"candidate": "stand_resonance", "delta_chi2": 1.0e5,
+                 "note": "it lowers chi2 by 1e+05, no more than ..."},
+        tried | {"candidate": "fixture_resonance", "delta_chi2": 4.06e5,
+                 "note": "its refit explains the residual only with nu 0.5"},
+        tried | {"candidate": "anisotropy", "delta_chi2": None, "note": "not refitted"},
+    ]]
+    r["afc"]["frequency_hz"] = [150.0, 190.0, 200.0, 300.0]
+    r["linearity"] = [{"left_out_hz": [178.1, 216.3], "note": "..."}]
+    text = report.summary_markdown(r)
+    closest = text[text.index("What came closest"):text.index("## Fit quality")]
+    assert closest.index("fixture_resonance") < closest.index("stand_resonance")
+    assert "(χ² −4.06e+05, 50 % of the misfit): its refit explains" in closest
+    assert "anisotropy" not in closest
+    assert "AFC points used: 2 of 4 (178.1-216.3 Hz left out" in text
+    r["loop"]["unexplained_residual"] = False  # a fit to the noise: nothing to name
+    assert "What came closest" not in report.summary_markdown(r)
+
+
 def test_the_residual_diagnosis_is_one_list_with_one_bullet_per_stage():
     r = _report("a", 17.97, 2e-5)
     r["loop"]["diagnosis"] = [[{"kind": "trend", "f_hz": None,

@@ -6,6 +6,8 @@ effects and the declared D and beta come back within 3 std; nu within the beam's
 (beam_sessions.NU_ON_BEAM_DATA: a rigid sensor body against vibid's disc
 on a plate)."""
 
+import math
+
 import beam_sessions as bs
 import pytest
 
@@ -60,3 +62,9 @@ def test_an_effect_outside_the_library_leaves_the_constants_in_place():
     assert loop.effects == (), loop.effects
     assert loop.final.plate_model.material.model == "isotropic"
     bs.named_with_truth(loop, {})
+    # what came closest is said, with the loop's reason for keeping it out
+    closest = loop.closest()
+    assert closest is not None and not closest.kept and closest.delta_chi2 > 0
+    assert all(s.delta_chi2 <= closest.delta_chi2 for s in loop.rounds[-1]
+               if s.delta_chi2 is not None and math.isfinite(s.delta_chi2))
+    assert f"closest: {closest.name} (chi2 -" in loop.summary()

@@ -90,6 +90,43 @@ def _effect_text(report: dict) -> list[str]:
     return lines
 
 
+def _points_text(frequency_hz, linearity) -> str:
+    """The AFC's points and those the fit used: the bands left out (a resonance's top
+    whose response depends on its amplitude) are not fitted."""
+    bands = [t["left_out_hz"] for t in linearity if t.get("left_out_hz") is not None]
+    out = sum(any(lo <= f <= hi for lo, hi in bands) for f in frequency_hz)
+    if not out:
+        return f"- AFC points used: {len(frequency_hz)}"
+    said = ", ".join(f"{lo:.4g}-{hi:.4g} Hz" for lo, hi in bands)
+    return (f"- AFC points used: {len(frequency_hz) - out} of {len(frequency_hz)} ({said} left "
+            "out: a top whose response depends on its amplitude)")
+
+
+#: How many of the candidates the loop kept out the report names (largest χ² drop first).
+KEPT_OUT_NAMED = 3
+
+
+def _kept_out_text(report: dict) -> list[str]:
+    """Where a residual remains: the candidates of the last round that lowered χ² most and
+    were not kept, with the loop's reason, so that a lab sees what came closest."""
+    rounds = report["loop"].get("rounds") or []
+    if not rounds or not report["loop"].get("unexplained_residual"):
+        return []
+    stage = report["loop"]["stages"][min(len(rounds), len(report["loop"]["stages"])) - 1]
+    dof = report.get("identification", {}).get("dof")
+    tried = sorted((c for c in rounds[-1] if not c.get("kept") and c.get("delta_chi2")),
+                   key=lambda c: -c["delta_chi2"])[:KEPT_OUT_NAMED]
+    if not tried:
+        return []
+    lines = ["", "What came closest and was kept out (the last round, largest χ² drop first):",
+             ""]
+    for c in tried:
+        share = (f", {100 * c['delta_chi2'] / (stage['chi2_reduced'] * dof):.0f} % of the "
+                 "misfit" if dof else "")
+        lines.append(f"- **{c['candidate']}** (χ² −{c['delta_chi2']:.3g}{share}): {c['note']}")
+    return lines
+
+
 def _diagnosis_text(report: dict) -> list[str]:
     """What each stage's residual showed (``loop.diagnosis``), as a list."""
     per_stage = report["loop"].get("diagnosis")
@@ -122,7 +159,7 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
                          f"{d['commanded_hz']:.4g} Hz ({', '.join(f['name'] for f in d['flags']) or d['status']})"
                          for d in left_out) if left_out else ""))
     else:
-        lines.append(f"- AFC points used: {n_used}")
+        lines.append(_points_text(afc["frequency_hz"], report.get("linearity") or ()))
     model = report["model"] + ("" if report["model"] == report["declared_model"]
                                else f" (declared {report['declared_model']})")
     lines.append(f"- model: {model}")
@@ -144,7 +181,7 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
         lines += _budget_text(report["engineering"].get("budget"),
                               ident.get("uncertainty_notes", []))
     lines += _plausibility_text(report.get("plausibility"))
-    lines += ["", "## Effects the loop found", ""] + _effect_text(report)
+    lines += ["", "## Effects the loop found", ""] + _effect_text(report) + _kept_out_text(report)
     lines += ["", "## Fit quality, stage by stage", "",
               "| stage | χ²/dof (the data's std) | χ²/dof (with the model's own error) | "
               "relative RMS residual |", "|---|---|---|---|"]

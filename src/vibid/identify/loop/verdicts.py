@@ -195,6 +195,15 @@ class LoopResult:
     def effects(self) -> tuple[str, ...]:
         return tuple(s.added for s in self.stages[1:])
 
+    def closest(self) -> "Score | None":
+        """Where a residual remains: the candidate of the last round that lowered chi2 most
+        and was not kept (what came closest to explaining it), or None."""
+        if not self.unexplained_residual or not self.rounds:
+            return None
+        tried = [s for s in self.rounds[-1] if not s.kept and s.delta_chi2 is not None
+                 and math.isfinite(s.delta_chi2) and s.delta_chi2 > 0]
+        return max(tried, key=lambda s: s.delta_chi2, default=None)
+
     def summary(self) -> str:
         """The error before and after, stage by stage, then the final model's summary."""
         lines = ["closed loop:"]
@@ -209,5 +218,11 @@ class LoopResult:
         lines.append("  the residual " + ("still holds an effect no candidate explains "
                                           "(unexplained_residual)" if self.unexplained_residual
                                           else "is at the noise level"))
+        closest = self.closest()
+        if closest is not None:
+            last = self.stages[min(len(self.rounds), len(self.stages)) - 1].result
+            share = closest.delta_chi2 / (last.chi2_reduced_reported * last.dof)
+            lines.append(f"  closest: {closest.name} (chi2 -{closest.delta_chi2:.3g}, "
+                         f"{100 * share:.0f} % of the misfit): {closest.note}")
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines) + "\n" + self.final.summary()
