@@ -82,7 +82,8 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
     sp = setup.specimen
     found = plausibility(model, result.parameters, result.parameter_std,
                          constants,
-                         specimen_name=sp.name, material=sp.material, specimen=sp)
+                         specimen_name=sp.name, material=sp.material, specimen=sp,
+                         sensor=setup.sensors.response)
     if loop is None:
         tried = " (the closed loop did not run)"
     else:
