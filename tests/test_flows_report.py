@@ -193,11 +193,16 @@ def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not
     r["identification"] = {"dof": 1000}
     tried = {"score": 1e5, "p_value": 0.0, "kept": False}
     r["loop"]["rounds"] = [[
-        tried | {"candidate": "stand_resonance", "delta_chi2": 1.0e5,
+        tried | {"candidate": "stand_resonance", "delta_chi2": 1.0e5, "verdict": "within_misfit",
                  "note": "it lowers chi2 by 1e+05, no more than ..."},
         tried | {"candidate": "fixture_resonance", "delta_chi2": 4.06e5,
+                 "verdict": "outside_prior",
                  "note": "its refit explains the residual only with nu 0.5"},
-        tried | {"candidate": "anisotropy", "delta_chi2": None, "note": "not refitted"},
+        tried | {"candidate": "anisotropy", "delta_chi2": None, "verdict": "no_mode_pattern",
+                 "note": "not refitted"},
+        # at its null the drop is the other parameters' (or round-off's): no close call
+        tried | {"candidate": "clamp_compliance", "delta_chi2": 9e5, "verdict": "at_null",
+                 "note": "the refit takes it to its null value"},
     ]]
     r["afc"]["frequency_hz"] = [150.0, 190.0, 200.0, 300.0]
     r["linearity"] = [{"left_out_hz": [178.1, 216.3], "note": "..."}]
@@ -205,7 +210,7 @@ def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not
     closest = text[text.index("What came closest"):text.index("## Fit quality")]
     assert closest.index("fixture_resonance") < closest.index("stand_resonance")
     assert "(χ² −4.06e+05, 50 % of the misfit): its refit explains" in closest
-    assert "anisotropy" not in closest
+    assert "anisotropy" not in closest and "clamp_compliance" not in closest
     assert "AFC points used: 2 of 4 (178.1-216.3 Hz left out" in text
     r["loop"]["unexplained_residual"] = False  # a fit to the noise: nothing to name
     assert "What came closest" not in report.summary_markdown(r)

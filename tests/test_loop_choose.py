@@ -178,7 +178,7 @@ def test_a_refit_that_leaves_the_prior_box_explains_nothing(monkeypatch):
     monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["D22"])
     monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 2.0))  # reduced chi2, tau
     cand = SimpleNamespace(name="anisotropy", strayed=lambda *a: None,
-                           distance_from_null=lambda r: 50.0,
+                           distance_from_null=lambda r: 50.0, beyond_null=lambda r, box: "",
                            bounds=lambda box, values, diagnosis=None: {"D22": (1.0, 100.0)})
     result = SimpleNamespace(converged=True, chi2=1e3, values=(1.0, 1e-10),
                              parameters={"D11": 18.0, "D22": 1e-10},
@@ -296,7 +296,7 @@ def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypat
     it passes."""
     monkeypatch.setattr(rounds, "outside_prior", lambda r, box: [])
     cand = SimpleNamespace(name="clamp_compliance", strayed=lambda *a: None,
-                           distance_from_null=lambda r: 50.0,
+                           distance_from_null=lambda r: 50.0, beyond_null=lambda r, box: "",
                            bounds=lambda box, values, diagnosis=None: {})
     result = SimpleNamespace(converged=True, chi2=1.0e5, values=(18.0, 0.3, 1e-3),
                              parameters={"D": 18.0, "nu": 0.3, "k_clamp": 1e-3},
@@ -315,3 +315,40 @@ def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypat
         "quantile times the reduced chi2 40 times 50 neighbouring points")
     monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 2.0))
     assert rounds.judge(cand, score, refit, res, {}, []).verdict is Verdict.OUTRANKED
+
+
+def test_a_clamp_refit_stiffer_than_its_box_is_the_rigid_clamp():
+    """The titanium strip's clamp refit ran to k 1.3e37 N/rad, far past its box's top (1e9):
+    the rigid clamp, its null, where the stiffness's round-off moves chi2, not the data.
+    It is judged at_null, not outside_prior; a clamp inside its box is judged as before."""
+    from vibid.identify.effects import EFFECTS
+    from vibid.identify.loop.candidates import EffectCandidate
+
+    monkeypatch = pytest.MonkeyPatch()
+    monkeypatch.setattr(rounds, "misfit_scale", lambda r: (1.0, 1.0))
+    cand = EffectCandidate("clamp_compliance")
+    clamp = EFFECTS["clamp_compliance"]
+
+    def judged(k):
+        result = SimpleNamespace(
+            converged=True, chi2=1.0e5, values=(18.0, 0.3, k),
+            parameter_names=("D", "nu", clamp.names[0]),
+            parameters={"D": 18.0, "nu": 0.3, clamp.names[0]: k},
+            parameter_std={clamp.names[0]: k / 50},  # 50 std from the rigid clamp
+            plate_model=SimpleNamespace(default_bounds=lambda box: box, effects=(clamp,),
+                                        parameters=()))
+        refit = SimpleNamespace(gain=1e4, searched=False, result=result)
+        res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.3}, chi2=1.1e5, chi2_reduced=1.0)
+        return rounds.judge(cand, Score("clamp_compliance", 1e4, 1, 0.0, 0.1), refit, res,
+                            {"D": (1.0, 100.0), "nu": (0.0, 0.5)}, [])
+
+    try:
+        j = judged(1.3e37)
+        assert j.verdict is Verdict.AT_NULL
+        assert j.verdict.sentence(**dict(j.detail)) == (
+            "the refit takes it to its null value, beyond its box: k_theta_N_per_rad 1.3e+37 "
+            "(box top 1e+09)")
+        monkeypatch.setattr(rounds, "outside_prior", lambda r, box: [])
+        assert judged(1.6e4).verdict is Verdict.OUTRANKED
+    finally:
+        monkeypatch.undo()

@@ -108,13 +108,17 @@ KEPT_OUT_NAMED = 3
 
 def _kept_out_text(report: dict) -> list[str]:
     """Where a residual remains: the candidates of the last round that lowered χ² most and
-    were not kept, with the loop's reason, so that a lab sees what came closest."""
+    were not kept (:data:`vibid.identify.loop.verdicts.CLOSE_CALLS`: moved off their null),
+    with the loop's reason, so that a lab sees what came closest."""
     rounds = report["loop"].get("rounds") or []
     if not rounds or not report["loop"].get("unexplained_residual"):
         return []
     stage = report["loop"]["stages"][min(len(rounds), len(report["loop"]["stages"])) - 1]
     dof = report.get("identification", {}).get("dof")
-    tried = sorted((c for c in rounds[-1] if not c.get("kept") and c.get("delta_chi2")),
+    from vibid.identify.loop.verdicts import CLOSE_CALLS
+
+    close = {v.value for v in CLOSE_CALLS}
+    tried = sorted((c for c in rounds[-1] if c.get("verdict") in close and c.get("delta_chi2")),
                    key=lambda c: -c["delta_chi2"])[:KEPT_OUT_NAMED]
     if not tried:
         return []

@@ -69,6 +69,8 @@ class Candidate(Protocol):
 
     def distance_from_null(self, result) -> float: ...
 
+    def beyond_null(self, result, box: dict) -> str: ...
+
 
 @dataclass(frozen=True)
 class EffectCandidate:
@@ -224,6 +226,18 @@ class EffectCandidate:
         return distance_from_null(term, result)
 
 
+    def beyond_null(self, result, box: dict) -> str:
+        """Its parameters whose null lies at infinity that a refit took past their box's
+        face on that side, in words ("" if none): a clamp stiffer than the box's stiffest
+        is the rigid clamp, its null. Out there the stiffness's round-off, not the data,
+        moves chi2 (the titanium strip's clamp refit ran to 1.3e37 N/rad)."""
+        term = next(t for t in reversed(result.plate_model.effects) if t.name == self.name)
+        p = result.parameters
+        return ", ".join(f"{n} {p[n]:.3g} (box top {box[n][1]:.3g})"
+                         for n, null in term.null_values(p).items()
+                         if math.isinf(null) and n in box and p[n] >= box[n][1])
+
+
 def distance_from_null(term, result) -> float:
     """How many standard deviations ``term``'s parameters lie from their null in
     ``result`` (the largest Wald z; inf for a term without parameters: the likelihood
@@ -303,6 +317,10 @@ class MaterialCandidate:
         jnu = D * J[:, i["D12"]] - 0.5 * D * J[:, i["D66"]]
         shared = [i[n] for n in current_names if n in i]
         return np.column_stack([jD, jnu] + [J[:, k] for k in shared]), [i["D22"], i["D66"]]
+
+    def beyond_null(self, result, box: dict) -> str:
+        """A material has no null at infinity."""
+        return ""
 
     def distance_from_null(self, result) -> float:
         """Wald z of the anisotropy's two contrasts, D22 − D11 and 2 D66 − D11 + D12 (the

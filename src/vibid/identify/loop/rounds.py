@@ -347,7 +347,8 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
     """The verdict on one refit: converged, a resonance the diagnosis placed still at its
     pole (inside the spans :data:`~vibid.identify.loop.candidates.POLE_SPAN` and
     :data:`~vibid.identify.loop.candidates.Q_SPAN` around it, not on their faces), its
-    effect :data:`KEEP_Z` std from its null, every parameter the current fit had inside
+    effect :data:`KEEP_Z` std from its null and not past its box towards a null at
+    infinity (a clamp stiffer than the box's stiffest is the rigid clamp), every parameter the current fit had inside
     its prior box still inside it (an orthotropic refit of a steel beam whose D22 fell to
     2 % of D11 explains a residual with no physical material), significant under the
     current weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its
@@ -370,10 +371,13 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
     z = cand.distance_from_null(r)
     if z <= KEEP_Z:
         return Judgement(Verdict.AT_NULL, detail + (("z", z),), fit)
+    own = box | cand.bounds(box, res.parameters, diagnosis)
+    beyond = cand.beyond_null(r, own)
+    if beyond:
+        return Judgement(Verdict.AT_NULL, detail + (("beyond", beyond),), fit)
     need = float(chi2_dist.ppf(KEEP_QUANTILE, s.dof))
     significant = gain > need and r.chi2 < res.chi2
     birge, tau = misfit_scale(res)
-    own = box | cand.bounds(box, res.parameters, diagnosis)
     left = tuple(n for n in outside_prior(r, own) if n not in idle_parameters(r, cand.name))
     strayed = [n for n in left if n not in outside]
     if strayed:

@@ -79,8 +79,11 @@ class Verdict(enum.Enum):
                 "not refitted: lower scores than the ones refitted"),
             Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
             Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
-            Verdict.AT_NULL: f"the refit leaves it at its null value ({d.get('z', math.nan):.2g} "
-                             "std from it)",
+            Verdict.AT_NULL: (
+                f"the refit takes it to its null value, beyond its box: {d['beyond']}"
+                if d.get("beyond") else
+                f"the refit leaves it at its null value ({d.get('z', math.nan):.2g} std "
+                "from it)"),
             Verdict.LEFT_ITS_FEATURE: (
                 f"{d.get('moved', 'it left the feature it was added for')}: it explains "
                 "another structure than the one the diagnosis found"),
@@ -105,6 +108,14 @@ class Verdict(enum.Enum):
                 "std from it), and the data cannot tell the model without it from the one "
                 "with it"),
         }[self] + (" (global search)" if d.get("searched") else "")
+
+
+#: The verdicts of a refit that moved its effect off its null and was not kept: what may
+#: have come close to explaining a residual that remains (not one at its null, whose chi2
+#: drop is the other parameters' or round-off's, nor a refit that failed).
+CLOSE_CALLS = frozenset({Verdict.WITHIN_MISFIT, Verdict.OUTSIDE_PRIOR, Verdict.NO_STRUCTURE,
+                         Verdict.LEFT_ITS_FEATURE, Verdict.KEPT_BACK,
+                         Verdict.NOT_SIGNIFICANT})
 
 
 @dataclass(frozen=True)
@@ -197,11 +208,13 @@ class LoopResult:
 
     def closest(self) -> "Score | None":
         """Where a residual remains: the candidate of the last round that lowered chi2 most
-        and was not kept (what came closest to explaining it), or None."""
+        and was not kept, among :data:`CLOSE_CALLS` (what came closest to explaining it), or
+        None."""
         if not self.unexplained_residual or not self.rounds:
             return None
-        tried = [s for s in self.rounds[-1] if not s.kept and s.delta_chi2 is not None
-                 and math.isfinite(s.delta_chi2) and s.delta_chi2 > 0]
+        tried = [s for s in self.rounds[-1] if s.verdict in CLOSE_CALLS
+                 and s.delta_chi2 is not None and math.isfinite(s.delta_chi2)
+                 and s.delta_chi2 > 0]
         return max(tried, key=lambda s: s.delta_chi2, default=None)
 
     def summary(self) -> str:
