@@ -348,7 +348,8 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
     pole (inside the spans :data:`~vibid.identify.loop.candidates.POLE_SPAN` and
     :data:`~vibid.identify.loop.candidates.Q_SPAN` around it, not on their faces), its
     effect :data:`KEEP_Z` std from its null and not past its box towards a null at
-    infinity (a clamp stiffer than the box's stiffest is the rigid clamp), every parameter the current fit had inside
+    infinity (a clamp stiffer than the box's stiffest is the rigid clamp), every
+    parameter the current fit had inside
     its prior box still inside it (an orthotropic refit of a steel beam whose D22 fell to
     2 % of D11 explains a residual with no physical material), significant under the
     current weights (likelihood ratio past :data:`KEEP_QUANTILE`), lower in chi2 under its
