@@ -108,17 +108,16 @@ KEPT_OUT_NAMED = 3
 
 def _kept_out_text(report: dict) -> list[str]:
     """Where a residual remains: the candidates of the last round that lowered χ² most and
-    were not kept (:data:`vibid.identify.loop.verdicts.CLOSE_CALLS`: moved off their null),
+    were not kept (:func:`vibid.identify.loop.verdicts.is_close_call`: moved off their null),
     with the loop's reason, so that a lab sees what came closest."""
+    from vibid.identify.loop.verdicts import is_close_call
+
     rounds = report["loop"].get("rounds") or []
     if not rounds or not report["loop"].get("unexplained_residual"):
         return []
     stage = report["loop"]["stages"][min(len(rounds), len(report["loop"]["stages"])) - 1]
     dof = report.get("identification", {}).get("dof")
-    from vibid.identify.loop.verdicts import CLOSE_CALLS
-
-    close = {v.value for v in CLOSE_CALLS}
-    tried = sorted((c for c in rounds[-1] if c.get("verdict") in close and c.get("delta_chi2")),
+    tried = sorted((c for c in rounds[-1] if is_close_call(c["verdict"], c["delta_chi2"])),
                    key=lambda c: -c["delta_chi2"])[:KEPT_OUT_NAMED]
     if not tried:
         return []
@@ -185,7 +184,8 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
         lines += _budget_text(report["engineering"].get("budget"),
                               ident.get("uncertainty_notes", []))
     lines += _plausibility_text(report.get("plausibility"))
-    lines += ["", "## Effects the loop found", ""] + _effect_text(report) + _kept_out_text(report)
+    lines += (["", "## Effects the loop found", ""] + _effect_text(report)
+              + _kept_out_text(report))
     lines += ["", "## Fit quality, stage by stage", "",
               "| stage | χ²/dof (the data's std) | χ²/dof (with the model's own error) | "
               "relative RMS residual |", "|---|---|---|---|"]

@@ -222,8 +222,7 @@ class EffectCandidate:
     def distance_from_null(self, result) -> float:
         """How many standard deviations the fitted effect lies from its null (Wald z; for
         a null at infinity, in the compliance 1/k: z = k / std k)."""
-        term = next(t for t in reversed(result.plate_model.effects) if t.name == self.name)
-        return distance_from_null(term, result)
+        return distance_from_null(self._fitted(result), result)
 
 
     def beyond_null(self, result, box: dict) -> str:
@@ -231,11 +230,14 @@ class EffectCandidate:
         face on that side, in words ("" if none): a clamp stiffer than the box's stiffest
         is the rigid clamp, its null. Out there the stiffness's round-off, not the data,
         moves chi2 (the titanium strip's clamp refit ran to 1.3e37 N/rad)."""
-        term = next(t for t in reversed(result.plate_model.effects) if t.name == self.name)
         p = result.parameters
         return ", ".join(f"{n} {p[n]:.3g} (box top {box[n][1]:.3g})"
-                         for n, null in term.null_values(p).items()
+                         for n, null in self._fitted(result).null_values(p).items()
                          if math.isinf(null) and n in box and p[n] >= box[n][1])
+
+    def _fitted(self, result):
+        """Its term in ``result``'s model (the last instance added)."""
+        return next(t for t in reversed(result.plate_model.effects) if t.name == self.name)
 
 
 def distance_from_null(term, result) -> float:

@@ -118,6 +118,14 @@ CLOSE_CALLS = frozenset({Verdict.WITHIN_MISFIT, Verdict.OUTSIDE_PRIOR, Verdict.N
                          Verdict.NOT_SIGNIFICANT})
 
 
+def is_close_call(verdict, delta_chi2) -> bool:
+    """Whether a refit (its verdict, a :class:`Verdict` or its report name, and the chi2 it
+    removed) may have come close to explaining a residual that remains: one of
+    :data:`CLOSE_CALLS` that lowered chi2."""
+    return (Verdict(verdict) in CLOSE_CALLS and delta_chi2 is not None
+            and math.isfinite(delta_chi2) and delta_chi2 > 0)
+
+
 @dataclass(frozen=True)
 class Score:
     """A candidate scored at the current fit, refitted if it scored high enough, and its
@@ -212,9 +220,7 @@ class LoopResult:
         None."""
         if not self.unexplained_residual or not self.rounds:
             return None
-        tried = [s for s in self.rounds[-1] if s.verdict in CLOSE_CALLS
-                 and s.delta_chi2 is not None and math.isfinite(s.delta_chi2)
-                 and s.delta_chi2 > 0]
+        tried = [s for s in self.rounds[-1] if is_close_call(s.verdict, s.delta_chi2)]
         return max(tried, key=lambda s: s.delta_chi2, default=None)
 
     def summary(self) -> str:
