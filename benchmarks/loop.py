@@ -18,7 +18,8 @@ Cases (``benchmarks/loop_cases.py``):
 * ``titanium``: the real AFC of ``../shared/data/real-titanium`` (11 960 points), read as
   ``vibid identify --afc afc.csv --setup setup.json`` reads it; no truth: the row shows the
   effects found, chi2_red and E, nu before and after ("ok" = the loop finished). The
-  costly one: 42 s declared and 7 min of loop, idle (BENCHMARKS.md);
+  costly one: 42 s declared and 7 min of loop, idle (BENCHMARKS.md); ``steel``: the steel
+  strip of the same stand (``examples/real-steel``, 9 503 points), read the same way;
 * ``table2`` (``table2-<noise>-<f_max>`` one row): the 12 rows of the paper's Table 2 as
   ``benchmarks/paper_table.py`` defines them; nothing to find (the noiseless rows have no
   std, so the loop cannot test them and returns at once). About 3 min of declared fits for
@@ -230,7 +231,7 @@ def print_row(row: dict, columns: tuple[str, ...], profile: bool) -> None:
           f"{row['seconds_declared']:10.1f} {row['seconds_loop']:7.1f} "
           f"{row['seconds_signal']:8.1f} {row['compilations_declared']:9d} "
           f"{row['compilations_loop']:9d}{extra}", flush=True)
-    if row["kind"] in ("titanium", "plate"):
+    if row["kind"] in ("real", "plate"):
         before, after = row["engineering_before"], row["engineering_after"]
         print(f"{'':<16} engineering, declared: {_eng(before)}; final: {_eng(after)}")
     if row["kind"] != "strip":

@@ -9,8 +9,9 @@ Four kinds:
 * ``plate``: the paper's subject, a 150 x 100 x 2 mm CFRP plate, orthotropic in the data
   (:data:`PLATE_ENGINEERING`), declared isotropic; 120 stepped-sine steps up to 800 Hz
   (five modes in the band), clamped on a short edge like the strip;
-* ``titanium``: the real measured AFC of ``../shared/data/real-titanium`` (no truth), read as
-  ``vibid identify --afc afc.csv --setup setup.json`` reads it;
+* ``titanium`` and ``steel``: the real measured AFCs of ``../shared/data/real-titanium`` and
+  ``examples/real-steel`` (no truth), read as ``vibid identify --afc afc.csv --setup
+  setup.json`` reads them;
 * ``table2-<noise>-<f_max>``: the rows of the paper's Table 2 as ``benchmarks/paper_table.py``
   defines them (its setup, frequencies, full-model data, noise and seeds): the data come
   from the full FE model of the declared discretisation plus white noise, so there is
@@ -102,9 +103,13 @@ def strip_setup(steps: int):
                                                                  frequencies_hz=freqs))
 
 
-# -- the real titanium strip -------------------------------------------------------------------
+# -- the real strips: AFCs measured on the seed paper's stand ----------------------------------
 TITANIUM_DIR = os.environ.get("VIBID_TITANIUM_DIR") or os.path.normpath(
     os.path.join(_HERE, "..", "..", "shared", "data", "real-titanium"))
+#: the steel strip of the same stand (examples/real-steel/README.md)
+STEEL_DIR = os.path.normpath(os.path.join(_HERE, "..", "examples", "real-steel"))
+#: a real AFC's case name -> the folder of its afc.csv and setup.json
+REAL_DIRS = {"titanium": TITANIUM_DIR, "steel": STEEL_DIR}
 
 
 # -- the paper's Table 2 -------------------------------------------------------------------------
@@ -176,7 +181,8 @@ def beam_data(name: str):
 class Case:
     """One benchmark case.
 
-    kind: ``"strip"``, ``"beam"``, ``"plate"``, ``"titanium"`` or ``"table2"``.
+    kind: ``"strip"``, ``"beam"``, ``"plate"``, ``"real"`` (a measured AFC: titanium,
+        steel) or ``"table2"``.
     effects_in_data: the undeclared effects' parameters in the data (strip cases).
     expected: what the loop should add; None: no expectation (ok = the loop finished).
     truth: every parameter the data were made with (material and effects), or None.
@@ -218,10 +224,10 @@ def get_case(name: str) -> Case:
         return Case(name, "beam", ("sensor_position",), {"D": 17.97, "nu": 0.0, "beta": 0.003})
     if name == "plate":
         return Case("plate", "plate", ("anisotropy",), dict(PLATE_TRUTH))
-    if name == "titanium":
+    if name in REAL_DIRS:
         from vibid.pipeline import SEED
 
-        return Case("titanium", "titanium", None, None, seed=SEED)  # as `vibid identify`
+        return Case(name, "real", None, None, seed=SEED)  # as `vibid identify`
     if name.startswith("table2-"):
         from paper_table import TRUE
 
@@ -234,7 +240,7 @@ def get_case(name: str) -> Case:
 
 
 def all_names() -> list[str]:
-    return (list(CASES) + list(BEAM_CASES) + list(RITZ_CASES) + ["plate", "titanium"]
+    return (list(CASES) + list(BEAM_CASES) + list(RITZ_CASES) + ["plate", *REAL_DIRS]
             + [table2_name(*r) for r in table2_rows()])
 
 
@@ -274,9 +280,9 @@ def prepare(case: Case, workdir: str, steps: int, seed: int, say=print) -> dict:
         return {"session": path}
     if case.kind == "beam":
         return {"beam": case.name}
-    if case.kind == "titanium":
-        return {"afc": os.path.join(TITANIUM_DIR, "afc.csv"),
-                "setup": os.path.join(TITANIUM_DIR, "setup.json")}
+    if case.kind == "real":
+        return {"afc": os.path.join(REAL_DIRS[case.name], "afc.csv"),
+                "setup": os.path.join(REAL_DIRS[case.name], "setup.json")}
     return {"noise": case.row[0], "f_max_hz": case.row[1]}
 
 
