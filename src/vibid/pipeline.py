@@ -186,14 +186,16 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     return Identified(result, None, said + result.summary(), tests)
 
 
-def build_session_report(data: SessionAfc, identified: Identified) -> dict[str, Any]:
-    """The JSON report (:func:`vibid.report.build_report`) of one identified session."""
+def build_session_report(data: SessionAfc, identified: Identified,
+                         reference=None) -> dict[str, Any]:
+    """The JSON report (:func:`vibid.report.build_report`) of one identified session;
+    ``reference``: its ``reference`` block (:func:`reference_block`)."""
     from vibid.report import build_report
 
     return build_report(identified.result, session_id=data.session_id,
                         declared_model=data.setup.identification.model,
                         afc=data.afc.to_report_block(), loop=identified.loop, setup=data.setup,
-                        linearity=identified.linearity)
+                        linearity=identified.linearity, reference=reference)
 
 
 def require_converged(identified: Identified) -> None:
@@ -203,15 +205,18 @@ def require_converged(identified: Identified) -> None:
 
 
 def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
-                  session_path=None) -> tuple[dict[str, Any], dict[str, str]]:
+                  session_path=None, reference=None) -> tuple[dict[str, Any], dict[str, str]]:
     """The report stage: build the JSON report, write it to ``json_path`` (if given) and the
     readable report folder (``report.md``, ``report.json``, PNG figures:
     :func:`vibid.report.write_lab_report`) to ``report_dir`` (if given). Returns the
-    report and the paths written, by file name (``"json"`` for ``json_path``)."""
+    report and the paths written, by file name (``"json"`` for ``json_path``).
+    ``reference``: the specimen's known modulus, a reference specimen that calibrates the
+    clamp (:mod:`vibid.identify.reference`)."""
     from vibid.report import write_report
 
     with jax_turn():  # engineering constants differentiate with JAX
-        report = build_session_report(data, identified)
+        report = build_session_report(data, identified, reference_block(data, identified,
+                                                                         reference))
     paths: dict[str, str] = {}
     if json_path is not None:
         write_report(report, json_path)
@@ -224,6 +229,20 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
                                       session_path=None if session_path is None
                                       else os.fspath(session_path))
     return report, paths
+
+
+def reference_block(data: SessionAfc, identified: Identified, reference) -> dict | None:
+    """The report's ``reference`` block: the clamp's effective free length that the
+    specimen's known modulus gives (:mod:`vibid.identify.reference`), or why there is none;
+    None without a reference."""
+    if reference is None:
+        return None
+    from vibid.identify.reference import calibrate_free_length
+
+    try:
+        return calibrate_free_length(data.setup, identified.result, reference).as_report()
+    except VibidError as exc:  # the report stays: it says why there is no calibration
+        return {"note": f"reference specimen: {exc}"}
 
 
 def read_setup(path: str | os.PathLike):

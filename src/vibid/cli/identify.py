@@ -3,6 +3,9 @@
 loop (effects the residual asks for, :mod:`vibid.identify.loop`); writes the report of
 shared/spec/report-format.md, and with ``--report`` a readable report.md with figures.
 
+With ``--reference-E`` the specimen is a reference of known modulus: the report gives the
+clamp's effective free length (:mod:`vibid.identify.reference`).
+
 `vibid identify --afc AFC.csv|AFC.uff --setup SETUP.json [...]` does the same on an AFC
 measured by another system, CSV or UFF58 (:mod:`vibid.signal.imported`). On such an AFC's
 dense grid, the top of a resonance whose response depends on its amplitude is left out of
@@ -36,6 +39,12 @@ def add_parser(sub):
                    help="fit the tops of resonances whose response depends on its amplitude "
                    "too (by default they are left out: the plate model is linear, and their "
                    "flanks hold the structure at small motion)")
+    p.add_argument("--reference-E", metavar="PA", type=float,
+                   help="the specimen is a reference of known modulus along its length (E, "
+                   "or E1 of an orthotropic plate; Pa): the report gives the clamp's effective "
+                   "free length, to declare for the specimens measured in this clamp")
+    p.add_argument("--reference-E-std", metavar="PA", type=float, default=0.0,
+                   help="the reference modulus's standard uncertainty (Pa; default 0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
@@ -53,6 +62,7 @@ def run(args) -> int:
     if args.report:
         check_output_dir(args.report)
     candidates = parse_candidates(args.candidates)
+    reference = _reference(args)
     with profiled(args.profile):
         data = _source(args)
         with search_progress(not args.no_progress) as progress:
@@ -65,7 +75,8 @@ def run(args) -> int:
     from vibid.report import plausibility_lines
 
     report, paths = write_outputs(data, identified, json_path=args.json,
-                                  report_dir=args.report, session_path=args.session)
+                                  report_dir=args.report, session_path=args.session,
+                                  reference=reference)
     for line in plausibility_lines(report):  # never silent
         print(line)
     if args.json:
@@ -75,6 +86,19 @@ def run(args) -> int:
     # the report is written (it says why); the job itself failed
     require_converged(identified)
     return 0
+
+
+def _reference(args):
+    """The :class:`~vibid.identify.reference.Reference` of ``--reference-E`` (None without
+    it); checked before the identification's minutes."""
+    from vibid.errors import VibidError
+    from vibid.identify.reference import Reference
+
+    if args.reference_E is None:
+        if args.reference_E_std:
+            raise VibidError("--reference-E-std goes with --reference-E")
+        return None
+    return Reference(args.reference_E, args.reference_E_std)
 
 
 def _source(args):

@@ -36,7 +36,9 @@ def console_summary(report: dict) -> str:
 
 def plausibility_lines(report: dict) -> list[str]:
     """The report's plausibility findings for the console: never silent about a constant
-    no material allows or one outside its material's handbook range."""
+    no material allows or one outside its material's handbook range; then what a
+    reference specimen says of the clamp (:mod:`vibid.identify.reference`)."""
     pl = report.get("plausibility") or {}
     return ([f"NOT PHYSICAL: {v}" for v in pl.get("violations", [])]
-            + [f"implausible: {v}" for v in pl.get("outside_handbook", [])])
+            + [f"implausible: {v}" for v in pl.get("outside_handbook", [])]
+            + ([report["reference"]["note"]] if "reference" in report else []))

@@ -172,7 +172,7 @@ def _loop_block(loop) -> tuple[list, dict]:
 
 def build_report(result, *, session_id: str = "", declared_model: str | None = None,
                  afc: dict | None = None, loop=None, setup=None,
-                 linearity=None) -> dict[str, Any]:
+                 linearity=None, reference=None) -> dict[str, Any]:
     """The report of one identification: with ``loop`` (a
     :class:`~vibid.identify.loop.LoopResult`) every stage of the closed loop and the
     effects it added, ``result`` then being its final stage; without, the declared model
@@ -189,6 +189,8 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
         G from the stiffnesses and the declared thickness) with its uncertainty budget
         (:mod:`vibid.identify.budget`).
     linearity: the linearity tests made before the fit (:func:`linearity_block`).
+    reference: with ``setup``, the ``reference`` block: what the specimen's known modulus
+        says of the clamp's free length (:func:`vibid.pipeline.reference_block`).
     """
     if loop is not None:
         result = loop.final
@@ -231,6 +233,8 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
                 k: {part: _num(u) for part, u in parts.items()} for k, parts in budget.items()}
         extra["plausibility"], said = plausibility_block(model, result, block, setup, loop)
         warnings.extend(said)
+        if reference is not None:
+            extra["reference"] = reference
     return extra | {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,

@@ -184,6 +184,10 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
         lines += _budget_text(report["engineering"].get("budget"),
                               ident.get("uncertainty_notes", []))
     lines += _plausibility_text(report.get("plausibility"))
+    if "reference" in report:
+        lines += ["", "Reference specimen (it calibrates the clamp: from bending resonances a "
+                  "modulus trades with the free length as L⁴):", "",
+                  f"- {report['reference']['note']}"]
     lines += (["", "## Effects the loop found", ""] + _effect_text(report)
               + _kept_out_text(report))
     lines += ["", "## Fit quality, stage by stage", "",

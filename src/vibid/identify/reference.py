@@ -1,0 +1,207 @@
+"""A reference specimen calibrates the clamp: its known modulus gives the free length.
+
+From bending resonances the modulus along the length goes as ``E ∝ ρ L⁴ / h²``
+(:mod:`vibid.identify.plausibility`): the data fix ``E L⁻⁴`` and no fit of one AFC can tell
+a stiffer strip from a longer one. A clamp's effective line lies where the strip stops
+turning, often inside its jaws (a soft or worn clamp, a clamping force too low for the
+strip's thickness), so the free length that the resonances see is longer than the one
+measured from the jaws' edge, and every modulus identified in that clamp comes out low by
+the same length factor. The seed paper's stand shows it on both of its strips: an
+independent beam puts titanium at 90–91 GPa and steel at 174–176 GPa under their declared
+setups, ~10 % below their handbooks, and each needs its free length +3–4 mm for its
+authors' nominal modulus (``benchmarks/real_strips_beam.py``).
+
+A lab calibrates this as it calibrates a sensor: it measures a reference strip of known
+modulus in the same clamp. The identified model is refitted with the free length free
+(:mod:`~vibid.identify.effects.free_length`: the plate stretched, the sensor moving out
+with the free end) and its stiffnesses held at the identified ones scaled to the known
+modulus (their ratios and Poisson's ratio held as identified); the loss factors and the
+effects the loop added move with it. Not a closed form: the fit weighs every resonance's
+frequency and height, and the sensor's reading moves with the stretch.
+
+Its standard uncertainty has two parts: the data's, the free length's variance with the
+stiffnesses held (the refit's Fisher information, scaled as the identification's own
+covariance is scaled: by the misfit and its correlation along frequency where a residual
+remains), and the reference's, its modulus's relative uncertainty times how far the best
+free length moves per relative change of the stiffnesses. Declared (``length_m`` and
+``length_std_m``, the sensor's ``x_m`` moved alike) for the specimens measured in that clamp,
+it enters their fits and their uncertainty budgets.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vibid.errors import VibidError
+
+#: The modulus along the length (x) by material model: what the resonances of a strip
+#: clamped on its short edge measure.
+MODULUS_ALONG_LENGTH = {"isotropic": "E_Pa", "orthotropic": "E1_Pa", "monoclinic": "E1_Pa"}
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The known modulus along the length of a reference specimen (Pa) and its standard
+    uncertainty (Pa, 0 where it is taken as exact)."""
+
+    modulus_pa: float
+    std_pa: float = 0.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.modulus_pa) and self.modulus_pa > 0):
+            raise VibidError(f"the reference modulus must be a positive number of Pa, not "
+                             f"{self.modulus_pa:g}")
+        if not (math.isfinite(self.std_pa) and self.std_pa >= 0):
+            raise VibidError(f"the reference modulus's std must be 0 Pa or more, not "
+                             f"{self.std_pa:g}")
+
+
+@dataclass(frozen=True)
+class ClampCalibration:
+    """The free length a reference specimen's known modulus gives (module doc): the
+    declared and the effective free length (m), the latter's standard uncertainty (m), the
+    identified and the known modulus (Pa) with their standard uncertainties, and the
+    constant's name (``E_Pa`` or ``E1_Pa``)."""
+
+    constant: str
+    declared_length_m: float
+    free_length_m: float
+    free_length_std_m: float
+    identified_pa: float
+    identified_std_pa: float
+    reference: Reference
+    #: chi2 of the refit at the reference modulus less the identification's (under its
+    #: weights), the free length's box (m) and whether the refit converged
+    chi2_change: float = 0.0
+    box_m: tuple[float, float] = (-math.inf, math.inf)
+    converged: bool = True
+
+    @property
+    def offset_m(self) -> float:
+        return self.free_length_m - self.declared_length_m
+
+    def sentence(self) -> str:
+        """The calibration in a lab's words, with what to declare."""
+        symbol = "E" if self.constant == "E_Pa" else "E1"
+        known = f"{self.reference.modulus_pa / 1e9:g}"
+        if self.reference.std_pa > 0:
+            known += f" ± {self.reference.std_pa / 1e9:.2g}"
+        where = ("its line lies inside the jaws" if self.offset_m > 0
+                 else "its line lies out on the strip")
+        text = (f"reference specimen: with {symbol} known to be {known} GPa (identified "
+                f"{self.identified_pa / 1e9:.1f} ± {self.identified_std_pa / 1e9:.2g} GPa), "
+                f"the clamp's effective free length is {1e3 * self.free_length_m:.2f} ± "
+                f"{1e3 * self.free_length_std_m:.2f} mm (declared "
+                f"{1e3 * self.declared_length_m:.2f} mm: {1e3 * self.offset_m:+.2f} mm, "
+                f"{where}); for specimens in this clamp add {1e3 * self.offset_m:+.2f} mm to "
+                f"the declared length_m and the sensor's x_m (both measured from the jaws' "
+                f"edge) and declare length_std_m {self.free_length_std_m:.2g}")
+        lo, hi = self.box_m
+        edge = 1e-3 * (hi - lo)
+        if not self.converged:
+            text += " (the refit did not converge: the free length is where it stopped)"
+        elif not lo + edge < self.offset_m < hi - edge:
+            text += (f" (at the face of the free length's reach, {1e3 * lo:+.0f} to "
+                     f"{1e3 * hi:+.0f} mm: the clamp lies further off, or the reference "
+                     "modulus is not this specimen's)")
+        return text
+
+    def as_report(self) -> dict:
+        return {"constant": self.constant, "modulus_Pa": self.reference.modulus_pa,
+                "modulus_std_Pa": self.reference.std_pa,
+                "identified_Pa": self.identified_pa,
+                "identified_std_Pa": self.identified_std_pa,
+                "declared_length_m": self.declared_length_m,
+                "free_length_m": self.free_length_m,
+                "free_length_std_m": self.free_length_std_m,
+                "chi2_change": self.chi2_change,
+                "converged": self.converged, "note": self.sentence()}
+
+
+def calibrate_free_length(setup, result, reference: Reference,
+                          local: str = "newton") -> ClampCalibration:
+    """The clamp's effective free length from a reference specimen (module doc): ``result``
+    is the specimen's identification (the loop's final stage), ``setup`` its declared
+    setup."""
+    from vibid.identify.effects.free_length import EFFECT as FREE_LENGTH
+    from vibid.identify.engineering import constants
+    from vibid.identify.fit.data import fit_data
+    from vibid.identify.fit.local import LOCAL_METHODS, HeldProblem
+    from vibid.identify.fit.problem import LeastSquaresProblem
+    from vibid.identify.fit.space import ParameterSpace
+    from vibid.identify.model.forward import build_forward_model
+    from vibid.parameters import STIFFNESS
+
+    current = result.plate_model
+    name = current.model
+    key = MODULUS_ALONG_LENGTH.get(name)
+    h = setup.specimen.thickness_m
+    value = constants(name, result.parameters, h).get(key) if key else None
+    if value is None or not math.isfinite(value) or value <= 0:
+        raise VibidError(f"no modulus along the length was identified ({name} model): a "
+                         "reference specimen cannot calibrate the clamp")
+    model = current if "dL_m" in current.names else current.with_effect(FREE_LENGTH)
+    names = list(model.names)
+    scaled = [q.name for q in STIFFNESS[name] if q.name != "nu"]  # E is linear in them
+    held = {q.name for q in STIFFNESS[name]}  # the scaled ones and Poisson's ratio
+    ratio = reference.modulus_pa / value
+    start = dict(result.parameters) | {"dL_m": result.parameters.get("dL_m", 0.0)}
+    at_reference = start | {n: start[n] * ratio for n in scaled}
+    box = model.default_bounds(dict(setup.identification.bounds))
+    for n in scaled:  # the reference's stiffnesses may lie beyond the declared box
+        lo, hi = box[n]
+        box[n] = (min(lo, at_reference[n] / 2), max(hi, at_reference[n] * 2))
+    data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
+                    magnitude=result.magnitude)
+    fm = build_forward_model(setup, data.frequency_hz[data.used], model=model,
+                             theta0=at_reference, bounds=box)
+    space = ParameterSpace.from_bounds(names, box, {q.name: q.kind for q in model.parameters})
+    problem = LeastSquaresProblem(fm, data, space, result.weights)
+    free = np.array([i for i, n in enumerate(names) if n not in held])
+    u0 = space.to_u(np.array([at_reference[n] for n in names]))
+    fixed = HeldProblem(problem, free, u0)
+    run = LOCAL_METHODS[local](fixed, u0[free])
+    theta = fixed.space.theta(run.u)
+    i = names.index("dL_m")
+    # the data's part: dL's variance with the stiffnesses held, scaled as the result's own
+    # covariance is (its ratio to the current model's Fisher information at the result)
+    J = problem.jacobian_theta(theta)
+    f = [k for k in range(len(names)) if k in set(free)]
+    cov = np.linalg.pinv(J[:, f].T @ J[:, f])
+    scale = _covariance_scale(problem, result, names, start)
+    data_var = scale * cov[f.index(i), f.index(i)]
+    # the reference's part: how far the best dL moves per relative change of the stiffnesses
+    js = J[:, [names.index(n) for n in scaled]] @ theta[[names.index(n) for n in scaled]]
+    slope = -(cov @ (J[:, f].T @ js))[f.index(i)]
+    ref_rel = reference.std_pa / reference.modulus_pa
+    std = math.sqrt(max(data_var, 0.0) + (slope * ref_rel) ** 2)
+    L = setup.specimen.length_m
+    return ClampCalibration(key, L, L + float(theta[i]), std, float(value),
+                            _modulus_std(result, name, key, h), reference,
+                            float(run.loss - result.chi2), box["dL_m"], bool(run.converged))
+
+
+def _covariance_scale(problem, result, names, start) -> float:
+    """The factor by which ``result``'s covariance exceeds its own Fisher information's
+    inverse (the misfit's scaling, the model error's widening), read on its first
+    parameter: the extended problem at the result (dL = 0) is the result's model."""
+    theta = np.array([start[n] for n in names])
+    J = problem.jacobian_theta(theta)
+    cur = [names.index(n) for n in result.parameter_names]
+    inv = np.linalg.pinv(J[:, cur].T @ J[:, cur])
+    c = np.asarray(result.covariance, float)
+    return float(c[0, 0] / inv[0, 0]) if inv[0, 0] > 0 and np.isfinite(c[0, 0]) else 1.0
+
+
+def _modulus_std(result, model: str, key: str, h: float) -> float:
+    """The identified modulus's standard uncertainty from the fit's covariance."""
+    from vibid.identify.engineering import sensitivities
+
+    keys, g, _ = sensitivities(model, result.parameter_names, result.values, h)
+    if key not in keys:
+        return math.nan
+    row = g[keys.index(key)]
+    return float(math.sqrt(max(row @ np.asarray(result.covariance, float) @ row, 0.0)))
