@@ -217,7 +217,9 @@ def _declared_would_need(key: str, value: float, sd, rng, specimen, mu: float = 
     denser = (r - mu) / (1 - mu) - 1
     longer = _factor(lambda c: c**3 * ((1 - mu) * c + mu) / r) - 1
     thinner = _factor(lambda c: r * c**3 / ((1 - mu) * c + mu)) - 1
-    clamp = " (or a clamp less rigid than the model's)" if r > 1 else ""
+    clamp = (" (or a clamp less rigid than the model's); a clamp whose line lies inside its "
+             "jaws lengthens the free span: a reference strip of known modulus in the same "
+             "clamp measures it (vibid identify --reference-E)") if r > 1 else ""
     return (f"; from bending resonances {_SYMBOL[key]} goes as ρ L⁴ / h²: "
             f"{edge / GPa:g} GPa would need the declared density {100 * denser:+.0f} %, "
             f"the free length {100 * longer:+.1f} % ({1e3 * specimen.length_m * longer:+.2g} "
