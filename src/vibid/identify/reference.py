@@ -169,7 +169,7 @@ def calibrate_free_length(setup, result, reference: Reference,
     # the data's part: dL's variance with the stiffnesses held, scaled as the result's own
     # covariance is (its ratio to the current model's Fisher information at the result)
     J = problem.jacobian_theta(theta)
-    f = [k for k in range(len(names)) if k in set(free)]
+    f = list(free)
     cov = np.linalg.pinv(J[:, f].T @ J[:, f])
     scale = _covariance_scale(problem, result, names, start)
     data_var = scale * cov[f.index(i), f.index(i)]
