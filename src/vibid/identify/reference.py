@@ -19,11 +19,14 @@ modulus (their ratios and Poisson's ratio held as identified); the loss factors 
 effects the loop added move with it. Not a closed form: the fit weighs every resonance's
 frequency and height, and the sensor's reading moves with the stretch.
 
-Its standard uncertainty has two parts: the data's, the free length's variance with the
-stiffnesses held (the refit's Fisher information, scaled as the identification's own
-covariance is scaled: by the misfit and its correlation along frequency where a residual
-remains), and the reference's, its modulus's relative uncertainty times how far the best
-free length moves per relative change of the stiffnesses. Declared (``length_m`` and
+Its standard uncertainty has two parts. The data's: the free length's variance with the
+modulus held and the other material parameters free (Poisson's ratio, the stiffnesses'
+ratios; the first stiffness follows them so that the modulus stays), from the refit's
+Fisher information scaled as the identification's own covariance is (by the misfit and its
+correlation along frequency where a residual remains). A strip's two bending modes barely
+determine ν, and ν sets which D the known E means: on the steel strip (ν 0.41 ± 0.19) this
+part is 1.24 mm, where with ν held it would be 0.11 mm. And the reference's: its modulus's
+relative uncertainty times how far the best free length moves per relative change of it. Declared (``length_m`` and
 ``length_std_m``, the sensor's ``x_m`` moved alike) for the specimens measured in that clamp,
 it enters their fits and their uncertainty budgets.
 """
@@ -127,7 +130,7 @@ def calibrate_free_length(setup, result, reference: Reference,
     is the specimen's identification (the loop's final stage), ``setup`` its declared
     setup."""
     from vibid.identify.effects.free_length import EFFECT as FREE_LENGTH
-    from vibid.identify.engineering import constants
+    from vibid.identify.engineering import constants, sensitivities
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.local import LOCAL_METHODS, HeldProblem
     from vibid.identify.fit.problem import LeastSquaresProblem
@@ -166,16 +169,27 @@ def calibrate_free_length(setup, result, reference: Reference,
     run = LOCAL_METHODS[local](fixed, u0[free])
     theta = fixed.space.theta(run.u)
     i = names.index("dL_m")
-    # the data's part: dL's variance with the stiffnesses held, scaled as the result's own
-    # covariance is (its ratio to the current model's Fisher information at the result)
+    # the uncertainty in the coordinates where the modulus along the length is one: the
+    # other material parameters free, the first stiffness (D, D11) following them so that
+    # the modulus stays (their columns by the chain rule), and the modulus itself
     J = problem.jacobian_theta(theta)
-    f = list(free)
-    cov = np.linalg.pinv(J[:, f].T @ J[:, f])
-    scale = _covariance_scale(problem, result, names, start)
-    data_var = scale * cov[f.index(i), f.index(i)]
-    # the reference's part: how far the best dL moves per relative change of the stiffnesses
-    js = J[:, [names.index(n) for n in scaled]] @ theta[[names.index(n) for n in scaled]]
-    slope = -(cov @ (J[:, f].T @ js))[f.index(i)]
+    material = [q.name for q in STIFFNESS[name]]
+    keys, g, _ = sensitivities(name, material, theta[[names.index(n) for n in material]], h)
+    grad = dict(zip(material, g[keys.index(key)]))  # ∂E/∂θ
+    lead = names.index(material[0])
+    columns = [J[:, k] for k in free]
+    columns += [J[:, names.index(n)] - J[:, lead] * grad[n] / grad[material[0]]
+                for n in material[1:]]
+    A = np.column_stack(columns)
+    cov = np.linalg.pinv(A.T @ A)
+    # the data's part: dL's variance with the modulus held, scaled as the result's own
+    # covariance is (its ratio to the current model's Fisher information at the result)
+    k = list(free).index(i)
+    data_var = _covariance_scale(problem, result, names, start) * cov[k, k]
+    # the reference's part: how far the best dL moves per relative change of the modulus
+    along = J[:, lead] * float(constants(name, dict(zip(names, theta)), h)[key]) / grad[
+        material[0]]
+    slope = -(cov @ (A.T @ along))[k]
     ref_rel = reference.std_pa / reference.modulus_pa
     std = math.sqrt(max(data_var, 0.0) + (slope * ref_rel) ** 2)
     L = setup.specimen.length_m
