@@ -26,9 +26,9 @@ Fisher information scaled as the identification's own covariance is (by the misf
 correlation along frequency where a residual remains). A strip's two bending modes barely
 determine ν, and ν sets which D the known E means: on the steel strip (ν 0.41 ± 0.19) this
 part is 1.24 mm, where with ν held it would be 0.11 mm. And the reference's: its modulus's
-relative uncertainty times how far the best free length moves per relative change of it. Declared (``length_m`` and
-``length_std_m``, the sensor's ``x_m`` moved alike) for the specimens measured in that clamp,
-it enters their fits and their uncertainty budgets.
+relative uncertainty times how far the best free length moves per relative change of it.
+Declared (``length_m`` and ``length_std_m``, the sensor's ``x_m`` moved alike) for the
+specimens measured in that clamp, it enters their fits and their uncertainty budgets.
 """
 
 from __future__ import annotations
@@ -130,7 +130,7 @@ def calibrate_free_length(setup, result, reference: Reference,
     is the specimen's identification (the loop's final stage), ``setup`` its declared
     setup."""
     from vibid.identify.effects.free_length import EFFECT as FREE_LENGTH
-    from vibid.identify.engineering import constants, sensitivities
+    from vibid.identify.engineering import engineering_constants, sensitivities
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.local import LOCAL_METHODS, HeldProblem
     from vibid.identify.fit.problem import LeastSquaresProblem
@@ -142,7 +142,9 @@ def calibrate_free_length(setup, result, reference: Reference,
     name = current.model
     key = MODULUS_ALONG_LENGTH.get(name)
     h = setup.specimen.thickness_m
-    value = constants(name, result.parameters, h).get(key) if key else None
+    identified = (engineering_constants(name, result.parameter_names, result.values,
+                                        result.covariance, h).get(key, {}) if key else {})
+    value = identified.get("value")
     if value is None or not math.isfinite(value) or value <= 0:
         raise VibidError(f"no modulus along the length was identified ({name} model): a "
                          "reference specimen cannot calibrate the clamp")
@@ -187,14 +189,14 @@ def calibrate_free_length(setup, result, reference: Reference,
     k = list(free).index(i)
     data_var = _covariance_scale(problem, result, names, start) * cov[k, k]
     # the reference's part: how far the best dL moves per relative change of the modulus
-    along = J[:, lead] * float(constants(name, dict(zip(names, theta)), h)[key]) / grad[
-        material[0]]
+    along = J[:, lead] * reference.modulus_pa / grad[material[0]]  # the refit's modulus
     slope = -(cov @ (A.T @ along))[k]
     ref_rel = reference.std_pa / reference.modulus_pa
     std = math.sqrt(max(data_var, 0.0) + (slope * ref_rel) ** 2)
     L = setup.specimen.length_m
     return ClampCalibration(key, L, L + float(theta[i]), std, float(value),
-                            _modulus_std(result, name, key, h), reference,
+                            identified["std"] if identified["std"] is not None else math.nan,
+                            reference,
                             float(run.loss - result.chi2), box["dL_m"], bool(run.converged))
 
 
@@ -208,14 +210,3 @@ def _covariance_scale(problem, result, names, start) -> float:
     inv = np.linalg.pinv(J[:, cur].T @ J[:, cur])
     c = np.asarray(result.covariance, float)
     return float(c[0, 0] / inv[0, 0]) if inv[0, 0] > 0 and np.isfinite(c[0, 0]) else 1.0
-
-
-def _modulus_std(result, model: str, key: str, h: float) -> float:
-    """The identified modulus's standard uncertainty from the fit's covariance."""
-    from vibid.identify.engineering import sensitivities
-
-    keys, g, _ = sensitivities(model, result.parameter_names, result.values, h)
-    if key not in keys:
-        return math.nan
-    row = g[keys.index(key)]
-    return float(math.sqrt(max(row @ np.asarray(result.covariance, float) @ row, 0.0)))
