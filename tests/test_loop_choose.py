@@ -177,6 +177,7 @@ def test_a_refit_that_leaves_the_prior_box_explains_nothing(monkeypatch):
     parameter the current fit had outside back in is judged as before."""
     monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["D22"])
     monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 2.0))  # reduced chi2, tau
+    monkeypatch.setattr(rounds, "correlation_along", lambda r, other: 2.0)
     cand = SimpleNamespace(name="anisotropy", strayed=lambda *a: None,
                            distance_from_null=lambda r: 50.0, beyond_null=lambda r, box: "",
                            bounds=lambda box, values, diagnosis=None: {"D22": (1.0, 100.0)})
@@ -293,7 +294,8 @@ def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypat
     autocorrelation time 50 points, a parameter that explains nothing lowers chi2 by about
     40 x 50 x chi-square(1): the 0.99 quantile is 13 266, so it is within_misfit, and its
     sentence quotes the numbers. With a residual of 2 points per independent one (5 305)
-    it passes."""
+    it passes: as when the refit's change is narrow enough to see 2 neighbours of a misfit
+    correlated over 50 (``fit.noise.correlation_along``)."""
     monkeypatch.setattr(rounds, "outside_prior", lambda r, box: [])
     cand = SimpleNamespace(name="clamp_compliance", strayed=lambda *a: None,
                            distance_from_null=lambda r: 50.0, beyond_null=lambda r, box: "",
@@ -306,6 +308,7 @@ def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypat
     res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.3}, chi2=1.1e5, chi2_reduced=40.0)
     score = Score("clamp_compliance", 1e4, 1, 0.0, 0.1)
     monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 50.0))
+    monkeypatch.setattr(rounds, "correlation_along", lambda r, other: 50.0)  # a smooth change
     j = rounds.judge(cand, score, refit, res, {}, [])
     assert j.verdict is Verdict.WITHIN_MISFIT and j.verdict.compared and not j.verdict.passes
     assert dict(j.detail)["need"] == pytest.approx(6.6349 * 2000, rel=1e-4)
@@ -313,7 +316,7 @@ def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypat
         "it lowers chi2 by 1e+04, no more than a parameter that explains nothing removes "
         "from a misfit this large and this smooth (needs 1.33e+04: chi-square's 0.99 "
         "quantile times the reduced chi2 40 times 50 neighbouring points")
-    monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 2.0))
+    monkeypatch.setattr(rounds, "correlation_along", lambda r, other: 2.0)  # a narrow one
     assert rounds.judge(cand, score, refit, res, {}, []).verdict is Verdict.OUTRANKED
 
 

@@ -15,7 +15,7 @@ from scipy.stats import chi2 as chi2_dist
 from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.minima import indistinct_chi2
-from vibid.identify.fit.noise import misfit_scale
+from vibid.identify.fit.noise import correlation_along, misfit_scale
 from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
@@ -356,14 +356,19 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
     own weights, and significant under the residual's own error too: where a misfit no
     candidate explains remains, every extra parameter lowers chi2 a little and passes the
     likelihood-ratio test, which takes the residual for white noise; the misfit's reduced
-    chi2 and its correlation along frequency
-    (:func:`~vibid.identify.fit.noise.misfit_scale`) say how much a parameter that
+    chi2 and its correlation along frequency as the refit's change of the model sees it
+    (:func:`~vibid.identify.fit.noise.misfit_scale`,
+    :func:`~vibid.identify.fit.noise.correlation_along`: a narrow resonance sees fewer
+    neighbours of a smooth misfit than a gain does) say how much a parameter that
     explains nothing removes from it, and the likelihood ratio must pass the same quantile
     in those units (the loop's final covariance is scaled by the same two); or,
     while the estimate is outside its prior box, one that brings it back inside at a chi2
     the data cannot tell from the current one (the excursion was this effect)."""
     r, gain = fit.result, fit.gain
     detail = (("searched", fit.searched),)
+    held = getattr(fit, "held", None)  # parameters the refit held inside their box
+    if held is not None:
+        detail += (("held", held.sentence),)
     if not r.converged:
         return Judgement(Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit)
     moved = cand.strayed(r.parameters, res.parameters, diagnosis)
@@ -379,6 +384,8 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
     need = float(chi2_dist.ppf(KEEP_QUANTILE, s.dof))
     significant = gain > need and r.chi2 < res.chi2
     birge, tau = misfit_scale(res)
+    if tau > 1.0:  # the residual's correlation as the refit's change sees it
+        tau = correlation_along(res, r)
     left = tuple(n for n in outside_prior(r, own) if n not in idle_parameters(r, cand.name))
     strayed = [n for n in left if n not in outside]
     if strayed:

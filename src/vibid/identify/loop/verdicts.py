@@ -96,7 +96,7 @@ class Verdict(enum.Enum):
                 "that explains nothing removes from a misfit this large and this smooth (needs "
                 f"{d.get('need', math.nan):.3g}: chi-square's 0.99 quantile times the reduced "
                 f"chi2 {d.get('birge', math.nan):.3g} times {d.get('tau', math.nan):.3g} "
-                "neighbouring points per independent one)"),
+                "neighbouring points per independent one along the change it makes)"),
             Verdict.NO_STRUCTURE: (
                 f"it lowers chi2 significantly but removes no structure the diagnosis found "
                 f"and leaves {d.get('left_share', math.nan):.2g} % of the misfit: a share of "
@@ -107,7 +107,8 @@ class Verdict(enum.Enum):
                 f"{d.get('by', 'the new effect')} is in the model ({d.get('z', math.nan):.2g} "
                 "std from it), and the data cannot tell the model without it from the one "
                 "with it"),
-        }[self] + (" (global search)" if d.get("searched") else "")
+        }[self] + (" (global search)" if d.get("searched") else "") + (
+            f"; {d['held']}" if d.get("held") else "")
 
 
 #: The verdicts of a refit that moved its effect off its null and was not kept: what may
