@@ -80,11 +80,13 @@ class Feature:
     @property
     def kinds(self) -> tuple[str, ...]:
         """Its kind, and ``"hidden_mode"`` for an extra pole beside a mode of the model that
-        its sensor does not see (what a candidate may explain); none for an extra pole
-        whose phase is not a causal factor's (:func:`causal`): no resonance of the stand or
-        the plate makes it, so no candidate is placed at it or credited with removing it."""
+        its sensor does not see (what a candidate may explain); ``"acausal_pole"`` alone
+        for an extra pole whose phase is not a causal factor's (:func:`causal`): no
+        resonance of the stand or the plate makes it, only a term that divides by the
+        base sensor's motion (the fixture's mode, which the base sensor's spot shares
+        otherwise than the clamp) explains it."""
         if self.causal is False:
-            return ()
+            return ("acausal_pole",)
         return (self.kind,) + (("hidden_mode",) if math.isfinite(self.hidden_mode_hz) else ())
 
     def as_report(self) -> dict:

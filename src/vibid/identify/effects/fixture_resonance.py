@@ -22,10 +22,12 @@ is unchanged. On the titanium strip it is the stand's 665 Hz feature with its st
 |H| from +6 % below to −7 % above.
 
 Null value ``a_fixture = 0``. The loop places it at the diagnosed extra pole across which
-|H / model| steps most (:meth:`FixtureResonance.placed_at`); its frequency starts there and
-stays within the loop's span of it (:data:`vibid.identify.loop.candidates.POLE_SPAN`),
-its quality factor is free in its box (the step's width sets it, not the pole's
-sharpness).
+|H / model| steps most (:meth:`FixtureResonance.placed_at`), also one whose phase is no
+causal factor's, and it is the one candidate credited with removing such a pole
+(``acausal_pole``, :attr:`vibid.identify.diagnosis.Feature.kinds`): the ratio divides by
+the base sensor's motion. Its frequency starts at the pole and stays within the loop's
+span of it (:data:`vibid.identify.loop.candidates.POLE_SPAN`); its quality factor is free
+in its box (the step's width sets it, not the pole's sharpness).
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ class FixtureResonance(Term):
     """``H → (1 + a r² / (1 − r² + i r / q)) H``."""
 
     name = "fixture_resonance"
-    explains = ("extra_pole",)
+    explains = ("extra_pole", "acausal_pole")
     needs_feature = True
     #: its frequency is the diagnosed pole's; its Q is not (the step's width sets it)
     feature_places = {"f_fixture_hz": "f_hz"}
