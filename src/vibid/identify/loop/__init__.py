@@ -28,15 +28,19 @@ and their prior box, :mod:`~vibid.identify.loop.rounds`):
    also starts from the material moved to place that mode on the pole). Where the model's
    own error barely changes the current fit's chi2, every refit is weighed as the current
    fit is (that error is estimated again only for the one the round adds); elsewhere each
-   weighs its own.
+   weighs its own. A refit that takes a parameter out of its prior box for no more chi2
+   than a parameter that explains nothing gains from the misfit is run again with it
+   held at its current value (a strip's Poisson's ratio, which its bending modes barely
+   determine).
 5. **Judge** each refit (:class:`Verdict`): a placed resonance inside the spans around
    its pole, not on their faces; significant, away from its null, every parameter the
    current fit had inside its prior box still inside it (a refit that reaches the data
    only with a non-physical value explains nothing), and significant twice: against the
    noise, and against the misfit that remains (its likelihood ratio in units of that
-   misfit's reduced chi2 times its autocorrelation time along frequency, what a parameter
-   that explains nothing removes from it; the final covariance is scaled by the same
-   two); or bringing a parameter the declared model bent out of its prior box back
+   misfit's reduced chi2 times its autocorrelation time along frequency as the refit's
+   own change of the model sees it, what a parameter that explains nothing removes from
+   it; the final covariance is scaled by the reduced chi2 and the whole autocorrelation
+   time); or bringing a parameter the declared model bent out of its prior box back
    inside it.
 6. **Choose** among the passing refits one for the structure it explains: those that
    explain nearly all the misfit where there are any, else those that remove a diagnosed
