@@ -198,6 +198,7 @@ def test_a_channel_delay_is_a_phase_trend():
     assert abs(x.size - 2 * math.sin(math.pi * 1500 * tau_s)) < 0.01
     delay_us = float(x.note.split("time delay of ")[1].split(" µs")[0])
     assert abs(delay_us - 20) < 1
+    assert x.parts == ("phase_slope",)  # what a delay explains
 
 
 def test_a_gain_error_is_a_magnitude_trend():
@@ -209,6 +210,7 @@ def test_a_gain_error_is_a_magnitude_trend():
     (x,) = d.features
     assert x.kind == "trend" and abs(x.size - 0.05) < 0.005
     assert "magnitude +5" in x.note and "phase" not in x.note
+    assert x.parts == ("magnitude_offset",)  # what a gain explains
 
 
 def test_report_holds_the_spec_keys_only_and_is_json():

@@ -355,3 +355,30 @@ def test_a_clamp_refit_stiffer_than_its_box_is_the_rigid_clamp():
         assert judged(1.6e4).verdict is Verdict.OUTRANKED
     finally:
         monkeypatch.undo()
+
+
+def test_a_trend_is_removed_by_the_candidate_that_takes_its_part():
+    """The steel strip, round 2: the gain's refit took the trend's -8.4 % offset and left
+    its phase and a rise across the band, the trend's significance 134 -> 69 (0.51 of it):
+    removed for the gain, whose part (the offset) no trend after keeps half of (0.9 %,
+    still worth a word beside a 4 % rise); not for a delay, whose part (the phase)
+    remains. A trend whose parts a candidate does not name is judged on its significance
+    alone, as before."""
+    from vibid.identify.effects import EFFECTS
+
+    before = SimpleNamespace(features=(Feature(
+        "trend", significance=134.4, parts=("phase_slope", "magnitude_offset"),
+        part_sizes=(("phase_slope", -0.04), ("magnitude_slope", 0.01),
+                    ("magnitude_offset", -0.084))),))
+    after = SimpleNamespace(features=(Feature(
+        "trend", significance=68.7, parts=("phase_slope", "magnitude_slope", "magnitude_offset"),
+        part_sizes=(("phase_slope", -0.035), ("magnitude_slope", 0.04),
+                    ("magnitude_offset", 0.009))),))
+    gain, delay = EFFECTS["sensor_gain"].explains, EFFECTS["channel_delay"].explains
+    assert rounds.removed_feature(before, after, gain) is before.features[0]
+    assert rounds.removed_feature(before, after, delay) is None
+    assert rounds.removed_feature(before, after, ("trend",)) is None
+    weaker = SimpleNamespace(features=(Feature("trend", significance=60.0,
+                                               parts=("phase_slope",),
+                                               part_sizes=(("phase_slope", -0.04),)),))
+    assert rounds.removed_feature(before, weaker, ("trend",)) is before.features[0]

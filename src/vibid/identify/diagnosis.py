@@ -76,18 +76,29 @@ class Feature:
     hidden_mode_hz: float = _NAN
     #: whether an extra pole's phase is a causal factor's (None: not judged, :func:`causal`)
     causal: bool | None = None
+    #: a trend's parts worth a word in its note (:data:`TREND_PARTS`), and each part's
+    #: size by name (the phase's change across the band in rad, the magnitude's relative
+    #: change, its mean offset)
+    parts: tuple[str, ...] = ()
+    part_sizes: tuple[tuple[str, float], ...] = ()
+
+    def part_size(self, name: str) -> float:
+        """The size of a trend's part ``name`` (0 where it has none)."""
+        return abs(dict(self.part_sizes).get(name, 0.0))
 
     @property
     def kinds(self) -> tuple[str, ...]:
-        """Its kind, and ``"hidden_mode"`` for an extra pole beside a mode of the model that
-        its sensor does not see (what a candidate may explain); ``"acausal_pole"`` alone
+        """Its kind, a trend's :attr:`parts`, and ``"hidden_mode"`` for an extra pole beside a
+        mode of the model that its sensor does not see (what a candidate may explain);
+        ``"acausal_pole"`` alone
         for an extra pole whose phase is not a causal factor's (:func:`causal`): no
         resonance of the stand or the plate makes it, only a term that divides by the
         base sensor's motion (the fixture's mode, which the base sensor's spot shares
         otherwise than the clamp) explains it."""
         if self.causal is False:
             return ("acausal_pole",)
-        return (self.kind,) + (("hidden_mode",) if math.isfinite(self.hidden_mode_hz) else ())
+        return ((self.kind,) + self.parts
+                + (("hidden_mode",) if math.isfinite(self.hidden_mode_hz) else ()))
 
     def as_report(self) -> dict:
         out = {"kind": self.kind}
@@ -308,23 +319,41 @@ def causal(f_hz, R, f_p: float) -> bool | None:
     return True if c > 0.5 else False if c < -0.5 else None
 
 
-def _trend_note(f_hz, T) -> str:
+#: A trend's parts, each what one kind of effect explains: its phase across the band (a
+#: delay between the channels), its magnitude across the band, its magnitude's mean offset
+#: (a sensitivity error). A part is worth a word where it is at least a fifth of the
+#: largest (:func:`_trend_measures`).
+TREND_PARTS = ("phase_slope", "magnitude_slope", "magnitude_offset")
+
+
+def _trend_measures(f_hz, T):
+    """``(d_phase, d_mag, offset, slope, linear, parts)`` of the trend ``T`` on ``f_hz``: its
+    phase's and magnitude's change across the band (the sizes of :data:`TREND_PARTS`, in
+    that order, with the offset), the magnitude's mean offset from 1, the phase's slope
+    (rad/Hz) and whether it is linear, and the parts worth a word."""
     mag, phase = np.abs(T), np.unwrap(np.angle(T))
     slope, intercept = np.polyfit(f_hz, phase, 1)
     d_phase, d_mag, gain = phase[-1] - phase[0], mag[-1] / mag[0] - 1, float(np.mean(mag)) - 1
     linear = bool(np.max(np.abs(phase - slope * f_hz - intercept)) <= 0.2 * abs(d_phase))
     least = max(0.2 * max(abs(d_phase), abs(d_mag), abs(gain)), 1e-3)  # what is worth a word
+    parts = tuple(name for name, x in zip(TREND_PARTS, (d_phase, d_mag, gain))
+                  if abs(x) >= least)
+    return d_phase, d_mag, gain, slope, linear, parts
+
+
+def _trend_note(f_hz, T) -> str:
+    d_phase, d_mag, gain, slope, linear, worth = _trend_measures(f_hz, T)
     parts = []
-    if abs(d_phase) >= least:
+    if "phase_slope" in worth:
         tau_us = -slope / (2 * math.pi) * 1e6
         why = f": a time delay of {tau_us:.3g} µs?" if tau_us > 0 else ": a time advance?"
         parts.append(f"phase {'falls' if d_phase < 0 else 'rises'} {'linearly ' * linear}by "
                      f"{abs(math.degrees(d_phase)):.2g}° across the band "
                      f"(slope {slope:.3g} rad/Hz{why * linear})")
-    if abs(d_mag) >= least:
+    if "magnitude_slope" in worth:
         parts.append(f"magnitude {'rises' if d_mag > 0 else 'falls'} by {abs(100 * d_mag):.3g} % "
                      "across the band")
-    if abs(gain) >= least:
+    if "magnitude_offset" in worth:
         parts.append(f"magnitude {100 * gain:+.3g} % off the model on average")
     size = 100 * np.max(np.abs(T - 1))
     return "; ".join(parts) or f"the ratio drifts smoothly by up to {size:.2g} %"
@@ -398,8 +427,11 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, h
             features.append(Feature(kind, f_p, q_p, size, significance({k}), note, hidden,
                                     is_causal))
     T = sum(term[k] for k in trend)
+    measures = _trend_measures(f_dense, T)
     features.append(Feature("trend", size=float(np.max(np.abs(T - 1))),
-                            significance=significance(set(trend)), note=_trend_note(f_dense, T)))
+                            significance=significance(set(trend)), note=_trend_note(f_dense, T),
+                            parts=measures[-1],
+                            part_sizes=tuple(zip(TREND_PARTS, map(float, measures[:3])))))
     rank = (lambda x: x.significance) if known_noise else (lambda x: x.size)
     limit = min_significance if known_noise else min_size
     residues = [complex(*coef[a:b]) for a, b in zip(starts[2:-1], starts[3:])]

@@ -19,7 +19,7 @@ class ChannelDelay(Term):
     """``H → H exp(-i ω τ_s)``."""
 
     name = "channel_delay"
-    explains = ("trend",)
+    explains = ("trend", "phase_slope")  # of a trend, its phase across the band
     phase_only = True  # |H exp(-iωτ)| = |H|
     meaning = "a time skew between the two measurement channels"
     parameters = (TAU,)

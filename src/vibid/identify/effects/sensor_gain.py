@@ -18,7 +18,7 @@ class SensorGain(Term):
     """``H → gain H``."""
 
     name = "sensor_gain"
-    explains = ("trend",)
+    explains = ("trend", "magnitude_offset")  # of a trend, its mean offset
     meaning = "a sensitivity error of the response sensor against the base sensor"
     parameters = (GAIN,)
 

@@ -477,13 +477,20 @@ def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
 def removed_feature(before, after, kinds):
     """The most significant feature of the diagnosis ``before`` of a kind in ``kinds`` that
     the refit's diagnosis ``after`` no longer shows (none of its kind near it at half its
-    significance or more), or None."""
+    significance or more), or None. Of a trend, a candidate that explains some of its
+    parts (:data:`~vibid.identify.diagnosis.TREND_PARTS`: a gain its mean offset, a delay
+    its phase) removed it where no trend after keeps half of any of those parts: the steel
+    strip's gain took the trend's −8.4 % offset and left its phase and a rise across the
+    band, at 0.51 of its significance."""
     if before is None or after is None or not before.features:
         return None
 
     def remains(f) -> bool:
+        parts = set(f.parts) & set(kinds)  # the parts of a trend the candidate explains
         return any(g.kind == f.kind and g.significance >= 0.5 * f.significance
                    and (f.kind == "trend" or abs(g.f_hz - f.f_hz) <= 0.03 * f.f_hz)
+                   and (not parts or any(g.part_size(p) >= 0.5 * f.part_size(p)
+                                         for p in parts))
                    for g in after.features)
 
     gone = [f for f in before.features if set(f.kinds) & set(kinds) and not remains(f)]
