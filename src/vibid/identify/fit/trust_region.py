@@ -147,11 +147,18 @@ def _second_order_correction(p: np.ndarray, g: np.ndarray, g_new: np.ndarray,
 
 
 def _newton_decrease(g: np.ndarray, B: np.ndarray) -> float:
-    """g.B^-1.g / 2, the decrease the quadratic model predicts (inf unless B > 0)."""
+    """g.B^-1.g / 2, the decrease the quadratic model predicts (inf unless B > 0), on B
+    scaled to a unit diagonal: a coordinate whose curvature is many decades below the
+    others' (a parameter the loop holds inside a narrow logit,
+    :func:`vibid.identify.loop.refit.held_inside`) otherwise makes the unscaled solve
+    return a negative decrease, which passed for convergence."""
+    d = np.sqrt(np.abs(np.diag(B)))
+    d = np.where(d > 0, d, 1.0)
+    Bs, gs = B / d[:, None] / d[None, :], g / d
     try:
-        if np.linalg.eigvalsh(B)[0] <= 0:
+        if np.linalg.eigvalsh(Bs)[0] <= 0:
             return np.inf
-        return float(0.5 * g @ np.linalg.solve(B, g))
+        return float(0.5 * gs @ np.linalg.solve(Bs, gs))
     except np.linalg.LinAlgError:
         return np.inf
 
