@@ -7,7 +7,7 @@ What it guards (issue 26): Poisson's ratio, which a strip's two bending modes ba
 determine, wanders out of its prior box with every new effect, and the loop rejected the
 fixture's resonance for it (``outside_prior``, its 47 % of the misfit the closest call).
 Held at the current fit's value where the excursion gains no more than a parameter that
-explains nothing (``loop.refit.held_inside``), the fixture is kept; the 982 Hz stand
+explains nothing (``loop.held.held_inside``), the fixture is kept; the 982 Hz stand
 resonance, 10 points wide in a residual correlated over 856, passes once its likelihood
 ratio is weighed in the units its own change sees (``fit.noise.correlation_along``); and
 the non-causal pole at 661 Hz is one the fixture explains (``acausal_pole``). Declared

@@ -150,7 +150,7 @@ def _newton_decrease(g: np.ndarray, B: np.ndarray) -> float:
     """g.B^-1.g / 2, the decrease the quadratic model predicts (inf unless B > 0), on B
     scaled to a unit diagonal: a coordinate whose curvature is many decades below the
     others' (a parameter the loop holds inside a narrow logit,
-    :func:`vibid.identify.loop.refit.held_inside`) otherwise makes the unscaled solve
+    :func:`vibid.identify.loop.held.held_inside`) otherwise makes the unscaled solve
     return a negative decrease, which passed for convergence."""
     d = np.sqrt(np.abs(np.diag(B)))
     d = np.where(d > 0, d, 1.0)

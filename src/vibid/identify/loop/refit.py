@@ -23,7 +23,7 @@ the basin cost the CFRP plate 8 s for a chi2 a million times the search's).
 Where the polished refit takes a parameter the current fit has inside its prior box
 outside it, and the misfit's own error cannot tell that excursion from what a parameter
 that explains nothing gains, the refit is run again with that parameter held at its
-current value (:func:`held_inside`; the report's note says so): Poisson's ratio of a strip
+current value (:func:`~vibid.identify.loop.held.held_inside`; the report's note says so): Poisson's ratio of a strip
 wanders to a face of its box with every new effect, and the effect is judged on what it
 explains, not on where the ratio wandered.
 """
@@ -37,10 +37,11 @@ import numpy as np
 
 from vibid.identify.fit.compress import TOL_STD
 from vibid.identify.fit.local import run_local
-from vibid.identify.fit.minima import best_inside_prior, indistinct_chi2
+from vibid.identify.fit.minima import best_inside_prior
 from vibid.identify.fit.noise import fits_noise
 from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.strategy import gives_modes, identify
+from vibid.identify.loop.held import Held, held_inside
 from vibid.identify.loop.scoring import extended_problem
 from vibid.identify.profile import timed
 
@@ -74,7 +75,7 @@ class Refit:
     gain: float
     searched: bool
     polish: tuple | None = None  # (forward model, prior box, transforms by name)
-    held: "Held | None" = None  # parameters held inside their prior box (held_inside)
+    held: Held | None = None  # parameters held inside their prior box (held_inside)
 
 
 def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
@@ -152,9 +153,9 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     current estimate (:func:`starts`), the best polished by the full identification, under
     the current weights where the model's own error does not weigh in
     (:data:`MODEL_ERROR_SHARE`; ``polish``: :attr:`Refit.polish`, None where it weighed
-    its own); where every run leaves the prior box, the best with the strayed parameters
-    held inside it if the data cannot tell the two apart (``held``: :func:`held_inside`,
-    else None)."""
+    its own); where the polished refit leaves a parameter's prior box, the refit with it
+    held inside if the misfit cannot tell the two apart (``held``:
+    :func:`~vibid.identify.loop.held.held_inside`, else None)."""
     space = problem.space
     names = space.names
     with np.errstate(divide="ignore"):  # a null on a log parameter's edge: u = -inf
@@ -191,100 +192,6 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
         best, kinds = held.run, kinds | held.kinds(space)
         fm, result = polished(best, kinds)
     return result, best.loss, (None if weights is None else (fm, ext_box, kinds)), held
-
-
-@dataclass(frozen=True)
-class Held:
-    """A refit with the parameters it would take outside their prior box held at the
-    current fit's values (:func:`held_inside`): the run, the values held, and how much
-    lower chi2 the excursion went (``excursion``) against what a parameter that explains
-    nothing removes from the misfit (``indistinct``)."""
-
-    run: object  # LocalResult
-    values: dict
-    boxes: dict  # each held parameter's prior box
-    excursion: float
-    indistinct: float
-
-    def kinds(self, space) -> dict:
-        """Transforms that hold each value in the polish: a logit over a span a millionth
-        of its prior box wide (the covariance is the Fisher information's in the
-        parameters themselves, so the held one keeps its full standard deviation)."""
-        out = {}
-        for n, v in self.values.items():
-            t = space.transforms[space.names.index(n)]
-            half = HELD_SPAN * (t.high - t.low) / 2
-            out[n] = ("logit", v - half, v + half)
-        return out
-
-    @property
-    def sentence(self) -> str:
-        """What the report says of the hold."""
-        boxes = ", ".join(f"{n} {lo:.3g} to {hi:.3g}" for n, (lo, hi) in self.boxes.items())
-        return (", ".join(f"{n} held at {v:.3g}" for n, v in self.values.items())
-                + f": free, the refit takes {'it' if len(self.values) == 1 else 'them'} "
-                f"outside the prior box ({boxes}) for a chi2 lower by {self.excursion:.3g}, "
-                "no more than a parameter that explains nothing removes from this misfit "
-                f"({self.indistinct:.3g})")
-
-
-#: The width of a held parameter's span in the polish, as a share of its prior box.
-HELD_SPAN = 1e-6
-
-
-def held_inside(res, space, u0, u, around, local: str) -> "Held | None":
-    """Where a refit (ended at ``u``) takes a parameter that the current fit (``u0``) has
-    inside its prior box outside it (Poisson's ratio of a strip, which two bending modes
-    barely determine, wanders to a face with a new effect), the refit with those
-    parameters held at the current values: a :class:`Held` when its chi2 lies above the
-    free refit's by no more than the misfit's own error lets a parameter that explains
-    nothing remove (:func:`~vibid.identify.fit.minima.indistinct_chi2` in units of the
-    reduced chi2 times the residual's correlation,
-    :func:`~vibid.identify.fit.noise.misfit_scale`: the units the judge weighs a new
-    effect in), else None (the excursion is what explains the residual: the judge rejects
-    the refit). The held refit starts from ``u``, the held parameters at their current
-    values, and runs twice: the second time on a basis built where the first ended (from
-    the free refit's basis, 0.5 away in nu, the titanium strip's fixture stopped at chi2
-    2.24e7 instead of 1.88e7).
-
-    On the titanium strip in the clamp the steel strip calibrated, the 982 Hz stand
-    resonance's refit took nu from 0.13 to 0.5 for chi2 lower by 4.5e5, where the misfit's
-    error allows 6.5e6 for one parameter: held, the resonance cut chi2_red from 1302 to
-    1139, then the fixture's 665 Hz resonance (its excursion 2.1e6 against 5.7e6) to 605;
-    nu keeps its full std (0.30, scaled by the misfit)."""
-    from vibid.identify.fit.local import HeldProblem
-    from vibid.identify.fit.noise import misfit_scale
-
-    current = set(space.out_of_bounds(space.theta(u0)))
-    strayed = [n for n in space.out_of_bounds(space.theta(u))
-               if n in res.parameter_names and n not in current]
-    if not strayed:
-        return None
-    free_loss = around(u).chi2(u)
-    birge, tau = misfit_scale(res)
-    indistinct = indistinct_chi2(len(strayed), max(1.0, birge) * tau)
-    at = [space.names.index(n) for n in strayed]
-    free = np.array([i for i in range(space.size) if i not in at])
-    full = np.array(u, float)
-    full[at] = u0[at]
-    try:
-        for _ in range(2):  # the second on a basis built where the first ended
-            fixed = HeldProblem(around(full), free, full)
-            r, _ = run_local(local, fixed, full[free], None)  # converged: its chi2 is judged
-            full = fixed.space.full(r.u)
-    except Exception as exc:  # noqa: BLE001 - the refit's excursion stands
-        log.info("loop: a held refit failed: %s", exc)
-        return None
-    if not (r.converged and np.isfinite(r.loss) and np.isfinite(free_loss)) \
-            or r.loss > free_loss + indistinct:
-        return None
-    log.info("loop: %s held inside the prior box (chi2 %.6g against %.6g free)",
-             ", ".join(strayed), r.loss, free_loss)
-    return Held(replace(r, u=full, theta=space.theta(full)),
-                {n: float(space.theta(u0)[k]) for n, k in zip(strayed, at)},
-                {n: (space.transforms[k].low, space.transforms[k].high)
-                 for n, k in zip(strayed, at)},
-                float(r.loss - free_loss), indistinct)
 
 
 def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
