@@ -18,9 +18,11 @@ Cases (``benchmarks/loop_cases.py``):
 * ``titanium``: the real AFC of ``../shared/data/real-titanium`` (11 960 points), read as
   ``vibid identify --afc afc.csv --setup setup.json`` reads it; no truth: the row shows the
   effects found, chi2_red and E, nu before and after ("ok" = the loop finished). The
-  costly one: 17.5 s declared and 29 s of loop (BENCHMARKS.md, "The real strips");
+  costly one: 17.2 s declared and 54 s of loop, four effects (BENCHMARKS.md, "The loop on
+  the real strips");
   ``steel``: the steel strip of the same stand (``examples/real-steel``, 9 503 points),
-  read the same way, 17.5 s and 53 s;
+  read the same way, 17.5 s and 53 s before the loop kept its gain (`62bcbe4`; 148 s
+  through `vibid identify` since);
 * ``table2`` (``table2-<noise>-<f_max>`` one row): the 12 rows of the paper's Table 2 as
   ``benchmarks/paper_table.py`` defines them; nothing to find (the noiseless rows have no
   std, so the loop cannot test them and returns at once). About 3 min of declared fits for
