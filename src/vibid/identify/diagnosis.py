@@ -76,15 +76,18 @@ class Feature:
     hidden_mode_hz: float = _NAN
     #: whether an extra pole's phase is a causal factor's (None: not judged, :func:`causal`)
     causal: bool | None = None
-    #: a trend's parts worth a word in its note (:data:`TREND_PARTS`), and each part's
-    #: size by name (the phase's change across the band in rad, the magnitude's relative
-    #: change, its mean offset)
-    parts: tuple[str, ...] = ()
+    #: a trend's parts (:data:`TREND_PARTS`) and each one's size by name: the phase's
+    #: change across the band in rad, the magnitude's relative change, its mean offset
     part_sizes: tuple[tuple[str, float], ...] = ()
 
     def part_size(self, name: str) -> float:
         """The size of a trend's part ``name`` (0 where it has none)."""
         return abs(dict(self.part_sizes).get(name, 0.0))
+
+    @property
+    def parts(self) -> tuple[str, ...]:
+        """A trend's parts worth a word in its note (:func:`_worth_a_word`)."""
+        return _worth_a_word(self.part_sizes)
 
     @property
     def kinds(self) -> tuple[str, ...]:
@@ -322,27 +325,32 @@ def causal(f_hz, R, f_p: float) -> bool | None:
 #: A trend's parts, each what one kind of effect explains: its phase across the band (a
 #: delay between the channels), its magnitude across the band, its magnitude's mean offset
 #: (a sensitivity error). A part is worth a word where it is at least a fifth of the
-#: largest (:func:`_trend_measures`).
+#: largest (:func:`_worth_a_word`).
 TREND_PARTS = ("phase_slope", "magnitude_slope", "magnitude_offset")
 
 
+def _worth_a_word(part_sizes) -> tuple[str, ...]:
+    """The parts (``(name, size)`` pairs) at least a fifth of the largest, and 1e-3."""
+    least = max(0.2 * max((abs(x) for _, x in part_sizes), default=0.0), 1e-3)
+    return tuple(name for name, x in part_sizes if abs(x) >= least)
+
+
 def _trend_measures(f_hz, T):
-    """``(d_phase, d_mag, offset, slope, linear, parts)`` of the trend ``T`` on ``f_hz``: its
-    phase's and magnitude's change across the band (the sizes of :data:`TREND_PARTS`, in
-    that order, with the offset), the magnitude's mean offset from 1, the phase's slope
-    (rad/Hz) and whether it is linear, and the parts worth a word."""
+    """``(part_sizes, slope, linear)`` of the trend ``T`` on ``f_hz``: its
+    :data:`TREND_PARTS` by name (the phase's and the magnitude's change across the band,
+    the magnitude's mean offset from 1), the phase's slope (rad/Hz) and whether it is
+    linear."""
     mag, phase = np.abs(T), np.unwrap(np.angle(T))
     slope, intercept = np.polyfit(f_hz, phase, 1)
     d_phase, d_mag, gain = phase[-1] - phase[0], mag[-1] / mag[0] - 1, float(np.mean(mag)) - 1
     linear = bool(np.max(np.abs(phase - slope * f_hz - intercept)) <= 0.2 * abs(d_phase))
-    least = max(0.2 * max(abs(d_phase), abs(d_mag), abs(gain)), 1e-3)  # what is worth a word
-    parts = tuple(name for name, x in zip(TREND_PARTS, (d_phase, d_mag, gain))
-                  if abs(x) >= least)
-    return d_phase, d_mag, gain, slope, linear, parts
+    sizes = tuple(zip(TREND_PARTS, map(float, (d_phase, d_mag, gain))))
+    return sizes, float(slope), linear
 
 
-def _trend_note(f_hz, T) -> str:
-    d_phase, d_mag, gain, slope, linear, worth = _trend_measures(f_hz, T)
+def _trend_note(part_sizes, slope, linear) -> str:
+    d_phase, d_mag, gain = (x for _, x in part_sizes)
+    worth = _worth_a_word(part_sizes)
     parts = []
     if "phase_slope" in worth:
         tau_us = -slope / (2 * math.pi) * 1e6
@@ -355,8 +363,7 @@ def _trend_note(f_hz, T) -> str:
                      "across the band")
     if "magnitude_offset" in worth:
         parts.append(f"magnitude {100 * gain:+.3g} % off the model on average")
-    size = 100 * np.max(np.abs(T - 1))
-    return "; ".join(parts) or f"the ratio drifts smoothly by up to {size:.2g} %"
+    return "; ".join(parts)
 
 
 def diagnose(frequency_hz, H_measured, H_model, std, *, plate_modes_hz, plate_q=None,
@@ -427,11 +434,12 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, h
             features.append(Feature(kind, f_p, q_p, size, significance({k}), note, hidden,
                                     is_causal))
     T = sum(term[k] for k in trend)
-    measures = _trend_measures(f_dense, T)
-    features.append(Feature("trend", size=float(np.max(np.abs(T - 1))),
-                            significance=significance(set(trend)), note=_trend_note(f_dense, T),
-                            parts=measures[-1],
-                            part_sizes=tuple(zip(TREND_PARTS, map(float, measures[:3])))))
+    sizes, slope, linear = _trend_measures(f_dense, T)
+    size = float(np.max(np.abs(T - 1)))
+    note = (_trend_note(sizes, slope, linear)
+            or f"the ratio drifts smoothly by up to {100 * size:.2g} %")
+    features.append(Feature("trend", size=size, significance=significance(set(trend)),
+                            note=note, part_sizes=sizes))
     rank = (lambda x: x.significance) if known_noise else (lambda x: x.size)
     limit = min_significance if known_noise else min_size
     residues = [complex(*coef[a:b]) for a, b in zip(starts[2:-1], starts[3:])]

@@ -77,17 +77,23 @@ def explains(result) -> bool | None:
     return not whiteness_p(result) < WHITENESS_P
 
 
+def _along_frequency(result, values) -> np.ndarray:
+    """``values`` (one per AFC point) on ``result``'s used points, over its weights, in
+    order of frequency: the normalised residual for ``model_afc - H``."""
+    u = np.asarray(result.used)
+    order = np.argsort(np.asarray(result.frequency_hz)[u], kind="stable")
+    return (np.asarray(values)[u] / result.weights)[order]
+
+
 def whiteness_p(result) -> float:
     """Ljung-Box p-value of ``result``'s normalised residual (real parts, then imaginary,
     each along frequency) on the points where the data's noise dominates the weight: the
     model's own discretisation error is smooth along frequency, so where it is a sizeable
     part of the weight the residual looks structured on data the model explains. Where
     fewer than :data:`WHITENESS_MIN_POINTS` such points remain, every point."""
-    u = np.asarray(result.used)
-    order = np.argsort(np.asarray(result.frequency_hz)[u], kind="stable")  # along frequency
-    r = ((result.model_afc[u] - result.H[u]) / result.weights)[order]
+    r = _along_frequency(result, result.model_afc - result.H)
     if result.H_std is not None:
-        quiet = (np.asarray(result.H_std)[u] >= DATA_SHARE * np.asarray(result.weights))[order]
+        quiet = _along_frequency(result, np.asarray(result.H_std)) >= DATA_SHARE
         if np.count_nonzero(quiet) >= WHITENESS_MIN_POINTS:
             r = r[quiet]
     return ljung_box_p(r.real if result.magnitude else np.concatenate([r.real, r.imag]))
@@ -151,11 +157,8 @@ def correlation_along(result, other) -> float:
     the model in: the residual's correlation time where ``j`` is smooth over it (a gain,
     a step across the band), fewer neighbours where ``j`` is a narrow resonance (the
     titanium strip's 982 Hz feature, 10 points wide in a residual correlated over 856)."""
-    u = np.asarray(result.used)
-    order = np.argsort(np.asarray(result.frequency_hz)[u], kind="stable")
-    r = ((result.model_afc[u] - result.H[u]) / result.weights)[order]
-    change = np.asarray(other.model_afc) - np.asarray(result.model_afc)
-    d = (change[u] / result.weights)[order]
+    r = _along_frequency(result, result.model_afc - result.H)
+    d = _along_frequency(result, np.asarray(other.model_afc) - np.asarray(result.model_afc))
     parts = ((r.real, d.real),) if result.magnitude else ((r.real, d.real), (r.imag, d.imag))
     taus, shares = [], []
     for x, y in parts:
@@ -179,9 +182,7 @@ def residual_correlation(result) -> float:
     ordered by frequency): the factor by which a residual that is not white inflates the
     variance of the estimates, beyond what chi2 says (an estimate is a weighted sum of
     residuals, and ``tau`` neighbouring ones count as one)."""
-    u = np.asarray(result.used)
-    order = np.argsort(np.asarray(result.frequency_hz)[u], kind="stable")
-    r = ((result.model_afc[u] - result.H[u]) / result.weights)[order]
+    r = _along_frequency(result, result.model_afc - result.H)
     parts = (r.real,) if result.magnitude else (r.real, r.imag)
     return float(np.mean([autocorrelation_time(x) for x in parts]))
 

@@ -23,9 +23,9 @@ the basin cost the CFRP plate 8 s for a chi2 a million times the search's).
 Where the polished refit takes a parameter the current fit has inside its prior box
 outside it, and the misfit's own error cannot tell that excursion from what a parameter
 that explains nothing gains, the refit is run again with that parameter held at its
-current value (:func:`~vibid.identify.loop.held.held_inside`; the report's note says so): Poisson's ratio of a strip
-wanders to a face of its box with every new effect, and the effect is judged on what it
-explains, not on where the ratio wandered.
+current value (:func:`~vibid.identify.loop.held.held_inside`; the report's note says so):
+Poisson's ratio of a strip wanders to a face of its box with every new effect, and the
+effect is judged on what it explains, not on where the ratio wandered.
 """
 
 from __future__ import annotations
