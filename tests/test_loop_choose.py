@@ -128,7 +128,7 @@ def test_a_resonance_that_leaves_its_diagnosed_pole_is_not_kept():
     assert cand.strayed({"f_hz_1": 700.0}, current, diagnosis) is None
     assert MaterialCandidate().strayed({"f_hz_1": 190.2}, current, diagnosis) is None
 
-    refit = SimpleNamespace(gain=1e6, searched=False, result=SimpleNamespace(
+    refit = SimpleNamespace(gain=1e6, searched=False, held=None, result=SimpleNamespace(
         converged=True, parameters=current | {"f_hz_1": 190.2}))
     res = SimpleNamespace(parameters=current, chi2=2e7)
     j = rounds.judge(cand, Score("stand_resonance", 1e3, 3, 0.0, 0.1), refit, res, {}, [],
@@ -184,7 +184,7 @@ def test_a_refit_that_leaves_the_prior_box_explains_nothing(monkeypatch):
     result = SimpleNamespace(converged=True, chi2=1e3, values=(1.0, 1e-10),
                              parameters={"D11": 18.0, "D22": 1e-10},
                              plate_model=SimpleNamespace(default_bounds=lambda box: box, effects=()))
-    refit = SimpleNamespace(gain=1e4, searched=True, result=result)
+    refit = SimpleNamespace(gain=1e4, searched=True, held=None, result=result)
     res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.1}, chi2=1.1e4, chi2_reduced=40.0)
     j = rounds.judge(cand, Score("anisotropy", 1e4, 2, 0.0, 0.1), refit, res, {}, [])
     verdict, detail = j.verdict, j.detail
@@ -304,7 +304,7 @@ def test_a_gain_within_what_the_misfit_gives_any_parameter_is_not_kept(monkeypat
                              parameters={"D": 18.0, "nu": 0.3, "k_clamp": 1e-3},
                              plate_model=SimpleNamespace(default_bounds=lambda box: box,
                                                          effects=()))
-    refit = SimpleNamespace(gain=1e4, searched=False, result=result)
+    refit = SimpleNamespace(gain=1e4, searched=False, held=None, result=result)
     res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.3}, chi2=1.1e5, chi2_reduced=40.0)
     score = Score("clamp_compliance", 1e4, 1, 0.0, 0.1)
     monkeypatch.setattr(rounds, "misfit_scale", lambda r: (40.0, 50.0))
@@ -340,7 +340,7 @@ def test_a_clamp_refit_stiffer_than_its_box_is_the_rigid_clamp():
             parameter_std={clamp.names[0]: k / 50},  # 50 std from the rigid clamp
             plate_model=SimpleNamespace(default_bounds=lambda box: box, effects=(clamp,),
                                         parameters=()))
-        refit = SimpleNamespace(gain=1e4, searched=False, result=result)
+        refit = SimpleNamespace(gain=1e4, searched=False, held=None, result=result)
         res = SimpleNamespace(parameters={"D": 18.0, "nu": 0.3}, chi2=1.1e5, chi2_reduced=1.0)
         return rounds.judge(cand, Score("clamp_compliance", 1e4, 1, 0.0, 0.1), refit, res,
                             {"D": (1.0, 100.0), "nu": (0.0, 0.5)}, [])

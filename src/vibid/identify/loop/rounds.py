@@ -366,9 +366,8 @@ def judge(cand, s: Score, fit: refits.Refit, res, box, outside,
     the data cannot tell from the current one (the excursion was this effect)."""
     r, gain = fit.result, fit.gain
     detail = (("searched", fit.searched),)
-    held = getattr(fit, "held", None)  # parameters the refit held inside their box
-    if held is not None:
-        detail += (("held", held.sentence),)
+    if fit.held is not None:  # parameters the refit held inside their box
+        detail += (("held", fit.held.sentence),)
     if not r.converged:
         return Judgement(Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit)
     moved = cand.strayed(r.parameters, res.parameters, diagnosis)
