@@ -10,13 +10,13 @@ root sum of squares of independent parts:
   ``*_std`` fields: thickness, length, width, density, the sensor's position and mass):
   a declared value off by one standard uncertainty s moves the estimate too, since the
   model then predicts another AFC for the same parameters. To first order the minimum of
-  χ² moves by ``Δθ = −H⁻¹ Δg`` (the implicit function theorem), g = Jᵀr the gradient of
-  χ²/2 at the estimate, Δg its change when the quantity moves by s (central differences
-  on a small step, each a model built for that setup, scaled to s: :data:`STEP`) and H
-  its Hessian (central differences of g). Where a misfit remains, the Jacobian's own
-  change times the residual is part of Δg and H: the Gauss–Newton shift ``−J⁺ Δr``, which
-  drops it, put the steel strip's length part of E at 9.4 GPa for 0.5 mm where the refit
-  at the longer length moves E by 2.0 GPa;
+  χ² moves by ``Δθ = −H⁻¹ Δg`` (the implicit function theorem), g the gradient of χ² at
+  the estimate, Δg its change when the quantity moves by s (central differences on a
+  small step, each a model built for that setup, scaled to s: :data:`STEP`) and H its
+  exact Hessian (JAX's, as the trust region's). Where a misfit remains, the Jacobian's
+  own change times the residual is part of Δg and H: the Gauss–Newton shift ``−J⁺ Δr``,
+  which drops it, put the steel strip's length part of E at 9.4 GPa for 0.5 mm where the
+  refit at the longer length moves E by 2.0 GPa;
   the part is ``|gᵀ Δθ + ∂c/∂q s|``, the last term for the thickness alone (the
   conversion's h⁻³). A thicker plate is heavier: D grows with h and E goes as h⁻², which
   the conversion alone (h⁻³) would overstate;
@@ -105,45 +105,30 @@ def estimate_shifts(setup, result, names) -> dict[str, np.ndarray]:
     data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
                     magnitude=result.magnitude)
     f_used = data.frequency_hz[data.used]
-    box = model.default_bounds(dict(setup.identification.bounds))
-    box = {n: box.get(n, (v - 1.0, v + 1.0)) for n, v in zip(model.names, theta)}
-    space = ParameterSpace.from_bounds(model.names, box, {q.name: q.kind for q in model.parameters})
+    # linear coordinates u = (theta - estimate) / half, whatever the prior box: an estimate
+    # outside it (a bent nu) has its derivatives all the same
+    sd = np.asarray(result.std, float)
+    half = np.where(np.isfinite(sd) & (sd > 0), sd, 1e-3 * np.maximum(np.abs(theta), 1e-12))
+    space = ParameterSpace.from_bounds(
+        model.names, {n: (v - h, v + h) for n, v, h in zip(model.names, theta, half)},
+        {n: ("linear",) for n in model.names})
+    u = space.to_u(theta)
 
     def problem(s):
         fm = build_forward_model(s, f_used, model=model, theta0=result.parameters)
         return LeastSquaresProblem(fm, data, space, result.weights)
 
-    hessian = _hessian(problem(setup), theta, np.asarray(result.std, float))
+    hessian = problem(setup).hessian(u)
     std = declared_uncertainties(setup)
     out = {}
     for name in names:
         value = getattr(_block(setup, DECLARED[name][0]), DECLARED[name][1])
         step = min(std[name], STEP * abs(value)) or std[name]
-        up = _gradient(problem(with_declared(setup, name, value + step)), theta)
-        down = _gradient(problem(with_declared(setup, name, value - step)), theta)
-        out[name] = -np.linalg.lstsq(hessian, (up - down) / 2.0,
-                                     rcond=1e-12)[0] * (std[name] / step)
+        up = problem(with_declared(setup, name, value + step)).value_and_grad(u)[1]
+        down = problem(with_declared(setup, name, value - step)).value_and_grad(u)[1]
+        du = -np.linalg.lstsq(hessian, (up - down) / 2.0, rcond=1e-12)[0]
+        out[name] = du * half * (std[name] / step)
     return out
-
-
-def _gradient(problem, theta) -> np.ndarray:
-    """The gradient of χ²/2 in the parameters themselves: Jᵀr."""
-    J, r = problem.jacobian_and_residuals_theta(theta)
-    return np.asarray(J).T @ np.asarray(r)
-
-
-def _hessian(problem, theta, std) -> np.ndarray:
-    """The Hessian of χ²/2 in the parameters themselves: central differences of
-    :func:`_gradient`, each parameter stepped by a thousandth of its standard deviation
-    (a millionth of its value where it has none), symmetrised."""
-    fallback = 1e-6 * np.maximum(np.abs(theta), 1e-12)
-    eps = np.where(np.isfinite(std) & (std > 0), 1e-3 * std, fallback)
-    H = np.empty((theta.size, theta.size))
-    for k in range(theta.size):
-        d = np.zeros_like(theta)
-        d[k] = eps[k]
-        H[:, k] = (_gradient(problem, theta + d) - _gradient(problem, theta - d)) / (2 * eps[k])
-    return 0.5 * (H + H.T)
 
 
 def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
