@@ -61,3 +61,7 @@ def test_the_titanium_strip_in_the_calibrated_clamp_is_cut_tenfold(tmp_path):
     # the strip reads 89 GPa)
     E = report["engineering"]["E_Pa"]
     assert 100e9 < E["value"] < 125e9 and 0.7e9 < E["std"] < 6e9
+    # the clamp's length (0.62 mm) moves E with nu held, as the loop held it: 1.7 GPa (a
+    # refit at the longer length with nu held moves E by +1.7, at the shorter by -2.0; with
+    # nu free the shift ran along nu's flat direction to 4.3 GPa)
+    assert 1.0e9 < report["engineering"]["budget"]["E_Pa"]["length_m"] < 2.5e9

@@ -17,6 +17,10 @@ root sum of squares of independent parts:
   own change times the residual is part of Δg and H: the Gauss–Newton shift ``−J⁺ Δr``,
   which drops it, put the steel strip's length part of E at 9.4 GPa for 0.5 mm where the
   refit at the longer length moves E by 2.0 GPa;
+  a parameter the loop's last refit held (:mod:`~vibid.identify.loop.held`: the estimate
+  is no minimum along it) is held in the shift too (the titanium strip in the calibrated
+  clamp, nu held at 0.084: refitted at the length 0.62 mm longer with nu free, nu runs
+  to 0.50 and E moves by −4.5 GPa, with nu held by +1.7 GPa, and −2.0 GPa 0.62 mm shorter);
   the part is ``|gᵀ Δθ + ∂c/∂q s|``, the last term for the thickness alone (the
   conversion's h⁻³). A thicker plate is heavier: D grows with h and E goes as h⁻², which
   the conversion alone (h⁻³) would overstate;
@@ -90,10 +94,10 @@ def with_declared(setup, name: str, value: float):
     return dataclasses.replace(setup, sensors=dataclasses.replace(setup.sensors, response=block))
 
 
-def estimate_shifts(setup, result, names) -> dict[str, np.ndarray]:
+def estimate_shifts(setup, result, names, held=()) -> dict[str, np.ndarray]:
     """name -> (p,) the shift of the estimate when the declared quantity ``name`` is one
     standard uncertainty larger (module doc), for ``names`` among
-    :func:`declared_uncertainties`."""
+    :func:`declared_uncertainties`; the parameters ``held`` do not move."""
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
@@ -118,7 +122,8 @@ def estimate_shifts(setup, result, names) -> dict[str, np.ndarray]:
         fm = build_forward_model(s, f_used, model=model, theta0=result.parameters)
         return LeastSquaresProblem(fm, data, space, result.weights)
 
-    hessian = problem(setup).hessian(u)
+    free = np.array([n not in held for n in model.names])
+    hessian = problem(setup).hessian(u)[np.ix_(free, free)]
     std = declared_uncertainties(setup)
     out = {}
     for name in names:
@@ -126,7 +131,8 @@ def estimate_shifts(setup, result, names) -> dict[str, np.ndarray]:
         step = min(std[name], STEP * abs(value)) or std[name]
         up = problem(with_declared(setup, name, value + step)).value_and_grad(u)[1]
         down = problem(with_declared(setup, name, value - step)).value_and_grad(u)[1]
-        du = -np.linalg.lstsq(hessian, (up - down) / 2.0, rcond=1e-12)[0]
+        du = np.zeros(theta.size)
+        du[free] = -np.linalg.lstsq(hessian, (up - down)[free] / 2.0, rcond=1e-12)[0]
         out[name] = du * half * (std[name] / step)
     return out
 
@@ -183,7 +189,8 @@ def engineering_budget(setup, result, loop=None) -> dict:
     parts = {k: {"fit": float(math.sqrt(v)) if np.isfinite(v) and v >= 0 else math.nan}
              for k, v in zip(keys, fit)}
     std = declared_uncertainties(setup)
-    shifts = estimate_shifts(setup, result, list(std))
+    held = loop.stages[-1].held if loop is not None and loop.final is result else ()
+    shifts = estimate_shifts(setup, result, list(std), held)
     for name in std:
         if name in shifts:
             moved = g @ shifts[name] + (dh * std[name] if name == "thickness_m" else 0.0)

@@ -145,11 +145,12 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     own = refits.weighed(inputs.setup, inputs.data, fit, inputs.local)  # its own weights
     chosen, gone = withdraw(inputs, Stage.of(chosen.added, own), box,
                             [s.added for s in state.stages[1:]])
-    if gone:  # a new fit: its residual read again
+    if gone:  # a new fit (nothing held): its residual read again
         rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
         chosen = diagnosed(inputs.setup, chosen)
     else:  # the residual of the refit it was chosen for (its weights aside, the same fit)
-        chosen = replace(chosen, diagnosis=after[chosen.added])
+        chosen = replace(chosen, diagnosis=after[chosen.added],
+                         held=tuple(fit.held.values) if fit.held is not None else ())
     dropped = {s.name for s in gone}
     stages = tuple(s for s in state.stages if s.added not in dropped)
     return State(stages + (chosen,), box, rounds, alternatives), True

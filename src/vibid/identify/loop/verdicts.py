@@ -185,6 +185,9 @@ class Stage:
     result: IdentificationResult
     ljung_box_p: float = math.nan
     diagnosis: object = None
+    #: parameters its refit held at the previous stage's values (:mod:`~vibid.identify.
+    #: loop.held`): its estimate is no minimum of chi2 along them
+    held: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, added, result: IdentificationResult) -> "Stage":
