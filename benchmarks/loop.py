@@ -22,7 +22,8 @@ Cases (``benchmarks/loop_cases.py``):
   the real strips");
   ``steel``: the steel strip of the same stand (``examples/real-steel``, 9 503 points),
   read the same way, 17.5 s and 53 s before the loop kept its gain (`62bcbe4`; 148 s
-  through `vibid identify` since);
+  through `vibid identify` since, 59 s once its first resonance's top, which depends on
+  its amplitude, is left out: `8bccaf7`);
 * ``table2`` (``table2-<noise>-<f_max>`` one row): the 12 rows of the paper's Table 2 as
   ``benchmarks/paper_table.py`` defines them; nothing to find (the noiseless rows have no
   std, so the loop cannot test them and returns at once). About 3 min of declared fits for
