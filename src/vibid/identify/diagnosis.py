@@ -349,7 +349,8 @@ def _trend_measures(f_hz, T):
 
 
 def _trend_note(part_sizes, slope, linear) -> str:
-    d_phase, d_mag, gain = (x for _, x in part_sizes)
+    size = dict(part_sizes)
+    d_phase, d_mag, gain = (size[p] for p in TREND_PARTS)
     worth = _worth_a_word(part_sizes)
     parts = []
     if "phase_slope" in worth:
