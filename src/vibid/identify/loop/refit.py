@@ -132,9 +132,12 @@ def starts(space, u0, new, current_names, placed=None) -> list[np.ndarray]:
 
 
 @timed("loop refits")
-def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = False) -> Refit:
-    """Refit ``cand``'s extended model from ``res`` (module doc)."""
-    problem, start, ext_box = extended_problem(setup, data, res, cand, box, diagnosis)
+def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = False,
+          extended=None) -> Refit:
+    """Refit ``cand``'s extended model from ``res`` (module doc); ``extended``:
+    :func:`~vibid.identify.loop.scoring.extended_problem`'s, where the scoring built it."""
+    problem, start, ext_box = extended or extended_problem(setup, data, res, cand, box,
+                                                           diagnosis)
     searched = _search(setup, data, cand, problem, start, ext_box, local) if search else None
     polish = held = None
     if searched is not None and searched.settled:

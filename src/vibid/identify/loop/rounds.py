@@ -21,7 +21,7 @@ from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import all_candidates, distance_from_null
-from vibid.identify.loop.scoring import score
+from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
 from vibid.identify.threads import in_order, numpy_only
 
@@ -125,8 +125,10 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     """One round: every candidate scored, the best refitted and judged, one chosen. Returns
     the next state and whether a candidate was added."""
     current = state.current
-    scores = list(in_order(lambda c: scored(inputs, current, c, state.box), todo))
-    judged = refit_and_judge(inputs, state, todo, scores)
+    pairs = list(in_order(lambda c: scored(inputs, current, c, state.box), todo))
+    scores = [s for s, _ in pairs]
+    extended = {s.name: e for s, e in pairs if e is not None}
+    judged = refit_and_judge(inputs, state, todo, scores, extended)
     kinds = {c.name: c.explains for c in todo}
     after = {n: j.diagnosis for n, j in judged.items() if j.verdict.passes}
     removes = {n: removed_feature(current.diagnosis, d, kinds[n]) for n, d in after.items()}
@@ -226,24 +228,32 @@ def plate_modes_in_band(setup, result, n: int = 12) -> int:
 
 
 # -- score ----------------------------------------------------------------------------------
-def scored(inputs: Inputs, current: Stage, cand, box) -> Score:
-    """``cand``'s score test at the current fit (a failure is its verdict, not fatal)."""
+def scored(inputs: Inputs, current: Stage, cand, box) -> tuple[Score, tuple | None]:
+    """``cand``'s score test at the current fit (a failure is its verdict, not fatal), and
+    the problem of the model extended by it
+    (:func:`~vibid.identify.loop.scoring.extended_problem`; None where it failed), which
+    its refit starts from: built once, not again for the refit (its forward model, 0.1 s
+    on the titanium strip, for each of a loop's 25 refits)."""
     asked = bool(current.diagnosis is not None and any(
         k in cand.explains for f in current.diagnosis.features for k in f.kinds))
+    args = (inputs.setup, inputs.data, current.result, cand, box, current.diagnosis)
+    extended = None
     try:
-        lm, dof, cos = score(inputs.setup, inputs.data, current.result, cand, box,
-                             current.diagnosis)
+        extended = extended_problem(*args)
+        lm, dof, cos = score(*args, extended=extended)
     except Exception as exc:  # noqa: BLE001
         return Score(cand.name, math.nan, 0, math.nan, math.nan, verdict=Verdict.NOT_SCORED,
-                     detail=(("error", str(exc)),), asked=asked)
+                     detail=(("error", str(exc)),), asked=asked), extended
     p = float(chi2_dist.sf(lm, dof))
-    return Score(cand.name, lm, dof, p, cos, detail=(("p", p),), asked=asked)
+    return Score(cand.name, lm, dof, p, cos, detail=(("p", p),), asked=asked), extended
 
 
 # -- refit and judge ------------------------------------------------------------------------
-def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
+def refit_and_judge(inputs: Inputs, state: State, todo, scores,
+                    extended: dict | None = None) -> dict:
     """Refit the candidates whose score asks for it, best first, and judge each: name ->
-    :class:`Judgement`.
+    :class:`Judgement` (``extended``: name -> the extended problem the scoring built,
+    :func:`scored`).
 
     The best few are refitted locally, with the best one the diagnosis asks for (a
     feature of its kind found) where it is not among them, and every candidate without a
@@ -301,7 +311,8 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores) -> dict:
                  ", searched globally" if search else "")
         try:
             fit = refits.refit(inputs.setup, inputs.data, res, cand, state.box,
-                               state.current.diagnosis, inputs.local, search=search)
+                               state.current.diagnosis, inputs.local, search=search,
+                               extended=(extended or {}).get(s.name))
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
         j = judge(cand, s, fit, res, state.box, outside, state.current.diagnosis)

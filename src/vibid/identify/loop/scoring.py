@@ -36,9 +36,10 @@ def extended_problem(setup, data, res, cand, box, diagnosis):
 
 
 @timed("loop scoring")
-def score(setup, data, res, cand, box, diagnosis) -> tuple[float, int, float]:
-    """(LM statistic, its degrees of freedom, collinearity) of ``cand`` at ``res``."""
-    problem, start, _ = extended_problem(setup, data, res, cand, box, diagnosis)
+def score(setup, data, res, cand, box, diagnosis, extended=None) -> tuple[float, int, float]:
+    """(LM statistic, its degrees of freedom, collinearity) of ``cand`` at ``res``;
+    ``extended``: :func:`extended_problem`'s, where the caller built it already."""
+    problem, start, _ = extended or extended_problem(setup, data, res, cand, box, diagnosis)
     names = problem.space.names
     theta = np.array([start[n] for n in names])
     J = problem.jacobian_theta(theta)
