@@ -37,7 +37,11 @@ terms are dropped and the rest refitted (trend: ``T`` fixed to 1), ``ν`` its nu
 parameters, ``b = max(1, chi2 / (2N - k))`` (the fit's reduced chi2 where it leaves more than
 noise). Pure noise gives 0 to about 2, a lone feature about its amplitude over the noise.
 Features below ``min_significance`` are dropped; without ``std`` it is NaN and features with
-``size < min_size`` are dropped instead.
+``size < min_size`` are dropped instead. So is a pole whose half-power band
+``f (1 ± 1/2q)`` lies inside a band the fit leaves out (``left_out_hz``: a resonance's
+top whose response depends on its amplitude): no fitted point sees it; the rational fit
+bridged the gap (the steel strip's "mode at 142.4 Hz (Q 53)" inside its left-out
+133.6-144.7 Hz).
 """
 
 from __future__ import annotations
@@ -259,6 +263,23 @@ def _select(f, R, w, known_noise, max_pairs):
     return poles, chi2, errors
 
 
+def unseen(f_hz: float, q: float, left_out_hz) -> bool:
+    """Whether a pole's half-power band ``f (1 ± 1/2q)`` lies inside one of the bands
+    ``left_out_hz`` ((lo, hi), Hz) that the fit leaves out (module doc)."""
+    half = f_hz / (2 * q)
+    return any(lo < f_hz - half and f_hz + half < hi for lo, hi in left_out_hz)
+
+
+def left_out_bands(frequency_hz, used) -> tuple[tuple[float, float], ...]:
+    """(lo, hi), Hz: each stretch of grid points the fit leaves out between two it uses,
+    from the used points on either side."""
+    f = np.asarray(frequency_hz, float)
+    order = np.argsort(f, kind="stable")
+    f, idx = f[order], np.flatnonzero(np.asarray(used, bool)[order])
+    gaps = np.flatnonzero(np.diff(idx) > 1)
+    return tuple((float(f[idx[g]]), float(f[idx[g + 1]])) for g in gaps)
+
+
 def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips, hidden_hz=()):
     """(kind, note, hidden mode's Hz or NaN) of the complex pole p (rad/s); kind "trend"
     when it is no resonance."""
@@ -369,19 +390,20 @@ def _trend_note(part_sizes, slope, linear) -> str:
 
 def diagnose(frequency_hz, H_measured, H_model, std, *, plate_modes_hz, plate_q=None,
              hidden_hz=(), max_pole_pairs: int = 4, min_significance: float = 5.0,
-             min_size: float = 0.02) -> Diagnosis:
-    """Features of ``H_measured / H_model`` (module docstring); never raises, prints nothing."""
+             min_size: float = 0.02, left_out_hz=()) -> Diagnosis:
+    """Features of ``H_measured / H_model`` (module docstring); never raises, prints nothing.
+    ``left_out_hz``: (lo, hi) bands, Hz, that the fit leaves out."""
     try:
         with _quiet():
             return _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
                              hidden_hz, max(int(max_pole_pairs), 0), min_significance,
-                             min_size)
+                             min_size, tuple(left_out_hz))
     except Exception as exc:  # noqa: BLE001 - a diagnosis must never stop the loop
         return Diagnosis(message=f"diagnosis failed: {type(exc).__name__}: {exc}")
 
 
 def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, hidden_hz,
-              max_pairs, min_significance, min_size) -> Diagnosis:
+              max_pairs, min_significance, min_size, left_out_hz=()) -> Diagnosis:
     f = np.asarray(frequency_hz, float).ravel()
     sd = np.broadcast_to(np.asarray(np.nan if std is None else std, float), f.shape)
     order = np.argsort(f, kind="stable")
@@ -426,6 +448,8 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, h
             trend.append(k)
         else:
             f_p, q_p = float(abs(p) / (2 * math.pi)), float(abs(p) / (2 * abs(p.real)))
+            if unseen(f_p, q_p, left_out_hz):
+                continue
             size = float(np.max(np.abs(term[k])))
             is_causal = causal(f, R, f_p) if kind == "extra_pole" else None
             if is_causal is False:

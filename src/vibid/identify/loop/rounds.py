@@ -184,14 +184,15 @@ def diagnosed(setup, stage: Stage) -> Stage:
 @numpy_only
 def diagnosis_of(setup, r: IdentificationResult):
     """The diagnosis of a fit's residual (:mod:`vibid.identify.diagnosis`), or None."""
-    from vibid.identify.diagnosis import diagnose
+    from vibid.identify.diagnosis import diagnose, left_out_bands
 
     try:
         modes_hz, q, hidden_hz = model_resonances(setup, r)
         u = np.asarray(r.used)
         return diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
                         None if r.H_std is None else np.asarray(r.H_std)[u],
-                        plate_modes_hz=modes_hz, plate_q=q, hidden_hz=hidden_hz)
+                        plate_modes_hz=modes_hz, plate_q=q, hidden_hz=hidden_hz,
+                        left_out_hz=left_out_bands(r.frequency_hz, u))
     except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
         log.warning("loop: the residual could not be diagnosed: %s", exc)
         return None
