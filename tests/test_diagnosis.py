@@ -178,15 +178,12 @@ def test_a_pole_inside_a_left_out_band_is_no_feature(seed):
     response depends on its amplitude: its flanks still place the pole at 150 Hz (the
     rational fit bridges the gap), but no fitted point lies in its half-power band
     (148-152 Hz), so it is not reported; told nothing of the gap, the diagnosis reports it."""
-    from vibid.identify.diagnosis import left_out_bands
-
     rng = np.random.default_rng(seed)
     f = np.sort(stepped_grid(rng))
     model_modes = MODES_HZ * np.array([1.02, 1, 1])
     Hm, std = measure(modal_afc(f), rng)
+    bands = ((144.0, 156.0),)
     used = ~((f > 144.0) & (f < 156.0))
-    bands = left_out_bands(f, used)
-    assert len(bands) == 1 and 141 < bands[0][0] < 144 and 156 < bands[0][1] < 160
     args = (f[used], Hm[used], modal_afc(f, model_modes)[used], std[used])
     kw = dict(plate_modes_hz=model_modes, plate_q=Q)
     near = lambda d: [x for x in d.features if x.kind != "trend" and abs(x.f_hz / 150 - 1) < 0.02]

@@ -240,7 +240,7 @@ def _round(monkeypatch, gains, fits_noise=()):
     res = SimpleNamespace(chi2=CHI2, dof=DOF, plate_model=None)
     state = SimpleNamespace(current=SimpleNamespace(result=res, diagnosis=None), box={})
     inputs = SimpleNamespace(setup=None, data=SimpleNamespace(n_residuals=2 * DOF),
-                             local="newton")
+                             local="newton", left_out_hz=())
     judged = rounds.refit_and_judge(inputs, state, cands, scores)
     return calls, judged
 

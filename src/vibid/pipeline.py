@@ -181,7 +181,8 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
 
             closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=used,
                                 candidates=names, local=local, declared=result,
-                                magnitude=magnitude_only)
+                                magnitude=magnitude_only, left_out_hz=tuple(
+                                    t.left_out_hz for t in tests if t.left_out_hz is not None))
             return Identified(closed.final, closed, said + closed.summary(), tests)
     return Identified(result, None, said + result.summary(), tests)
 

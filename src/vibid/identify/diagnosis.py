@@ -270,16 +270,6 @@ def unseen(f_hz: float, q: float, left_out_hz) -> bool:
     return any(lo < f_hz - half and f_hz + half < hi for lo, hi in left_out_hz)
 
 
-def left_out_bands(frequency_hz, used) -> tuple[tuple[float, float], ...]:
-    """(lo, hi), Hz: each stretch of grid points the fit leaves out between two it uses,
-    from the used points on either side."""
-    f = np.asarray(frequency_hz, float)
-    order = np.argsort(f, kind="stable")
-    f, idx = f[order], np.flatnonzero(np.asarray(used, bool)[order])
-    gaps = np.flatnonzero(np.diff(idx) > 1)
-    return tuple((float(f[idx[g]]), float(f[idx[g + 1]])) for g in gaps)
-
-
 def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips, hidden_hz=()):
     """(kind, note, hidden mode's Hz or NaN) of the complex pole p (rad/s); kind "trend"
     when it is no resonance."""

@@ -33,7 +33,7 @@ MIN_PEAK_SNR = 10.0
 #: bin-to-bin wiggles on the tops of the real strips' FFT AFCs (0.12 Hz bins) rise at most
 #: 0.05 (titanium) and 0.07 (steel, a stand feature at 974 Hz), and every one of them was
 #: a "resonance": 317 of them on the titanium AFC, whose two resonances no model could
-#: then match, so its declared fit ran a peak search (10 s) on noise.
+#: then match, so its declared fit ran a peak search (8 s) on noise.
 MIN_PEAK_PROMINENCE = 0.1
 
 

@@ -56,6 +56,9 @@ class Inputs:
     data: FitData
     pool: tuple
     local: str
+    #: (lo, hi) Hz: the bands the fit leaves out (a resonance's top whose response depends
+    #: on its amplitude): no diagnosed pole inside one is a feature
+    left_out_hz: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -78,13 +81,16 @@ class State:
 def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_rounds: int = 4,
                restarts: int = 5, seed=0, progress=None, local: str = "newton",
                declared: IdentificationResult | None = None,
-               magnitude: bool = False) -> LoopResult:
+               magnitude: bool = False, left_out_hz=()) -> LoopResult:
     """Fit the declared model, then add the effects its residual asks for
     (:mod:`vibid.identify.loop`).
 
     ``candidates``: names to consider (default every one, :func:`all_candidates`);
     ``declared``: the declared model's result when already computed;
-    ``magnitude``: fit |H| alone, with the candidates |H| can see (not a channel delay).
+    ``magnitude``: fit |H| alone, with the candidates |H| can see (not a channel delay);
+    ``left_out_hz``: (lo, hi) Hz, the bands ``used`` leaves out because a linear model
+    cannot fit them (:func:`vibid.identify.linearity.linear_part`), which the diagnoses
+    ignore (:func:`diagnosis_of`).
     """
     t0 = time.perf_counter()
     pool = tuple(c for c in _pool(candidates) if not (magnitude and c.phase_only))
@@ -96,8 +102,8 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
             "the AFC's uncertainty is unknown: the loop cannot test the residual against the "
             "noise, so no effect was looked for",), time.perf_counter() - t0)
     inputs = Inputs(setup, fit_data(frequency_hz, H, std, used, magnitude=magnitude), pool,
-                    local)
-    state = State((diagnosed(setup, Stage.of(None, declared)),),
+                    local, tuple(left_out_hz))
+    state = State((diagnosed(inputs, Stage.of(None, declared)),),
                   dict(setup.identification.bounds))
     while len(state.rounds) < max_rounds and not state.current.fits_noise:
         todo = [c for c in inputs.pool if c.applies(state.current.result.plate_model,
@@ -149,7 +155,7 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
                             [s.added for s in state.stages[1:]])
     if gone:  # a new fit (nothing held): its residual read again
         rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
-        chosen = diagnosed(inputs.setup, chosen)
+        chosen = diagnosed(inputs, chosen)
     else:  # the residual of the refit it was chosen for (its weights aside, the same fit)
         chosen = replace(chosen, diagnosis=after[chosen.added],
                          held=tuple(fit.held.values) if fit.held is not None else ())
@@ -176,15 +182,19 @@ def finish(state: State, seconds: float) -> LoopResult:
 
 
 # -- diagnose -------------------------------------------------------------------------------
-def diagnosed(setup, stage: Stage) -> Stage:
+def diagnosed(inputs: Inputs, stage: Stage) -> Stage:
     """``stage`` with its residual's diagnosis (None where it cannot be made)."""
-    return replace(stage, diagnosis=diagnosis_of(setup, stage.result))
+    return replace(stage, diagnosis=diagnosis_of(inputs.setup, stage.result,
+                                                 inputs.left_out_hz))
 
 
 @numpy_only
-def diagnosis_of(setup, r: IdentificationResult):
-    """The diagnosis of a fit's residual (:mod:`vibid.identify.diagnosis`), or None."""
-    from vibid.identify.diagnosis import diagnose, left_out_bands
+def diagnosis_of(setup, r: IdentificationResult, left_out_hz=()):
+    """The diagnosis of a fit's residual (:mod:`vibid.identify.diagnosis`), or None;
+    ``left_out_hz``: bands the fit leaves out, where no pole is a feature (:class:`Inputs`;
+    not every unused stretch: an adaptive campaign's planner wants the pole its residual
+    shows between two steps, to measure there)."""
+    from vibid.identify.diagnosis import diagnose
 
     try:
         modes_hz, q, hidden_hz = model_resonances(setup, r)
@@ -192,7 +202,7 @@ def diagnosis_of(setup, r: IdentificationResult):
         return diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
                         None if r.H_std is None else np.asarray(r.H_std)[u],
                         plate_modes_hz=modes_hz, plate_q=q, hidden_hz=hidden_hz,
-                        left_out_hz=left_out_bands(r.frequency_hz, u))
+                        left_out_hz=left_out_hz)
     except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
         log.warning("loop: the residual could not be diagnosed: %s", exc)
         return None
@@ -320,7 +330,7 @@ def refit_and_judge(inputs: Inputs, state: State, todo, scores,
         if not j.verdict.passes:
             return j
         # a passing refit's residual, read once, on its own thread beside the next refit
-        return replace(j, diagnosis=diagnosis_of(inputs.setup, fit.result))
+        return replace(j, diagnosis=diagnosis_of(inputs.setup, fit.result, inputs.left_out_hz))
 
     basin = next((s for s in asking if by_name[s.name].moves_basin), None)
     later = None if outside else basin  # judged after the rest
