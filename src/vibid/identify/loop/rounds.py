@@ -23,6 +23,7 @@ from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import all_candidates, distance_from_null
 from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
+from vibid.identify.profile import timed
 from vibid.identify.threads import in_order, numpy_only
 
 log = logging.getLogger(__name__)
@@ -239,6 +240,7 @@ def plate_modes_in_band(setup, result, n: int = 12) -> int:
 
 
 # -- score ----------------------------------------------------------------------------------
+@timed("loop scoring")
 def scored(inputs: Inputs, current: Stage, cand, box) -> tuple[Score, tuple | None]:
     """``cand``'s score test at the current fit (a failure is its verdict, not fatal), and
     the problem of the model extended by it
@@ -251,7 +253,7 @@ def scored(inputs: Inputs, current: Stage, cand, box) -> tuple[Score, tuple | No
     extended = None
     try:
         extended = extended_problem(*args)
-        lm, dof, cos = score(*args, extended=extended)
+        lm, dof, cos = score(extended, current.result, cand)
     except Exception as exc:  # noqa: BLE001
         return Score(cand.name, math.nan, 0, math.nan, math.nan, verdict=Verdict.NOT_SCORED,
                      detail=(("error", str(exc)),), asked=asked), extended

@@ -15,7 +15,6 @@ import numpy as np
 
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
-from vibid.identify.profile import timed
 
 
 def extended_problem(setup, data, res, cand, box, diagnosis):
@@ -35,11 +34,10 @@ def extended_problem(setup, data, res, cand, box, diagnosis):
     return LeastSquaresProblem(fm, data, space, res.weights), start, ext_box
 
 
-@timed("loop scoring")
-def score(setup, data, res, cand, box, diagnosis, extended=None) -> tuple[float, int, float]:
-    """(LM statistic, its degrees of freedom, collinearity) of ``cand`` at ``res``;
-    ``extended``: :func:`extended_problem`'s, where the caller built it already."""
-    problem, start, _ = extended or extended_problem(setup, data, res, cand, box, diagnosis)
+def score(extended, res, cand) -> tuple[float, int, float]:
+    """(LM statistic, its degrees of freedom, collinearity) of ``cand`` at ``res``, on
+    ``extended``: :func:`extended_problem`'s (the caller keeps it for the refit)."""
+    problem, start, _ = extended
     names = problem.space.names
     theta = np.array([start[n] for n in names])
     J = problem.jacobian_theta(theta)
