@@ -57,6 +57,10 @@ import numpy as np
 
 _VF_POINTS = 1500  # vector fitting sees at most this many points (its time grows with N)
 _POLISHED = 3  # how many of the best candidates get their poles polished
+#: The polish keeps each pole within this factor of the band's top frequency: a real pole
+#: far outside it is the constant again (their columns become one), a direction in which
+#: the fit is flat and the pole would run off.
+_REACH = 10.0
 #: On a uniform grid (an FFT's bins) an extra pole's phase is compared, within this factor
 #: of its frequency, with the phase a causal factor of its magnitude would have
 #: (:func:`causal`).
@@ -211,19 +215,64 @@ def _vector_fit(f_hz, R, n_real, n_cmplx) -> np.ndarray:
 
 
 def _polish(f, R, w, poles) -> np.ndarray:
-    """Poles moved to the minimum of the weighted chi2 (residues solved inside)."""
+    """Poles moved to the minimum of the weighted chi2, residues solved inside (variable
+    projection). The Jacobian is Kaufman's, ``-P⊥ (∂A/∂θ) x``: its gradient ``Jᵀ r`` is the
+    exact one (the term it leaves out is orthogonal to the residual), so the trust region
+    stops at a stationary point, not where a finite-difference step stalls in a flat
+    valley, and a perturbation of the data by rounding moves the poles by about as little.
+    Each pole stays within :data:`_REACH` times the band's top (its real part, and a
+    complex pole's imaginary part above a thousandth of that)."""
     from scipy.optimize import least_squares
 
     cplx, unit = poles.imag != 0, 2 * np.pi * np.mean(f)
+    s = 2j * np.pi * np.asarray(f, float)
+    ww = np.concatenate([w, w])
+    b = np.concatenate([R.real, R.imag]) * ww
 
     def unpack(x):
         p = x[:len(poles)] * unit + 0j
         p[cplx] += 1j * x[len(poles):] * unit
         return p
 
-    x0 = np.concatenate([poles.real, poles.imag[cplx]]) / unit
-    fit = least_squares(lambda x: _solve(_columns(f, unpack(x)), R, w)[1], x0, method="lm",
-                        max_nfev=40 * (len(x0) + 1))
+    def projected(x):
+        """Weighted residual, and its Jacobian with the residues held (Kaufman)."""
+        p = unpack(x)
+        A = np.concatenate(_columns(f, p), axis=1)
+        Ar = np.vstack([A.real, A.imag]) * ww[:, None]
+        scale = 1 / np.maximum(np.linalg.norm(Ar, axis=0), 1e-300)
+        Q, T = np.linalg.qr(Ar * scale)
+        coef = np.linalg.lstsq(T, Q.T @ b, rcond=None)[0] * scale
+        d_re, d_im, at = [], [], 2  # ∂(A coef)/∂Re p and ∂/∂Im p; columns 0, 1: 1 and s
+        for pk in p:
+            a = 1 / (s - pk)
+            if pk.imag == 0:
+                d_re.append(coef[at] * a**2)
+                at += 1
+                continue
+            up = (coef[at] + 1j * coef[at + 1]) * a**2
+            down = (coef[at] - 1j * coef[at + 1]) / (s - np.conj(pk))**2
+            d_re.append(up + down)
+            d_im.append(1j * (up - down))
+            at += 2
+        D = np.stack(d_re + d_im, axis=1) * unit
+        Dr = np.vstack([D.real, D.imag]) * ww[:, None]
+        return b - Q @ (Q.T @ b), Q @ (Q.T @ Dr) - Dr
+
+    memo = {}
+
+    def both(x):
+        if x.tobytes() not in memo:
+            memo.clear()
+            memo[x.tobytes()] = projected(x)
+        return memo[x.tobytes()]
+
+    reach = _REACH * np.max(f) / np.mean(f)  # in units of the mean angular frequency
+    lo = np.concatenate([np.full(len(poles), -reach), np.full(cplx.sum(), 1e-3 * reach)])
+    hi = np.full(lo.shape, reach)
+    x0 = np.clip(np.concatenate([poles.real, poles.imag[cplx]]) / unit, lo, hi)
+    fit = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo, hi),
+                        method="trf", ftol=1e-12, xtol=1e-12, gtol=1e-10,
+                        max_nfev=100 * (len(x0) + 1))
     return unpack(fit.x)
 
 
