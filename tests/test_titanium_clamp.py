@@ -14,7 +14,10 @@ the non-causal pole at 661 Hz is one the fixture explains (``acausal_pole``). Th
 refit leaves nu outside its box (-0.26), and a channel delay brings it back inside at a
 chi2 the data cannot tell from the gain's (``explains_excursion``; without the delay among
 the candidates nu stays outside and the fixture is placed on the broad 1296 Hz level step).
-Declared chi2_red 8236, then 1304, 1284, 1124, 586: 14-fold."""
+Declared chi2_red 8236, then 1304, 1284, then 1124 with the stand's resonance or 784 with
+the fixture's (which one the round takes first turns on which pole of the residual the
+diagnosis ranks first: 982 Hz, or a broad one at 1338 Hz that the stand's resonance
+leaves), 586 with both: 14-fold."""
 
 import gzip
 import json
@@ -42,8 +45,10 @@ def test_the_titanium_strip_in_the_calibrated_clamp_is_cut_tenfold(tmp_path):
     report = json.loads(out.read_text())
     loop = report["loop"]
     stages = loop["stages"]
-    assert [s["added"] for s in stages] == [None, "sensor_gain", "channel_delay",
-                                           "stand_resonance", "fixture_resonance"]
+    added = [s["added"] for s in stages]
+    assert added[:3] == [None, "sensor_gain", "channel_delay"]
+    # the stand's and the fixture's resonances in either order: both end at the same fit
+    assert sorted(added[3:]) == ["fixture_resonance", "stand_resonance"]
     assert stages[0]["chi2_reduced"] / stages[-1]["chi2_reduced"] > 10
     assert loop["unexplained_residual"]  # the strip's nonlinear tops and 1265 Hz remain
     effects = {e["name"]: e["parameters"] for e in report["effects"]}
