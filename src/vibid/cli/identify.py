@@ -13,7 +13,8 @@ the fit unless ``--nonlinear-tops`` (:func:`vibid.identify.linearity.linear_part
 
 from __future__ import annotations
 
-from vibid.cli.options import add_identification_options, profiled
+from vibid.cli.options import (add_identification_options, add_reference_options, profiled,
+                               reference_of)
 
 
 def add_parser(sub):
@@ -39,12 +40,7 @@ def add_parser(sub):
                    help="fit the tops of resonances whose response depends on its amplitude "
                    "too (by default they are left out: the plate model is linear, and their "
                    "flanks hold the structure at small motion)")
-    p.add_argument("--reference-E", metavar="PA", type=float,
-                   help="the specimen is a reference of known modulus along its length (E, "
-                   "or E1 of an orthotropic plate; Pa): the report gives the clamp's effective "
-                   "free length, to declare for the specimens measured in this clamp")
-    p.add_argument("--reference-E-std", metavar="PA", type=float, default=0.0,
-                   help="the reference modulus's standard uncertainty (Pa; default 0)")
+    add_reference_options(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
@@ -62,7 +58,7 @@ def run(args) -> int:
     if args.report:
         check_output_dir(args.report)
     candidates = parse_candidates(args.candidates)
-    reference = _reference(args)
+    reference = reference_of(args)
     with profiled(args.profile):
         data = _source(args)
         with search_progress(not args.no_progress) as progress:
@@ -86,19 +82,6 @@ def run(args) -> int:
     # the report is written (it says why); the job itself failed
     require_converged(identified)
     return 0
-
-
-def _reference(args):
-    """The :class:`~vibid.identify.reference.Reference` of ``--reference-E`` (None without
-    it); checked before the identification's minutes."""
-    from vibid.errors import VibidError
-    from vibid.identify.reference import Reference
-
-    if args.reference_E is None:
-        if args.reference_E_std:
-            raise VibidError("--reference-E-std goes with --reference-E")
-        return None
-    return Reference(args.reference_E, args.reference_E_std)
 
 
 def _source(args):

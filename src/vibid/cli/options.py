@@ -30,6 +30,30 @@ def add_identification_options(p, *, methods: bool = True) -> None:
                    "refits, the signal stage")
 
 
+def add_reference_options(p) -> None:
+    """``--reference-E`` and its std: the specimen is a reference of known modulus, and the
+    report gives the clamp's effective free length (:mod:`vibid.identify.reference`)."""
+    p.add_argument("--reference-E", metavar="PA", type=float,
+                   help="the specimen is a reference of known modulus along its length (E, "
+                   "or E1 of an orthotropic plate; Pa): the report gives the clamp's effective "
+                   "free length, to declare for the specimens measured in this clamp")
+    p.add_argument("--reference-E-std", metavar="PA", type=float, default=0.0,
+                   help="the reference modulus's standard uncertainty (Pa; default 0)")
+
+
+def reference_of(args):
+    """The :class:`~vibid.identify.reference.Reference` of ``--reference-E`` (None without
+    it); checked before the identification's minutes (a bad one: a one-line error)."""
+    from vibid.errors import VibidError
+    from vibid.identify.reference import Reference
+
+    if args.reference_E is None:
+        if args.reference_E_std:
+            raise VibidError("--reference-E-std goes with --reference-E")
+        return None
+    return Reference(args.reference_E, args.reference_E_std)
+
+
 @contextlib.contextmanager
 def profiled(on: bool):
     """With ``on`` (``--profile``), print where the time went when the block ends
