@@ -152,6 +152,36 @@ def test_replay_gives_the_report_of_identify(identified_cli, replayed_cli):
         assert _rel(a["chi2_reduced"], b["chi2_reduced"]) <= 1e-9
 
 
+def test_replay_calibrates_the_clamp_as_identify_does(sessions, tmp_path, capsys):
+    """``--reference-E`` through the Prefect flow: the report's ``reference`` block is the
+    one ``vibid identify --reference-E`` writes for the same session (the calibration
+    itself is checked on an exact beam in test_reference_specimen.py). A bending resonance
+    goes as sqrt(E) / L², so a reference modulus 4 % above the identified one asks a free
+    length (206 / 198)^¼ = 1.0100 times the declared one (1.00985: the sensor's mass bends
+    that law by 1e-4 here). A bad reference is one line, before Prefect starts."""
+    from vibid.flows import replay_flow
+
+    options = ["--no-loop", "--restarts", "1"]
+    path = tmp_path / "identify.json"
+    assert main(["identify", sessions["B"], "--json", str(path), "--no-progress", *options,
+                 "--reference-E", "206e9", "--reference-E-std", "4e9"]) == 0
+    by_identify = _read(path)["reference"]
+    report = replay_flow(sessions["B"], loop=False, restarts=1, reference_E_pa=206e9,
+                         reference_E_std_pa=4e9)
+    block = report["reference"]
+    assert set(block) == set(by_identify)
+    for key in ("free_length_m", "free_length_std_m", "declared_length_m"):
+        assert block[key] == pytest.approx(by_identify[key], rel=1e-9)
+    E = report["engineering"]["E_Pa"]["value"]
+    assert block["free_length_m"] / block["declared_length_m"] == pytest.approx(
+        (206e9 / E) ** 0.25, rel=5e-4)
+    capsys.readouterr()
+    assert main(["replay", sessions["B"], "--reference-E=-5e9"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "the reference modulus must be a positive number of Pa" in err
+    assert len(err.splitlines()) == 1
+
+
 def test_replay_report_folder_links_its_figures(replayed_cli):
     _, report, folder = replayed_cli
     text = (folder / "report.md").read_text()

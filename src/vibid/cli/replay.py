@@ -1,5 +1,5 @@
 """`vibid replay SESSION.h5 [--json REPORT.json] [--report DIR] [--uff AFC.uff] [--no-loop]
-[--candidates A,B] [--magnitude-only]`:
+[--candidates A,B] [--magnitude-only] [--reference-E PA]`:
 ``vibid identify`` run as a Prefect flow (:func:`vibid.flows.replay_flow`): the same options
 and the same JSON report, plus in ``--report DIR`` a readable ``report.md`` with PNG figures,
 and the summary as Prefect artifacts.
@@ -10,7 +10,8 @@ run); with ``PREFECT_API_URL`` set, on that server, where the run and its artifa
 
 from __future__ import annotations
 
-from vibid.cli.options import add_identification_options, profiled
+from vibid.cli.options import (add_identification_options, add_reference_options, profiled,
+                               reference_of)
 
 
 def add_parser(sub):
@@ -27,6 +28,7 @@ def add_parser(sub):
                    help="also write the AFC the identification uses as UFF58 (as vibid afc "
                    "--uff)")
     add_identification_options(p)
+    add_reference_options(p)
     p.set_defaults(run=run)
 
 
@@ -39,6 +41,7 @@ def run(args) -> int:
     if args.restarts < 1:
         raise VibidError("--restarts must be at least 1")
     candidates = parse_candidates(args.candidates)
+    reference_of(args)  # a bad reference: one line, before Prefect starts
     if args.uff:
         from vibid.cli.paths import check_output_file
 
@@ -58,7 +61,9 @@ def run(args) -> int:
                              uff_path=args.uff, loop=not args.no_loop,
                              candidates=None if candidates is None else list(candidates),
                              method=args.method, local=args.local, restarts=args.restarts,
-                             seed=args.seed, magnitude_only=args.magnitude_only)
+                             seed=args.seed, magnitude_only=args.magnitude_only,
+                             reference_E_pa=args.reference_E,
+                             reference_E_std_pa=args.reference_E_std)
     from vibid.report import plausibility_lines
 
     for line in plausibility_lines(report):  # never silent

@@ -28,7 +28,8 @@ def replay_flow(session_path: Path | None = None, *, afc_path: Path | None = Non
                 json_path: Path | None = None, report_dir: Path | None = None,
                 loop: bool = True, candidates: list[str] | str | None = None,
                 method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                seed: int = SEED, magnitude_only: bool = False) -> dict:
+                seed: int = SEED, magnitude_only: bool = False,
+                reference_E_pa: float | None = None, reference_E_std_pa: float = 0.0) -> dict:
     """Replay one session: the report of ``vibid identify SESSION`` with the same options.
 
     Parameters
@@ -44,11 +45,19 @@ def replay_flow(session_path: Path | None = None, *, afc_path: Path | None = Non
     candidates: the loop's candidate effects (names, or ``"A,B"``); default all.
     method, local, restarts, seed: the identification's options (as ``vibid identify``).
     magnitude_only: identify from |H| alone (``vibid identify --magnitude-only``).
+    reference_E_pa, reference_E_std_pa: the specimen is a reference of known modulus (Pa)
+        and its std: the report gives the clamp's effective free length (``vibid identify
+        --reference-E``, :mod:`vibid.identify.reference`).
 
     Returns the report (a dict). A run that did not converge writes its report, then fails.
     """
     if (session_path is None) == (afc_path is None) or (afc_path is None) != (setup_path is None):
         raise VibidError("replay: give a session file, or an AFC file with its setup")
+    reference = None
+    if reference_E_pa is not None:  # checked before the identification's minutes
+        from vibid.identify.reference import Reference
+
+        reference = Reference(reference_E_pa, reference_E_std_pa)
     if session_path is not None:
         data = afc_task(os.fspath(session_path))
     else:
@@ -59,7 +68,7 @@ def replay_flow(session_path: Path | None = None, *, afc_path: Path | None = Non
                                local=local, restarts=restarts, seed=seed,
                                magnitude_only=magnitude_only)
     report, _ = report_task(data, identified, json_path=json_path, report_dir=report_dir,
-                            session_path=session_path)
+                            session_path=session_path, reference=reference)
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)
     require_converged(identified)
     return report

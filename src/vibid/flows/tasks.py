@@ -126,10 +126,11 @@ def identify_task(data: SessionAfc, *, loop: bool = True, candidates=None,
 
 @task(name="report", cache_policy=NO_CACHE)
 def report_task(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
-                session_path=None) -> tuple[dict, dict]:
-    """Report stage: the JSON report, and the readable report folder; (report, paths)."""
+                session_path=None, reference=None) -> tuple[dict, dict]:
+    """Report stage: the JSON report, and the readable report folder; (report, paths).
+    ``reference``: a reference specimen's known modulus, which calibrates the clamp."""
     report, paths = write_outputs(data, identified, json_path=json_path, report_dir=report_dir,
-                                  session_path=session_path)
+                                  session_path=session_path, reference=reference)
     for name, path in paths.items():
         run_logger().info("wrote %s", path)
     return report, paths
