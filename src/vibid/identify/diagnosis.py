@@ -183,19 +183,30 @@ def _columns(f_hz, poles) -> list[np.ndarray]:
     return groups
 
 
+def _stacked(Z, w) -> np.ndarray:
+    """A complex vector or matrix (rows: frequencies) as real rows, its real parts above its
+    imaginary parts, each row times its point's weight ``w``."""
+    ww = np.concatenate([w, w])
+    return np.concatenate([Z.real, Z.imag]) * ww.reshape((-1,) + (1,) * (Z.ndim - 1))
+
+
+def _column_scale(Ar) -> np.ndarray:
+    """1 / each column's norm: the basis's columns (1, s, 1/(s - p)) differ by orders of
+    magnitude, the least squares sees them at unit norm."""
+    return 1 / np.maximum(np.linalg.norm(Ar, axis=0), 1e-300)
+
+
 def _solve(groups, R, w, keep=None):
     """Weighted least squares of R (of R - 1 when the constant is dropped) on the kept groups:
     coefficients and weighted residual vector."""
     keep = [True] * len(groups) if keep is None else keep
     kept = [g for g, k in zip(groups, keep) if k]
     A = np.concatenate(kept, axis=1) if kept else np.zeros((len(R), 0))
-    ww = np.concatenate([w, w])
-    Ar = np.vstack([A.real, A.imag]) * ww[:, None]
-    target = R if keep[0] else R - 1
-    b = np.concatenate([target.real, target.imag]) * ww
+    Ar = _stacked(A, w)
+    b = _stacked(R if keep[0] else R - 1, w)
     if not A.shape[1]:
         return np.zeros(0), b
-    scale = 1 / np.maximum(np.linalg.norm(Ar, axis=0), 1e-300)
+    scale = _column_scale(Ar)
     x = np.linalg.lstsq(Ar * scale, b, rcond=None)[0] * scale
     return x, b - Ar @ x
 
@@ -226,8 +237,7 @@ def _polish(f, R, w, poles) -> np.ndarray:
 
     cplx, unit = poles.imag != 0, 2 * np.pi * np.mean(f)
     s = 2j * np.pi * np.asarray(f, float)
-    ww = np.concatenate([w, w])
-    b = np.concatenate([R.real, R.imag]) * ww
+    b = _stacked(R, w)
 
     def unpack(x):
         p = x[:len(poles)] * unit + 0j
@@ -237,9 +247,8 @@ def _polish(f, R, w, poles) -> np.ndarray:
     def projected(x):
         """Weighted residual, and its Jacobian with the residues held (Kaufman)."""
         p = unpack(x)
-        A = np.concatenate(_columns(f, p), axis=1)
-        Ar = np.vstack([A.real, A.imag]) * ww[:, None]
-        scale = 1 / np.maximum(np.linalg.norm(Ar, axis=0), 1e-300)
+        Ar = _stacked(np.concatenate(_columns(f, p), axis=1), w)
+        scale = _column_scale(Ar)
         Q, T = np.linalg.qr(Ar * scale)
         coef = np.linalg.lstsq(T, Q.T @ b, rcond=None)[0] * scale
         d_re, d_im, at = [], [], 2  # ∂(A coef)/∂Re p and ∂/∂Im p; columns 0, 1: 1 and s
@@ -254,8 +263,7 @@ def _polish(f, R, w, poles) -> np.ndarray:
             d_re.append(up + down)
             d_im.append(1j * (up - down))
             at += 2
-        D = np.stack(d_re + d_im, axis=1) * unit
-        Dr = np.vstack([D.real, D.imag]) * ww[:, None]
+        Dr = _stacked(np.stack(d_re + d_im, axis=1) * unit, w)
         return b - Q @ (Q.T @ b), Q @ (Q.T @ Dr) - Dr
 
     memo = {}
