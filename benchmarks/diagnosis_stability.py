@@ -7,10 +7,11 @@ Runs ``vibid identify`` on the real titanium AFC (``../shared/data/real-titanium
 arguments of every call of :func:`vibid.identify.diagnosis.diagnose` (the declared fit's
 residual, each passing refit's, the final one). Each is then diagnosed again ``--draws``
 times with the model's AFC multiplied by ``1 + 1e-9 n`` (``n`` standard normal per point:
-rounding-level, far below any model change the loop makes). Prints, per call, the features (kind, Hz, Q)
-as diagnosed and how many of the draws say something else (:func:`agree`: another kind,
-or a frequency more than 1 % away). A diagnosis is the loop's evidence for which effect to
-try next; one that changes under rounding makes the loop's path depend on it.
+rounding-level, far below any model change the loop makes). Prints, per call, the features
+(kind, Hz, Q) as diagnosed and how many of the draws say something else (:func:`agree`:
+another kind, or a frequency more than 1 % away). A diagnosis is the loop's evidence for
+which effect to try next; one that changes under rounding makes the loop's path depend on
+it.
 """
 
 import argparse
