@@ -204,3 +204,32 @@ def test_coefficient_derivatives_by_complex_step_equal_autodiff(material):
     _, Jm = _coefficient_jacobians(model, theta)
     exact = np.asarray(jax.jacfwd(lambda t: model.inertia(t, jnp))(jnp.asarray(theta)))
     np.testing.assert_array_equal(Jm != 0, exact != 0)
+
+
+def test_the_modes_below_the_cut_off_are_those_of_one_large_solve():
+    """The basis's modes (few asked first, then as many as the count so far says a plate
+    needs) against one shift-invert solve for 60: the same frequencies and shapes, up to
+    the first mode above the cut-off, on a plate that needs 46."""
+    import scipy.sparse.linalg as spla
+
+    from plate_helpers import plate_setup
+    from vibid.identify.model import reduced
+    from vibid.identify.model.modal import arpack_start
+
+    setup = plate_setup(0.15, 0.10, 0.002)
+    model = build_forward_model(setup, np.linspace(50.0, 3200.0, 20),
+                                theta0={"D": 50.0, "nu": 0.3, "beta": 0.01})
+    s, m = reduced._coefficients(model.param, model.theta0)
+    K = model.mats.stiffness_matrix(dict(zip(model.mats.stiffness, s))).tocsc()
+    M = model.mats.inertia_matrix(dict(zip(model.mats.inertia, m))).tocsc()
+    lu = reduced.spd_lu(K)
+    Phi, f_hz = reduced._modes(K, M, lu, 6, 96, 9000.0)
+    lam, Psi = spla.eigsh(K, k=60, M=M, sigma=0.0, which="LM", v0=arpack_start(K.shape[0]))
+    order = np.argsort(lam)
+    f_ref, Psi = np.sqrt(lam[order]) / (2 * np.pi), Psi[:, order]
+    n = f_hz.size
+    assert n == np.searchsorted(f_ref, 9000.0) + 1 == 46
+    np.testing.assert_allclose(f_hz, f_ref[:n], rtol=1e-9)
+    # the shapes span the same space (M-orthonormal): each reference shape is in it
+    coeff = Phi.T @ (M @ Psi[:, :n - 1])
+    np.testing.assert_allclose(np.sum(coeff**2, axis=0), 1.0, atol=1e-8)
