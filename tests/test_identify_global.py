@@ -145,6 +145,29 @@ def test_restarts_stop_once_three_agree_and_run_on_while_they_differ():
     assert np.count_nonzero(ends == ends[0]) == 3  # the best one's basin
 
 
+def test_restarts_that_end_on_one_family_agree_by_their_score():
+    """A score that leaves a line of equal minima (the peak match of fewer peaks than
+    stiffnesses, whose score stays above zero): restarts end anywhere along it, so by
+    ``u`` they never agree and all run; by their score they agree after three. Ends at
+    scores further apart than the tolerance do not agree."""
+    from vibid.identify.fit.global_search import _agreeing, differential_evolution
+
+    stub = _Stub(("a", "b"))
+
+    def valley(U):  # every point of a + b = 0.3 is a minimum, of score 1
+        return 1.0 + (U[:, 0] + U[:, 1] - 0.3) ** 2
+
+    by_u = differential_evolution(stub, restarts=5, rng=1, score=valley)
+    assert len(by_u.messages) == 5
+    assert np.ptp(by_u.u[:, 0]) > 0.05  # spread along the line, each on it
+    np.testing.assert_allclose(by_u.u.sum(axis=1), 0.3, atol=0.05)
+    by_score = differential_evolution(stub, restarts=5, rng=1, score=valley, agree_rtol=1e-3)
+    assert len(by_score.messages) == 3
+    ends = [np.zeros(2), np.ones(2), -np.ones(2)]
+    assert _agreeing(ends, [1.0, 1.0009, 1.0011], 0.02, 1e-3) == 2
+    assert _agreeing(ends, [1.0, 1.0009, 1.0011], 0.02, None) == 1
+
+
 ADAPTIVE_TRUTH = {"D": 18.462, "nu": 0.27283, "beta": 0.0027246}
 
 

@@ -72,6 +72,7 @@ def differential_evolution(
     label: str = "global search",
     agree: int | None = AGREE,
     agree_tol: float = AGREE_TOL,
+    agree_rtol: float | None = None,
 ) -> GlobalResult:
     """Search the prior box for the minimum of chi2, ``restarts`` times.
 
@@ -94,6 +95,9 @@ def differential_evolution(
         ended within ``agree_tol`` (inf-norm in ``u``) of the best one: independent
         populations converging on one point say the box holds no better basin they could
         reach, and the rest would find it again.
+    agree_rtol: where given, the restarts agree by their ``loss`` instead, within this
+        fraction of the best one: a score that leaves a family of equally good points
+        (the peak match of fewer peaks than stiffnesses) spreads equal ends over ``u``.
 
     Returns
     -------
@@ -155,9 +159,7 @@ def differential_evolution(
         messages.append(f"{label}, restart {r + 1}: {sol.message} ({sol.nit} generations)")
         log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
                  space.as_dict(space.theta(u)), sol.nit)
-        best = us[int(np.argmin(losses))]
-        if agree and r + 1 < restarts and sum(
-                np.max(np.abs(v - best)) <= agree_tol for v in us) >= agree:
+        if agree and r + 1 < restarts and _agreeing(us, losses, agree_tol, agree_rtol) >= agree:
             log.info("%s: %d restarts agree, the other %d skipped", label, agree,
                      restarts - r - 1)
             if progress is not None:
@@ -168,6 +170,15 @@ def differential_evolution(
     U = np.array(us)[order]
     return GlobalResult(U, space.theta(U), np.array(losses)[order], n_eval[0],
                         tuple(messages[i] for i in order))
+
+
+def _agreeing(us, losses, agree_tol: float, agree_rtol: float | None) -> int:
+    """How many restarts ended where the best did: within ``agree_tol`` of its ``u``
+    (inf-norm), or with ``agree_rtol``, within that fraction of its loss."""
+    b = int(np.argmin(losses))
+    if agree_rtol is not None:
+        return sum(abs(x - losses[b]) <= agree_rtol * abs(losses[b]) for x in losses)
+    return sum(np.max(np.abs(v - us[b])) <= agree_tol for v in us)
 
 
 def robust_score(problem: LeastSquaresProblem, scale: float = 1.0):
