@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from vibid.cli import main
+from vibid.errors import VibidError
 
 pytestmark = pytest.mark.usefixtures("prefect_harness")
 
@@ -180,6 +181,8 @@ def test_replay_calibrates_the_clamp_as_identify_does(sessions, tmp_path, capsys
     err = capsys.readouterr().err.strip()
     assert "the reference modulus must be a positive number of Pa" in err
     assert len(err.splitlines()) == 1
+    with pytest.raises(VibidError, match="^reference_E_std_pa goes with reference_E_pa$"):
+        replay_flow(sessions["B"], loop=False, restarts=1, reference_E_std_pa=4e9)
 
 
 def test_replay_report_folder_links_its_figures(replayed_cli):

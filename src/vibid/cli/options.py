@@ -44,14 +44,10 @@ def add_reference_options(p) -> None:
 def reference_of(args):
     """The :class:`~vibid.identify.reference.Reference` of ``--reference-E`` (None without
     it); checked before the identification's minutes (a bad one: a one-line error)."""
-    from vibid.errors import VibidError
-    from vibid.identify.reference import Reference
+    from vibid.identify.reference import reference_from
 
-    if args.reference_E is None:
-        if args.reference_E_std:
-            raise VibidError("--reference-E-std goes with --reference-E")
-        return None
-    return Reference(args.reference_E, args.reference_E_std)
+    return reference_from(args.reference_E, args.reference_E_std,
+                          names=("--reference-E", "--reference-E-std"))
 
 
 @contextlib.contextmanager

@@ -53,11 +53,10 @@ def replay_flow(session_path: Path | None = None, *, afc_path: Path | None = Non
     """
     if (session_path is None) == (afc_path is None) or (afc_path is None) != (setup_path is None):
         raise VibidError("replay: give a session file, or an AFC file with its setup")
-    reference = None
-    if reference_E_pa is not None:  # checked before the identification's minutes
-        from vibid.identify.reference import Reference
+    from vibid.identify.reference import reference_from
 
-        reference = Reference(reference_E_pa, reference_E_std_pa)
+    # checked before the identification's minutes
+    reference = reference_from(reference_E_pa, reference_E_std_pa)
     if session_path is not None:
         data = afc_task(os.fspath(session_path))
     else:

@@ -62,6 +62,19 @@ class Reference:
                              f"{self.std_pa:g}")
 
 
+def reference_from(modulus_pa: float | None, std_pa: float = 0.0, *,
+                   names: tuple[str, str] = ("reference_E_pa", "reference_E_std_pa")
+                   ) -> Reference | None:
+    """The :class:`Reference` of a known modulus and its std (Pa), None without a modulus;
+    a std given without one is an error that names the two options (``names``: as the
+    caller spells them, the CLI's ``--reference-E`` or the flow's keyword)."""
+    if modulus_pa is None:
+        if std_pa:
+            raise VibidError(f"{names[1]} goes with {names[0]}")
+        return None
+    return Reference(modulus_pa, std_pa)
+
+
 @dataclass(frozen=True)
 class ClampCalibration:
     """The free length a reference specimen's known modulus gives (module doc): the
