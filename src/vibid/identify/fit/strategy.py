@@ -266,7 +266,7 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
 #: The peak search's restarts agree (and the rest are skipped) once three end within this
 #: fraction of the best score: they matched the same modes to the same peaks. On the
 #: titanium strip's two peaks they end along the family of (D, nu) the peaks leave open
-#: (nu 0.28-0.36) at scores within 5e-4 of each other; two more restarts cost 4 s, and
+#: (nu 0.28-0.36) at scores within 5e-4 of each other; two more restarts cost 3 s, and
 #: the five polishes all ended in the valley the first three reach.
 PEAKS_AGREE_RTOL = 1e-3
 

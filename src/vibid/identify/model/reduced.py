@@ -198,7 +198,9 @@ def spd_lu(K):
 
 #: The first eigensolve asks for this many modes at least (ARPACK's cost grows with the
 #: count: on the titanium strip's 2922 unknowns 8 modes took 14 ms and 16 took 29 ms, the
-#: same lowest six to 1e-15, and a strip's basis keeps 6 to 9 of them).
+#: same frequencies to 1e-15). Of the calibrated titanium run's 218 bases 217 keep 6 or 7
+#: modes; the declared fit's wide basis keeps 9 and takes a second solve (43 ms against
+#: 29; ``benchmarks/modes.py``).
 FIRST_MODES = 8
 
 
@@ -208,7 +210,7 @@ def _modes(K, M, lu, n_min, n_max, f_top):
     ``lu``; where a solve stops short of ``f_top``, the next asks for as many more as a
     plate's mode count, which grows in proportion to the frequency, says it needs (at
     least twice as many): a 150 x 100 x 2 mm steel plate's 46 modes to 9 kHz in two
-    solves (8, then 81), 0.45 s, where doubling took three (16, 32, 64), 0.60 s."""
+    solves (8, then 81), 0.48 s, where doubling took three (16, 32, 64), 0.56-0.60 s."""
     opinv = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
     most = min(n_max, K.shape[0] - 2)
     k = min(max(n_min + 2, FIRST_MODES), most)
