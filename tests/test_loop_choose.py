@@ -381,3 +381,30 @@ def test_a_trend_is_removed_by_the_candidate_that_takes_its_part():
     weaker = SimpleNamespace(features=(Feature("trend", significance=60.0,
                                                part_sizes=(("phase_slope", -0.04),)),))
     assert rounds.removed_feature(before, weaker, ("trend",)) is before.features[0]
+
+
+def test_a_placed_resonance_removes_only_the_poles_around_it():
+    """The calibrated titanium run, round 2: the fixture's refit put its resonance at
+    665.6 Hz, and its residual no longer shows the 660.4 Hz pole (acausal, Q 604) nor the
+    broad one at 1 338 Hz (Q 5.75, the most significant), which the refit's other changes
+    smoothed into a damped mode. It removed the pole beside its resonance, not the broad
+    one 2 times higher in frequency; a stand resonance of a second instance reads its own
+    frequency (``f_hz_2``), and an effect that places none is judged as before."""
+    from vibid.identify.loop.candidates import EffectCandidate
+
+    broad = Feature("extra_pole", f_hz=1338.3, q=5.75, significance=40.0, causal=True)
+    stand = Feature("extra_pole", f_hz=982.2, q=378.7, significance=20.0, causal=True)
+    fixture = Feature("extra_pole", f_hz=660.4, q=604.0, significance=30.0, causal=False)
+    before = SimpleNamespace(features=(broad, stand, fixture))
+    after = SimpleNamespace(features=(
+        Feature("damping", f_hz=1260.1, q=6.0, significance=35.0), stand))
+    cand = EffectCandidate("fixture_resonance")
+    placed = cand.resonances_hz({"f_fixture_hz": 665.6, "D": 1.0}, {"D": 1.0})
+    assert placed == (665.6,)
+    assert rounds.removed_feature(before, after, cand.explains) is broad  # unplaced: as before
+    assert rounds.removed_feature(before, after, cand.explains, placed) is fixture
+    assert rounds.removed_feature(before, after, cand.explains, (1000.0,)) is None
+    second = EffectCandidate("stand_resonance").resonances_hz(
+        {"f_hz_1": 982.0, "f_hz_2": 1365.0, "q_2": 8.0}, {"f_hz_1": 982.0, "q_1": 360.0})
+    assert second == (1365.0,)
+    assert EffectCandidate("channel_delay").resonances_hz({"tau_s": 1e-6}, {}) == ()

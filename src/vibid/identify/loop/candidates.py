@@ -65,6 +65,8 @@ class Candidate(Protocol):
 
     def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None: ...
 
+    def resonances_hz(self, fitted: dict, values: dict) -> tuple[float, ...]: ...
+
     def directions(self, J, names, values: dict, current_names): ...
 
     def distance_from_null(self, result) -> float: ...
@@ -212,6 +214,16 @@ class EffectCandidate:
                 return f"{its} ran to the face of the span around {pole} ({value})"
         return None
 
+    def resonances_hz(self, fitted: dict, values: dict) -> tuple[float, ...]:
+        """Where a refit (``fitted``, from the current ``values``) put the resonances the
+        diagnosis placed (Hz; none for an effect without one): the poles it can explain
+        lie around them."""
+        from vibid.parameters import split_instance
+
+        places = self.term.feature_places
+        return tuple(float(fitted[n]) for n in sorted(self.placed(values))
+                     if places.get(split_instance(n)[0]) == "f_hz" and n in fitted)
+
     def directions(self, J, names, values: dict, current_names):
         """The current model's sensitivities inside the extended model's (its tangent space
         at the null), and the indices of the new directions."""
@@ -309,6 +321,9 @@ class MaterialCandidate:
 
     def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
         return None
+
+    def resonances_hz(self, fitted: dict, values: dict) -> tuple[float, ...]:
+        return ()
 
     def directions(self, J, names, values: dict, current_names):
         """d(D11, D12, D22, D66)/d(D, ν) at the null span the isotropic directions; D22

@@ -138,7 +138,11 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     judged = refit_and_judge(inputs, state, todo, scores, extended)
     kinds = {c.name: c.explains for c in todo}
     after = {n: j.diagnosis for n, j in judged.items() if j.verdict.passes}
-    removes = {n: removed_feature(current.diagnosis, d, kinds[n]) for n, d in after.items()}
+    by_name = {c.name: c for c in todo}
+    placed = {n: by_name[n].resonances_hz(judged[n].fit.result.parameters,
+                                          current.result.parameters) for n in after}
+    removes = {n: removed_feature(current.diagnosis, d, kinds[n], placed[n])
+               for n, d in after.items()}
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
     rounds = state.rounds + (tuple(scores),)
@@ -498,16 +502,28 @@ def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
 
 
 # -- choose ---------------------------------------------------------------------------------
-def removed_feature(before, after, kinds):
+def removed_feature(before, after, kinds, resonances_hz=()):
     """The most significant feature of the diagnosis ``before`` of a kind in ``kinds`` that
     the refit's diagnosis ``after`` no longer shows (none of its kind near it at half its
     significance or more), or None. Of a trend, a candidate that explains some of its
     parts (:data:`~vibid.identify.diagnosis.TREND_PARTS`: a gain its mean offset, a delay
     its phase) removed it where no trend after keeps half of any of those parts: the steel
     strip's gain took the trend's −8.4 % offset and left its phase and a rise across the
-    band, at 0.51 of its significance."""
+    band, at 0.51 of its significance. A candidate whose refit placed resonances
+    (``resonances_hz``, :meth:`~vibid.identify.loop.candidates.EffectCandidate.
+    resonances_hz`) removed only the features within :data:`~vibid.identify.loop.
+    candidates.POLE_SPAN` of one of them: the calibrated titanium run's fixture, its
+    resonance at 666 Hz, was credited with a broad pole at 1 338 Hz that its refit's
+    other changes had smoothed away."""
     if before is None or after is None or not before.features:
         return None
+    from vibid.identify.loop.candidates import POLE_SPAN
+
+    def around(f) -> bool:
+        if not resonances_hz:
+            return True
+        return bool(np.isfinite(f.f_hz) and f.f_hz > 0) and any(
+            abs(math.log(f.f_hz / r)) <= math.log(POLE_SPAN) for r in resonances_hz if r > 0)
 
     def remains(f) -> bool:
         parts = set(f.parts) & set(kinds)  # the parts of a trend the candidate explains
@@ -517,7 +533,8 @@ def removed_feature(before, after, kinds):
                                          for p in parts))
                    for g in after.features)
 
-    gone = [f for f in before.features if set(f.kinds) & set(kinds) and not remains(f)]
+    gone = [f for f in before.features
+            if set(f.kinds) & set(kinds) and not remains(f) and around(f)]
     return max(gone, key=lambda f: f.significance, default=None)
 
 
