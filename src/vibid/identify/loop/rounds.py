@@ -20,7 +20,7 @@ from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
-from vibid.identify.loop.candidates import all_candidates, distance_from_null
+from vibid.identify.loop.candidates import POLE_SPAN, all_candidates, distance_from_null
 from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
 from vibid.identify.profile import timed
@@ -517,7 +517,6 @@ def removed_feature(before, after, kinds, resonances_hz=()):
     other changes had smoothed away."""
     if before is None or after is None or not before.features:
         return None
-    from vibid.identify.loop.candidates import POLE_SPAN
 
     def around(f) -> bool:
         if not resonances_hz:
