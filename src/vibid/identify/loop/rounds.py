@@ -136,12 +136,11 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     scores = [s for s, _ in pairs]
     extended = {s.name: e for s, e in pairs if e is not None}
     judged = refit_and_judge(inputs, state, todo, scores, extended)
-    kinds = {c.name: c.explains for c in todo}
-    after = {n: j.diagnosis for n, j in judged.items() if j.verdict.passes}
     by_name = {c.name: c for c in todo}
-    placed = {n: by_name[n].resonances_hz(judged[n].fit.result.parameters,
-                                          current.result.parameters) for n in after}
-    removes = {n: removed_feature(current.diagnosis, d, kinds[n], placed[n])
+    after = {n: j.diagnosis for n, j in judged.items() if j.verdict.passes}
+    removes = {n: removed_feature(current.diagnosis, d, by_name[n].explains,
+                                  by_name[n].resonances_hz(judged[n].fit.result.parameters,
+                                                           current.result.parameters))
                for n, d in after.items()}
     scores, chosen = choose(scores, judged, current.result,
                             {c.name: c.plainness for c in todo}, removes)
@@ -152,7 +151,7 @@ def play_round(inputs: Inputs, state: State, todo) -> tuple[State, bool]:
     state = replace(state, alternatives=alternatives)
     if chosen is None:
         return replace(state, rounds=rounds), False
-    cand = next(c for c in todo if c.name == chosen.added)
+    cand = by_name[chosen.added]
     box = state.box | cand.bounds(state.box, current.result.parameters, current.diagnosis)
     fit = judged[chosen.added].fit
     own = refits.weighed(inputs.setup, inputs.data, fit, inputs.local)  # its own weights
