@@ -91,6 +91,54 @@ def test_the_model_part_is_the_weighted_spread_of_the_compared_models():
     assert model_spread(explained, "isotropic", h) == {}
 
 
+def test_the_clamp_line_part_is_the_refit_at_a_longer_span_times_what_data_and_box_allow(
+        massless):
+    """Where a residual remains and the setup does not declare the free length's
+    uncertainty, the clamp's line is a part: |∂E/∂L| (E refitted with the free end and the
+    sensor 0.1 mm further from the clamp, the definition) times the line's standard
+    uncertainty, from the data's Fisher information (the ``free_length`` term's exact
+    Jacobian, an independent discretisation of the same stretch, the material refitted)
+    and the rectangular prior over its box. Without a loop's residual, or with the length's
+    uncertainty declared, there is none."""
+    from vibid.identify.budget import clamp_line, with_declared
+    from vibid.identify.engineering import constants
+    from vibid.identify.fit import identify
+    from vibid.identify.fit.data import fit_data
+    from vibid.identify.loop.candidates import EffectCandidate
+    from vibid.identify.loop.scoring import extended_problem
+
+    declared, result = massless
+    s = dataclasses.replace(declared, specimen=dataclasses.replace(declared.specimen,
+                                                                   length_std_m=None))
+    L, x, h = s.specimen.length_m, s.sensors.response.x_m, s.specimen.thickness_m
+    d = 1e-4
+    longer = with_declared(with_declared(s, "length_m", L + d), "sensor_x_m", x + d)
+    refit = identify(longer, result.frequency_hz, result.H, result.H_std, method="local",
+                     start=result.parameters)
+    dE = (constants("isotropic", refit.parameters, h)["E_Pa"]
+          - constants("isotropic", result.parameters, h)["E_Pa"]) / d
+    # the data's information on the line: the free_length term's column, less what the
+    # material's columns mimic
+    data = fit_data(result.frequency_hz, result.H, result.H_std, result.used)
+    box = dict(s.identification.bounds)
+    problem, start, _ = extended_problem(s, data, result, EffectCandidate("free_length"),
+                                         box, None)
+    names = list(problem.space.names)
+    J = problem.jacobian_theta(np.array([start[n] for n in names]))
+    j, others = J[:, names.index("dL_m")], np.delete(J, names.index("dL_m"), axis=1)
+    others = others / np.linalg.norm(others, axis=0)
+    e = j - others @ np.linalg.lstsq(others, j, rcond=None)[0]
+    loop = SimpleNamespace(unexplained_residual=True, final=result,
+                           stages=[SimpleNamespace(result=result, held=())], alternatives=())
+    for half in (5e-3, 2e-5):  # the data locate the line (σ 25 µm); the box does
+        prior = 2 * half / math.sqrt(12)
+        part = clamp_line(s, loop, 1.0, box | {"dL_m": (-half, half)})["E_Pa"]
+        assert part == pytest.approx(abs(dE) / math.sqrt(e @ e + prior**-2), rel=0.03)
+    assert clamp_line(declared, loop, 1.0, box) == {}  # length_std_m declared
+    explained = SimpleNamespace(**{**vars(loop), "unexplained_residual": False})
+    assert clamp_line(s, explained, 1.0, box) == {}
+
+
 def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_value(massless):
     from vibid.report import build_report, console_summary, summary_markdown
 

@@ -35,6 +35,22 @@ root sum of squares of independent parts:
   spans many points, which then count as one: :func:`vibid.identify.fit.noise.
   residual_correlation`).
 
+* ``clamp_line``, where a residual remains, the final model places the clamp's line at the
+  declared edge (no ``free_length`` or ``clamp_compliance`` of its own) and the setup
+  declares no ``length_std_m``: the free length that bending resonances see starts where
+  the strip stops turning, often inside the jaws, and one AFC barely tells a longer span
+  from a softer plate (:mod:`vibid.identify.reference`: ``E ∝ L⁴``). The part is
+  ``|∂c/∂dL| u(dL)``: ∂c/∂dL the estimate's shift when the free end and the sensor both
+  lie further from the line (as a declared quantity's, above), u(dL) the line's standard
+  uncertainty from the data's Fisher information on it (the Gauss–Newton
+  ``|(1 − P) ∂r/∂dL|²``, P the projector on the free parameters' sensitivities, scaled as
+  the fit's covariance) and the prior of a rectangular distribution over the free length's
+  box (``dL_m``: the setup's bounds, else ±5 mm; the GUM's type B), their precisions
+  added. On the titanium strip under its declared setup the data give 3.1 mm, the box
+  2.9 mm, together 2.1 mm: 8.1 GPa of E, where the fit's part is 2.4 GPa. A reference
+  strip in the same clamp measures the line, and the setup's ``length_std_m`` then
+  declares it (``examples/real-steel/titanium_setup.json``).
+
 The parts are independent by construction (different sources), so they add in quadrature.
 """
 
@@ -47,6 +63,7 @@ import numpy as np
 
 from vibid.identify.engineering import constants, sensitivities
 from vibid.identify.fit.noise import residual_correlation
+from vibid.parameters import DL
 from vibid.setup_model import RESPONSE_STD, SPECIMEN_STD
 
 #: The declared quantities a setup may give a standard uncertainty (the setup's own list of
@@ -62,6 +79,11 @@ DECLARED = {("sensor_" if block == "response" else "") + std.replace("_std", "")
 WORDS = {"thickness_m": "thickness", "length_m": "length", "width_m": "width",
          "density_kg_m3": "density", "sensor_x_m": "sensor position (x)",
          "sensor_y_m": "sensor position (y)", "sensor_mass_kg": "sensor mass"}
+
+
+#: How the report's sentences name the clamp's line's part.
+CLAMP_LINE_WORDS = ("the clamp's effective line, which these data cannot tell from the "
+                    "stiffness (a longer free span is a softer plate)")
 
 
 #: The relative step of the central differences in a declared quantity: a step of a whole
@@ -98,43 +120,109 @@ def estimate_shifts(setup, result, names, held=()) -> dict[str, np.ndarray]:
     """name -> (p,) the shift of the estimate when the declared quantity ``name`` is one
     standard uncertainty larger (module doc), for ``names`` among
     :func:`declared_uncertainties`; the parameters ``held`` do not move."""
-    from vibid.identify.fit.data import fit_data
-    from vibid.identify.fit.problem import LeastSquaresProblem
-    from vibid.identify.fit.space import ParameterSpace
-    from vibid.identify.model.forward import build_forward_model
-
     if not names or result.plate_model is None:
         return {}
-    model, theta = result.plate_model, np.asarray(result.values, float)
-    data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
-                    magnitude=result.magnitude)
-    f_used = data.frequency_hz[data.used]
-    # linear coordinates u = (theta - estimate) / half, whatever the prior box: an estimate
-    # outside it (a bent nu) has its derivatives all the same
-    sd = np.asarray(result.std, float)
-    half = np.where(np.isfinite(sd) & (sd > 0), sd, 1e-3 * np.maximum(np.abs(theta), 1e-12))
-    space = ParameterSpace.from_bounds(
-        model.names, {n: (v - h, v + h) for n, v, h in zip(model.names, theta, half)},
-        {n: ("linear",) for n in model.names})
-    u = space.to_u(theta)
-
-    def problem(s):
-        fm = build_forward_model(s, f_used, model=model, theta0=result.parameters)
-        return LeastSquaresProblem(fm, data, space, result.weights)
-
-    free = np.array([n not in held for n in model.names])
-    hessian = problem(setup).hessian(u)[np.ix_(free, free)]
+    at = Linearised(setup, result, held)
     std = declared_uncertainties(setup)
     out = {}
     for name in names:
         value = getattr(_block(setup, DECLARED[name][0]), DECLARED[name][1])
         step = min(std[name], STEP * abs(value)) or std[name]
-        up = problem(with_declared(setup, name, value + step)).value_and_grad(u)[1]
-        down = problem(with_declared(setup, name, value - step)).value_and_grad(u)[1]
-        du = np.zeros(theta.size)
-        du[free] = -np.linalg.lstsq(hessian, (up - down)[free] / 2.0, rcond=1e-12)[0]
-        out[name] = du * half * (std[name] / step)
+        shift, _ = at.moved(lambda s, d: with_declared(s, name, value + d), step)
+        out[name] = shift * std[name]
     return out
+
+
+class Linearised:
+    """``result``'s least-squares problem around its estimate, and how the estimate and
+    the residual move when the setup does (the declared quantities' parts and the clamp's
+    line, module doc). The parameters ``held`` do not move."""
+
+    def __init__(self, setup, result, held=()):
+        from vibid.identify.fit.data import fit_data
+        from vibid.identify.fit.space import ParameterSpace
+
+        self.setup, self.result = setup, result
+        model, self.theta = result.plate_model, np.asarray(result.values, float)
+        self.data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
+                             magnitude=result.magnitude)
+        # linear coordinates u = (theta - estimate) / half, whatever the prior box: an
+        # estimate outside it (a bent nu) has its derivatives all the same
+        sd = np.asarray(result.std, float)
+        self.half = np.where(np.isfinite(sd) & (sd > 0), sd,
+                             1e-3 * np.maximum(np.abs(self.theta), 1e-12))
+        self.space = ParameterSpace.from_bounds(
+            model.names, {n: (v - h, v + h) for n, v, h in zip(model.names, self.theta,
+                                                                self.half)},
+            {n: ("linear",) for n in model.names})
+        self.u = self.space.to_u(self.theta)
+        self.free = np.array([n not in held for n in model.names])
+        self.here = self.problem(setup)
+        self.hessian = self.here.hessian(self.u)[np.ix_(self.free, self.free)]
+
+    def problem(self, setup):
+        from vibid.identify.fit.problem import LeastSquaresProblem
+        from vibid.identify.model.forward import build_forward_model
+
+        f_used = self.data.frequency_hz[self.data.used]
+        fm = build_forward_model(setup, f_used, model=self.result.plate_model,
+                                 theta0=self.result.parameters)
+        return LeastSquaresProblem(fm, self.data, self.space, self.result.weights)
+
+    def moved(self, move, step: float) -> tuple[np.ndarray, np.ndarray]:
+        """(the estimate's shift per unit of a quantity q, (p,); the weighted residual's
+        change per unit of q at the estimate) where ``move(setup, dq)`` is the setup with
+        q changed by dq: central differences on ``step``, the shift by the implicit
+        function theorem (module doc)."""
+        up, down = self.problem(move(self.setup, step)), self.problem(move(self.setup, -step))
+        dg = (up.value_and_grad(self.u)[1] - down.value_and_grad(self.u)[1]) / (2 * step)
+        du = np.zeros(self.theta.size)
+        du[self.free] = -np.linalg.lstsq(self.hessian, dg[self.free], rcond=1e-12)[0]
+        dr = (up.residuals_theta(self.theta) - down.residuals_theta(self.theta)) / (2 * step)
+        return du * self.half, dr
+
+    def unseen(self, dr: np.ndarray) -> float:
+        """How strongly the data see a change whose residual is ``dr`` per unit, once the
+        free parameters have taken up what they can: ``|(1 − P) dr|²``, P the projector on
+        their sensitivities (the Gauss–Newton Fisher information of the change, the
+        others refitted)."""
+        J = self.here.jacobian_theta(self.theta)[:, self.free]
+        scale = np.linalg.norm(J, axis=0)
+        Jn = J / np.where(scale > 0, scale, 1.0)
+        e = dr - Jn @ np.linalg.lstsq(Jn, dr, rcond=1e-12)[0]
+        return float(e @ e)
+
+
+def clamp_line(setup, loop, tau: float, box: dict) -> dict[str, float]:
+    """constant -> the clamp's line's part (module doc), where the loop's final model
+    leaves a residual unexplained, places the clamp's line at the declared edge (no
+    ``free_length`` or ``clamp_compliance`` of its own) and the setup declares no
+    uncertainty of the free length; else empty. ``tau``: the final residual's
+    autocorrelation time; ``box``: the setup's prior boxes (the free length's change
+    ``dL_m``, else the catalogue's)."""
+    if loop is None or not loop.unexplained_residual or "length_m" in declared_uncertainties(
+            setup):
+        return {}
+    final = loop.final
+    if final.plate_model is None or {"free_length", "clamp_compliance"} & set(
+            final.plate_model.effect_names):
+        return {}
+    lo, hi = box.get(DL.name, DL.bounds)
+    prior = (hi - lo) / math.sqrt(12.0)  # a rectangular distribution over the box
+    at = Linearised(setup, final, loop.stages[-1].held)
+    length, x = setup.specimen.length_m, setup.sensors.response.x_m
+
+    def longer(s, d):  # the free end and the sensor both further from the clamp's line
+        return with_declared(with_declared(s, "length_m", length + d), "sensor_x_m", x + d)
+
+    shift, dr = at.moved(longer, STEP * length)
+    c = max(1.0, float(final.chi2_reduced_reported)) * max(1.0, float(tau))
+    seen = at.unseen(dr) / c  # the data's information on the line, scaled as the fit's
+    u = 1.0 / math.sqrt(seen + prior**-2)
+    model = getattr(final.plate_model, "model", None) or final.model
+    keys, g, _ = sensitivities(model, list(final.parameter_names), at.theta,
+                               setup.specimen.thickness_m)
+    return {k: float(abs(v)) * u for k, v in zip(keys, g @ shift)}
 
 
 def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
@@ -189,7 +277,8 @@ def engineering_budget(setup, result, loop=None) -> dict:
     parts = {k: {"fit": float(math.sqrt(v)) if np.isfinite(v) and v >= 0 else math.nan}
              for k, v in zip(keys, fit)}
     std = declared_uncertainties(setup)
-    held = loop.stages[-1].held if loop is not None and loop.final is result else ()
+    is_final = loop is not None and loop.final is result
+    held = loop.stages[-1].held if is_final else ()
     shifts = estimate_shifts(setup, result, list(std), held)
     for name in std:
         if name in shifts:
@@ -204,6 +293,8 @@ def engineering_budget(setup, result, loop=None) -> dict:
     box = dict(setup.identification.bounds)
     for k, v in model_spread(loop, model, h, tau=tau, box=box).items():
         parts[k]["model"] = v
+    for k, v in (clamp_line(setup, loop, tau, box) if is_final else {}).items():
+        parts[k]["clamp_line"] = v
     block = {}
     for k in keys:
         total = sum(v**2 for v in parts[k].values())
@@ -228,8 +319,8 @@ def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
     name, u = max(finite.items(), key=lambda kv: kv[1])
     share = (u / total) ** 2
     what = {"fit": "the fit (the data's noise and the model's misfit)",
-            "model": "the choice of model (the loop's competitive models disagree)"}.get(
-                name, f"the declared {WORDS.get(name, name)}")
+            "model": "the choice of model (the loop's competitive models disagree)",
+            "clamp_line": CLAMP_LINE_WORDS}.get(name, f"the declared {WORDS.get(name, name)}")
     text = f"{constant}'s uncertainty is mostly {what}: {100 * share:.0f} % of its variance"
     if name in std_of:
         # halving the total needs u_new² = u² − ¾ total²: possible when this part is most
@@ -240,6 +331,10 @@ def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
                      f"(now {_fmt(std_of[name], unit)}) to halve it")
         else:
             text += "; even knowing it exactly would not halve the total"
+    elif name == "clamp_line":
+        text += ("; a reference strip of known modulus in the same clamp measures it "
+                 "(vibid identify --reference-E), and the setup's specimen.length_std_m "
+                 "then declares it")
     return text
 
 
