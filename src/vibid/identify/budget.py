@@ -181,7 +181,7 @@ class Linearised:
         dr = (up.residuals_theta(self.theta) - down.residuals_theta(self.theta)) / (2 * step)
         return du * self.half, dr
 
-    def unseen(self, dr: np.ndarray) -> float:
+    def information(self, dr: np.ndarray) -> float:
         """How strongly the data see a change whose residual is ``dr`` per unit, once the
         free parameters have taken up what they can: ``|(1 − P) dr|²``, P the projector on
         their sensitivities (the Gauss–Newton Fisher information of the change, the
@@ -217,7 +217,7 @@ def clamp_line(setup, loop, tau: float, box: dict) -> dict[str, float]:
 
     shift, dr = at.moved(longer, STEP * length)
     c = max(1.0, float(final.chi2_reduced_reported)) * max(1.0, float(tau))
-    seen = at.unseen(dr) / c  # the data's information on the line, scaled as the fit's
+    seen = at.information(dr) / c  # the data's information on the line, scaled as the fit's
     u = 1.0 / math.sqrt(seen + prior**-2)
     model = getattr(final.plate_model, "model", None) or final.model
     keys, g, _ = sensitivities(model, list(final.parameter_names), at.theta,
