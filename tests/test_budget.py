@@ -132,11 +132,11 @@ def test_the_clamp_line_part_is_the_refit_at_a_longer_span_times_what_data_and_b
                            stages=[SimpleNamespace(result=result, held=())], alternatives=())
     for half in (5e-3, 2e-5):  # the data locate the line (σ 25 µm); the box does
         prior = 2 * half / math.sqrt(12)
-        part = clamp_line(s, loop, 1.0, box | {"dL_m": (-half, half)})["E_Pa"]
+        part = clamp_line(s, loop, box | {"dL_m": (-half, half)})["E_Pa"]
         assert part == pytest.approx(abs(dE) / math.sqrt(e @ e + prior**-2), rel=0.03)
-    assert clamp_line(declared, loop, 1.0, box) == {}  # length_std_m declared
+    assert clamp_line(declared, loop, box) == {}  # length_std_m declared
     explained = SimpleNamespace(**{**vars(loop), "unexplained_residual": False})
-    assert clamp_line(s, explained, 1.0, box) == {}
+    assert clamp_line(s, explained, box) == {}
 
 
 def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_value(massless):

@@ -57,12 +57,13 @@ The parts are independent by construction (different sources), so they add in qu
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
 
 from vibid.identify.engineering import constants, sensitivities
-from vibid.identify.fit.noise import residual_correlation
+from vibid.identify.fit.noise import misfit_scale, residual_correlation
 from vibid.parameters import DL
 from vibid.setup_model import RESPONSE_STD, SPECIMEN_STD
 
@@ -116,13 +117,15 @@ def with_declared(setup, name: str, value: float):
     return dataclasses.replace(setup, sensors=dataclasses.replace(setup.sensors, response=block))
 
 
-def estimate_shifts(setup, result, names, held=()) -> dict[str, np.ndarray]:
+def estimate_shifts(setup, result, names, held=(), linearised=None) -> dict[str, np.ndarray]:
     """name -> (p,) the shift of the estimate when the declared quantity ``name`` is one
     standard uncertainty larger (module doc), for ``names`` among
-    :func:`declared_uncertainties`; the parameters ``held`` do not move."""
+    :func:`declared_uncertainties`; the parameters ``held`` do not move. ``linearised``:
+    ``result``'s :class:`Linearised` where the caller has it already (a function that
+    returns it)."""
     if not names or result.plate_model is None:
         return {}
-    at = Linearised(setup, result, held)
+    at = linearised() if linearised else Linearised(setup, result, held)
     std = declared_uncertainties(setup)
     out = {}
     for name in names:
@@ -186,20 +189,18 @@ class Linearised:
         free parameters have taken up what they can: ``|(1 − P) dr|²``, P the projector on
         their sensitivities (the Gauss–Newton Fisher information of the change, the
         others refitted)."""
-        J = self.here.jacobian_theta(self.theta)[:, self.free]
-        scale = np.linalg.norm(J, axis=0)
-        Jn = J / np.where(scale > 0, scale, 1.0)
-        e = dr - Jn @ np.linalg.lstsq(Jn, dr, rcond=1e-12)[0]
-        return float(e @ e)
+        from vibid.identify.loop.scoring import projected
+
+        return float(dr @ dr) - projected(self.here.jacobian_theta(self.theta)[:, self.free], dr)
 
 
-def clamp_line(setup, loop, tau: float, box: dict) -> dict[str, float]:
+def clamp_line(setup, loop, box: dict, linearised=None) -> dict[str, float]:
     """constant -> the clamp's line's part (module doc), where the loop's final model
     leaves a residual unexplained, places the clamp's line at the declared edge (no
     ``free_length`` or ``clamp_compliance`` of its own) and the setup declares no
-    uncertainty of the free length; else empty. ``tau``: the final residual's
-    autocorrelation time; ``box``: the setup's prior boxes (the free length's change
-    ``dL_m``, else the catalogue's)."""
+    uncertainty of the free length; else empty. ``box``: the setup's prior boxes (the free
+    length's change ``dL_m``, else the catalogue's); ``linearised``: the final fit's
+    :class:`Linearised` where the caller has it already (a function that returns it)."""
     if loop is None or not loop.unexplained_residual or "length_m" in declared_uncertainties(
             setup):
         return {}
@@ -209,15 +210,14 @@ def clamp_line(setup, loop, tau: float, box: dict) -> dict[str, float]:
         return {}
     lo, hi = box.get(DL.name, DL.bounds)
     prior = (hi - lo) / math.sqrt(12.0)  # a rectangular distribution over the box
-    at = Linearised(setup, final, loop.stages[-1].held)
+    at = linearised() if linearised else Linearised(setup, final, loop.stages[-1].held)
     length, x = setup.specimen.length_m, setup.sensors.response.x_m
 
     def longer(s, d):  # the free end and the sensor both further from the clamp's line
         return with_declared(with_declared(s, "length_m", length + d), "sensor_x_m", x + d)
 
     shift, dr = at.moved(longer, STEP * length)
-    c = max(1.0, float(final.chi2_reduced_reported)) * max(1.0, float(tau))
-    seen = at.information(dr) / c  # the data's information on the line, scaled as the fit's
+    seen = at.information(dr) / math.prod(misfit_scale(final))  # scaled as the fit's
     u = 1.0 / math.sqrt(seen + prior**-2)
     model = getattr(final.plate_model, "model", None) or final.model
     keys, g, _ = sensitivities(model, list(final.parameter_names), at.theta,
@@ -279,7 +279,10 @@ def engineering_budget(setup, result, loop=None) -> dict:
     std = declared_uncertainties(setup)
     is_final = loop is not None and loop.final is result
     held = loop.stages[-1].held if is_final else ()
-    shifts = estimate_shifts(setup, result, list(std), held)
+    # built at most once, for the declared quantities and the clamp's line alike (its
+    # Hessian is the budget's dearest step)
+    linearised = functools.cache(lambda: Linearised(setup, result, held))
+    shifts = estimate_shifts(setup, result, list(std), held, linearised)
     for name in std:
         if name in shifts:
             moved = g @ shifts[name] + (dh * std[name] if name == "thickness_m" else 0.0)
@@ -293,7 +296,7 @@ def engineering_budget(setup, result, loop=None) -> dict:
     box = dict(setup.identification.bounds)
     for k, v in model_spread(loop, model, h, tau=tau, box=box).items():
         parts[k]["model"] = v
-    for k, v in (clamp_line(setup, loop, tau, box) if is_final else {}).items():
+    for k, v in (clamp_line(setup, loop, box, linearised) if is_final else {}).items():
         parts[k]["clamp_line"] = v
     block = {}
     for k in keys:
