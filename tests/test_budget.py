@@ -130,7 +130,7 @@ def test_the_clamp_line_part_covers_a_free_span_the_data_cannot_name():
     explains: the loop leaves a residual and does not name the free length, and its E
     comes out 14 % low, 15 GPa, four times the fit's and model's parts together. With the
     clamp's line counted, E ± 2 std reaches the beam's modulus; the data's own first-order
-    information on the line (0.95 mm) did not."""
+    information on the line (0.60 mm) did not."""
     import beam_reference as beam
     from loop_data import noisy
     from plate_helpers import plate_setup

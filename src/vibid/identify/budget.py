@@ -47,8 +47,8 @@ root sum of squares of independent parts:
   candidate has asked the data already and not found the line; the data's own first-order
   information on it is not counted, since beside an unexplained residual it is not to be
   trusted: on an exact beam 3 mm longer than declared, with a 2 % crosstalk no candidate
-  explains, it put the line at the declared edge within 0.95 mm (and one Gauss–Newton step
-  from there at about 1.2 mm), where the box's 2.9 mm covers the truth
+  explains, it put the line at the declared edge within 0.60 mm (one Gauss–Newton step
+  towards the line the data prefer, within 0.95 mm), where the box's 2.9 mm covers the truth
   (``tests/test_budget.py``). On the titanium strip under its declared setup this part is
   11.1 GPa of E, where the fit's part is 2.4 GPa. A reference strip in the same clamp
   measures the line, and the setup's ``length_std_m`` then declares it
@@ -139,9 +139,9 @@ def estimate_shifts(setup, result, names, held=(), linearised=None) -> dict[str,
 
 
 class Linearised:
-    """``result``'s least-squares problem around its estimate, and how the estimate and
-    the residual move when the setup does (the declared quantities' parts and the clamp's
-    line, module doc). The parameters ``held`` do not move."""
+    """``result``'s least-squares problem around its estimate, and how the estimate moves
+    when the setup does (the declared quantities' parts and the clamp's line, module doc).
+    The parameters ``held`` do not move."""
 
     def __init__(self, setup, result, held=()):
         from vibid.identify.fit.data import fit_data
@@ -162,8 +162,7 @@ class Linearised:
             {n: ("linear",) for n in model.names})
         self.u = self.space.to_u(self.theta)
         self.free = np.array([n not in held for n in model.names])
-        self.here = self.problem(setup)
-        self.hessian = self.here.hessian(self.u)[np.ix_(self.free, self.free)]
+        self.hessian = self.problem(setup).hessian(self.u)[np.ix_(self.free, self.free)]
 
     def problem(self, setup):
         from vibid.identify.fit.problem import LeastSquaresProblem
