@@ -27,8 +27,9 @@ Evaluation (JAX, float64, pure, jit-able, differentiable to any order), by
 * ``modal`` path, when every stiffness term shares one loss factor β: with ``A = Σ s_k K̃_k``
   and ``M̃ = Σ m_k M̃_k``, ``A = Q Λ Qᵀ`` (generalised ``eigh``),
   ``H(ω) = 1 + Σ_j (cᵀq_j)(q_jᵀ f) ω² / ((1 + iβ L(ω)) λ_j − ω²)``;
-* ``direct`` path (one loss per modulus): a batched dense solve of
-  ``(Σ ŝ_k K̃_k − ω² M̃) q = ω² f`` per frequency;
+* ``direct`` path (one loss per modulus): a dense solve of
+  ``(Σ ŝ_k K̃_k − ω² M̃) q = ω² f`` per frequency, one frequency at a time (never a
+  batched LAPACK call: :meth:`ReducedKernel._direct`);
 
 and, where a term rocks the base, ``H_translation + θ(ω) H_rotation`` with the rotation's
 load in place of the translation's; then the terms' maps on H (delay, gain).
@@ -444,10 +445,7 @@ class ReducedKernel:
             b = model.losses(theta, jnp)
             c = s[None, :] * (1.0 + 1j * b[None, :] * (1.0 if law is None else law[:, None]))
             c = c * jnp.ones((w2.shape[0], 1))
-            A = jnp.einsum("ft,tij->fij", c, a["K"].astype(jnp.complex128)) + a["pad"]
-            sys = A - w2[:, None, None] * Mr[None]
-            rhs = jnp.stack([w2[:, None] * f[None, :] for f, _ in loads], axis=-1)
-            q = jnp.linalg.solve(sys, rhs.astype(jnp.complex128))  # (nf, m, loads)
+            q = self._direct(a, c, w2, Mr, [f for f, _ in loads])  # (nf, m, loads)
             Hs = [r + q[..., j] @ probe for j, (_, r) in enumerate(loads)]
         H = Hs[0]
         if model.rotates_base:
@@ -465,6 +463,41 @@ class ReducedKernel:
         if self.model.rotates_base:
             loads.append((m @ a["load_rotation"], c @ a["probe_rotation"]))
         return jnp.tensordot(m, a["M"], axes=1) + a["M_pad"], c @ a["probe"], loads
+
+    @staticmethod
+    def _direct(a: dict, c, w2, Mr, loads):
+        """``q`` (nf, m, loads): ``(Σ c_fk K_k − ω_f² M) q_f = ω_f² [loads]`` solved one
+        frequency at a time.
+
+        The system is complex symmetric, not Hermitian (no Cholesky), so each frequency is
+        an LU solve: LAPACK's ``zgetrf`` and two ``ztrsm``. Solved as one batch over the
+        frequencies (``jnp.linalg.solve`` on (nf, m, m)), jaxlib 0.10's LAPACK kernels split
+        the batch over XLA's intra-op thread pool and block until it is done
+        (``jax::ParallelBatchMap`` → ``absl::BlockingCounter::Wait``); when XLA runs two such
+        calls side by side on a two-thread pool (the Hessian's value and tangent solves),
+        each pool thread waits for chunks queued behind the other and the process hangs
+        for good: 3 loop runs in about 25 on a lab PC's two cores, either thread setting.
+        jaxlib runs a call whose batch is one matrix inline, on the calling thread
+        (``chunk_size >= batch_count``), so here ``jax.lax.map`` loops over the
+        frequencies and every LAPACK call sees one matrix; the derivatives keep it so
+        (the tangents of a solve with an unbatched matrix become extra right-hand-side
+        columns, ``_triangular_solve_batching_rule``), and
+        ``tests/test_no_batched_lapack.py`` checks every compiled function of the fit for a
+        LAPACK call with a batch. No jaxlib the registry serves (0.10.2 is the newest)
+        compiles that parallel path out. Costs nothing measurable: the loop's step is
+        microseconds against an LU of tens of unknowns."""
+        import jax
+        import jax.numpy as jnp
+
+        K = a["K"].astype(jnp.complex128)
+        f = jnp.stack(loads, axis=-1).astype(jnp.complex128)  # (m, loads)
+
+        def one(cw):
+            c_f, w2_f = cw
+            sys = jnp.tensordot(c_f, K, axes=1) + a["pad"] - w2_f * Mr
+            return jnp.linalg.solve(sys, w2_f * f)
+
+        return jax.lax.map(one, (c, w2))
 
     @staticmethod
     def _modal(a: dict, s, Mr, loads, probe):
