@@ -134,7 +134,7 @@ def test_only_real_records_and_bad_frequencies(tmp_path):
         read_afc_uff(real)
     negative = tmp_path / "negative.uff"
     _pyuff_record(negative, -F[::-1], H, spacing=0, binary=1)
-    with pytest.raises(VibidError, match="frequencies must be positive"):
+    with pytest.raises(VibidError, match="record 1, point 1: frequency_hz -497.13370021 Hz is not positive"):
         read_afc_uff(negative)
     with pytest.raises(VibidError, match="not finite"):
         write_afc_uff(tmp_path / "nan.uff", F, H * np.nan, STD, session_id="x")

@@ -95,8 +95,10 @@ def session_afc(session_path: str | os.PathLike) -> SessionAfc:
 def afc_file(afc_path: str | os.PathLike, setup_path: str | os.PathLike) -> SessionAfc:
     """An AFC measured elsewhere (CSV or UFF58, told apart by content:
     :func:`vibid.signal.imported.read_afc`) with its declared setup (a setup JSON file, or
-    a session file whose setup it is)."""
-    from vibid.signal.imported import read_afc
+    a session file whose setup it is). Where the two meet, every frequency of the AFC must
+    lie below the Nyquist frequency of the setup's DAQ
+    (:func:`vibid.signal.imported.refuse_beyond_nyquist`: one line naming the row)."""
+    from vibid.signal.imported import read_afc, refuse_beyond_nyquist
 
     afc = read_afc(os.fspath(afc_path))
     path = os.fspath(setup_path)
@@ -104,8 +106,11 @@ def afc_file(afc_path: str | os.PathLike, setup_path: str | os.PathLike) -> Sess
         from vibid.session import read_session
 
         with read_session(path) as session:
-            return SessionAfc(session.setup, afc.session_id, afc)
-    return SessionAfc(read_setup(path), afc.session_id, afc)
+            setup = session.setup
+    else:
+        setup = read_setup(path)
+    refuse_beyond_nyquist(afc, setup.daq.sample_rate_hz, shown=os.fspath(afc_path))
+    return SessionAfc(setup, afc.session_id, afc)
 
 
 def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:

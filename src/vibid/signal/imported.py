@@ -1,16 +1,42 @@
 """An AFC measured by another system, read from CSV (``frequency_hz, re, im[, std]``) or
 from a Universal File, dataset 58 (:mod:`vibid.signal.uff`); :func:`read_afc` tells the two
-apart by content, not by extension.
+apart by content, not by extension (a file whose first non-blank line is ``-1`` is UFF).
 
 The identification and the closed loop take it as they take a session's AFC. Without a
 ``std`` column (a UFF file: without vibid's std record) the fit falls back on the paper's
 plain mean-square weighting (and the loop, which tests the residual against the noise,
 cannot run). The report's ``session_id`` of an imported AFC is derived from the file's
 bytes, so the same file gives the same id.
+
+What every reader (CSV and UFF58) does with what it reads, before any fit; anything it
+refuses is one line (:class:`~vibid.errors.VibidError`) naming the file and the row (a CSV's
+line, a UFF record's point):
+
+* **order**: the points are sorted by frequency, so a file listed in any order (descending,
+  as acquired) gives the same AFC, hence the same fit;
+* **repeated frequencies**: rows at the same frequency that agree in every column (a file
+  concatenated twice, a band edge exported twice) are one point, counted once; rows at the
+  same frequency whose values differ are refused, naming both rows: which one is the
+  measurement is the lab's call, not the reader's (average them, or keep one);
+* **values**: frequency, re, im and std must be finite numbers, frequency and std positive;
+  re, im and std at most :data:`MAX_ABS_H` in size (an AFC is a ratio of accelerations), std
+  at least :data:`MIN_REL_STD` of the largest |H| (finer than any DAQ resolves);
+* **signal**: an AFC whose largest |H| is below :data:`MIN_PEAK_H` (every H zero: the
+  response channel not connected), or, with a std, none of whose points stands above its
+  std (:data:`MIN_SNR`), holds no measurement to fit;
+* **band** (where the AFC meets its setup, :func:`vibid.pipeline.afc_file`): every
+  frequency must lie below the setup DAQ's Nyquist frequency (:func:`refuse_beyond_nyquist`).
+
+A CSV file is UTF-8 (a byte-order mark is skipped), UTF-16 with its byte-order mark, or,
+failing UTF-8, Latin-1 (numbers and the header are ASCII alike); line ends LF, CRLF or CR;
+blank lines are skipped; columns are found by their header names (others are ignored), a
+row holding more non-empty fields than the header is refused (a decimal comma splits
+numbers into two fields).
 """
 
 from __future__ import annotations
 
+import codecs
 import csv
 import hashlib
 import io
@@ -26,20 +52,46 @@ from vibid.errors import VibidError
 
 COLUMNS = ("frequency_hz", "re", "im")
 
+#: The largest |re|, |im| and std of an AFC (dimensionless). H is a ratio of two
+#: accelerations, the plate's over the table's: a resonance amplifies the table's motion by
+#: its quality factor, at most ~1e5 for the least damped metal (loss factor 1e-5), and no
+#: accelerometer pair spans more than ~120 dB (1e6) between the channels. Beyond this a
+#: number is not a measurement (a unit mix-up, a file of another quantity, an overflow).
+MAX_ABS_H = 1e6
+#: The smallest largest-|H| of an AFC: a response 120 dB below the table's at every
+#: frequency is under the noise floor of a 24-bit DAQ (6e-8 of full scale), i.e. no
+#: response was measured (below its first mode a clamped plate moves with the table,
+#: |H| ≈ 1).
+MIN_PEAK_H = 1e-6
+#: The smallest std, relative to the AFC's largest |H|: a 24-bit ADC resolves 6e-8 of full
+#: scale, and no record averages that down by another 1e4; a std below this is not an
+#: uncertainty of a measurement, and its weight 1/std² would swamp every other point.
+MIN_REL_STD = 1e-12
+#: With a std, some point of the AFC must stand above its own noise: |H|/std at least this.
+MIN_SNR = 1.0
+
 
 @dataclass(frozen=True)
 class ImportedAfc:
-    """frequency_hz (n,) Hz; H (n,) complex; std (n,) per real and imaginary part, or None;
-    session_id: derived from the file's content."""
+    """frequency_hz (n,) Hz, increasing, distinct; H (n,) complex; std (n,) per real and
+    imaginary part, or None; session_id: derived from the file's content; ``rows`` (n,)
+    the row of the file each point comes from (a CSV's line, a UFF record's point number),
+    ``unit`` the words naming one and two of them (:meth:`where`)."""
 
     frequency_hz: np.ndarray
     H: np.ndarray
     std: np.ndarray | None
     session_id: str
+    rows: np.ndarray | None = None
+    unit: tuple[str, str] = ("line", "lines")
 
     @property
     def used(self) -> np.ndarray:
         return np.ones(self.frequency_hz.size, bool)
+
+    def where(self, k: int) -> str:
+        """Where point ``k`` comes from in the file, e.g. ``line 12``."""
+        return f"{self.unit[0]} {k + 1 if self.rows is None else int(self.rows[k])}"
 
     def to_report_block(self) -> dict[str, Any]:
         return {"frequency_hz": self.frequency_hz.tolist(), "re": self.H.real.tolist(),
@@ -48,9 +100,9 @@ class ImportedAfc:
 
 
 def read_afc(path) -> ImportedAfc:
-    """Read an AFC file, UFF58 or CSV as its content says (a UFF file starts with a ``-1``
-    line, :func:`vibid.signal.uff.is_uff`); a one-line :class:`VibidError` for anything
-    wrong."""
+    """Read an AFC file, UFF58 or CSV as its content says (a UFF file's first non-blank
+    line is ``-1``, :func:`vibid.signal.uff.is_uff`); a one-line :class:`VibidError` for
+    anything wrong (module docstring)."""
     from vibid.signal.uff import is_uff, read_afc_uff
 
     return read_afc_uff(path) if is_uff(path) else read_afc_csv(path)
@@ -62,44 +114,201 @@ def content_session_id(raw: bytes) -> str:
 
 
 def read_afc_csv(path) -> ImportedAfc:
-    """Read an AFC CSV file; a clear one-line :class:`VibidError` for anything wrong."""
+    """Read an AFC CSV file (module docstring); a clear one-line :class:`VibidError` for
+    anything wrong."""
     p = Path(path)
     try:
         raw = p.read_bytes()
     except OSError as exc:
         raise VibidError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise VibidError(f"{path}: not a text CSV file") from None
-    rows = list(csv.reader(io.StringIO(text)))
+    rows = _csv_rows(path, _decoded(raw))
     if not rows:
         raise VibidError(f"{path}: empty file")
-    header = [h.strip() for h in rows[0]]
-    missing = [c for c in COLUMNS if c not in header]
-    if missing:
-        raise VibidError(f"{path}: the header lacks {', '.join(missing)} (expected columns "
-                         "frequency_hz, re, im and optionally std)")
-    cols = {name: header.index(name) for name in COLUMNS + ("std",) if name in header}
-    values = {name: [] for name in cols}
-    for line, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
+    (_, header), body = rows[0], rows[1:]
+    cols = _columns(path, header)
+    values = {name: np.empty(len(body)) for name in cols}
+    lines = np.empty(len(body), int)
+    for i, (line, row) in enumerate(body):
+        if (filled := sum(1 for c in row if c.strip())) > len(header):
+            raise VibidError(f"{path}: line {line}: {filled} fields, more than the header's "
+                             f"{len(header)} (a decimal comma?)")
         for name, k in cols.items():
-            try:
-                v = float(row[k])
-            except (IndexError, ValueError):
-                raise VibidError(f"{path}: line {line}: {name} is not a number") from None
-            if not math.isfinite(v):
-                raise VibidError(f"{path}: line {line}: {name} is not finite")
-            values[name].append(v)
-    f = np.array(values["frequency_hz"])
+            values[name][i] = _number(path, line, name, row[k] if k < len(row) else None)
+        lines[i] = line
+    H = np.empty(len(body), complex)
+    H.real, H.imag = values["re"], values["im"]  # not re + 1j * im: 1j * inf has a nan real part
+    return checked_afc(path, values["frequency_hz"], H, values.get("std"), lines,
+                       ("line", "lines"), content_session_id(raw))
+
+
+def _decoded(raw: bytes) -> str:
+    """The text of a CSV file's bytes: UTF-16 by its byte-order mark, else UTF-8 (a mark
+    skipped), else Latin-1 (module docstring)."""
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        try:
+            return raw.decode("utf-16")
+        except UnicodeDecodeError:
+            pass
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _csv_rows(path, text: str) -> list[tuple[int, list[str]]]:
+    """The non-blank rows of a CSV text with the line each ends on (1-based); any line end
+    (LF, CRLF, CR)."""
+    reader = csv.reader(io.StringIO(text, newline=None))
+    out = []
+    try:
+        for row in reader:
+            if any(c.strip() for c in row):
+                out.append((reader.line_num, row))
+    except csv.Error as exc:
+        raise VibidError(f"{path}: line {reader.line_num}: not CSV ({exc})") from None
+    return out
+
+
+def _columns(path, header: list[str]) -> dict[str, int]:
+    """The column of each of :data:`COLUMNS` and of ``std`` if there, by header name."""
+    names = [h.strip() for h in header]
+    missing = [c for c in COLUMNS if c not in names]
+    if missing:
+        hint = " (is it separated by ';' or tabs? commas are expected)" if any(
+            s in ",".join(names) for s in (";", "\t")) else ""
+        raise VibidError(f"{path}: the header lacks {', '.join(missing)} (expected columns "
+                         f"frequency_hz, re, im and optionally std){hint}")
+    wanted = COLUMNS + ("std",)
+    twice = [c for c in wanted if names.count(c) > 1]
+    if twice:
+        raise VibidError(f"{path}: the header names {', '.join(twice)} more than once")
+    return {name: names.index(name) for name in wanted if name in names}
+
+
+def _number(path, line: int, name: str, cell: str | None) -> float:
+    """The number in ``cell`` (the column ``name`` of ``line``); finiteness is judged
+    later (:func:`checked_afc`)."""
+    if cell is None or not cell.strip():
+        raise VibidError(f"{path}: line {line}: {name} is missing")
+    try:
+        if "_" in cell:  # Python's float() takes 1_000; a CSV's number does not
+            raise ValueError
+        return float(cell)
+    except ValueError:
+        shown = cell.strip()
+        shown = shown if len(shown) <= 30 else shown[:27] + "..."
+        raise VibidError(f"{path}: line {line}: {name} {shown!r} is not a number") from None
+
+
+def checked_afc(path, frequency_hz, H, std, rows, unit: tuple[str, str],
+                session_id: str) -> ImportedAfc:
+    """The :class:`ImportedAfc` of the points read from ``path`` in file order (``rows``:
+    each one's row, named by ``unit``), checked, sorted by frequency, repeated rows merged
+    (module docstring); one-line VibidError naming the row otherwise."""
+    f = np.asarray(frequency_hz, float)
+    h = np.asarray(H, complex)
+    s = None if std is None else np.asarray(std, float)
+    rows = np.asarray(rows, int)
+    say = lambda k: f"{path}: {unit[0]} {int(rows[k])}: "  # noqa: E731
+    _refuse_bad_values(say, f, h, s)
+    order = np.argsort(f, kind="stable")
+    f, h, rows = f[order], h[order], rows[order]
+    s = None if s is None else s[order]
+    f, h, s, rows = _merged_repeats(path, unit, f, h, s, rows)
     if f.size < 2:
         raise VibidError(f"{path}: fewer than two AFC points")
-    if np.any(f <= 0):
-        raise VibidError(f"{path}: frequencies must be positive")
-    std = np.array(values["std"]) if "std" in values else None
-    if std is not None and np.any(std < 0):
-        raise VibidError(f"{path}: std must not be negative")
-    return ImportedAfc(f, np.array(values["re"]) + 1j * np.array(values["im"]), std,
-                       content_session_id(raw))
+    _refuse_no_signal(path, say, h, s)
+    return ImportedAfc(f, h, s, session_id, rows, unit)
+
+
+def _first_bad(checks) -> tuple[int, str] | None:
+    """Of ``[(mask, describe)]``, the first point any mask marks (file order) and what the
+    first check marking it says of it (``describe(k)``); None if none."""
+    best = None
+    for mask, describe in checks:
+        bad = np.flatnonzero(mask)
+        if bad.size and (best is None or bad[0] < best[0]):
+            best = (int(bad[0]), describe)
+    return None if best is None else (best[0], best[1](best[0]))
+
+
+def _refuse_bad_values(say, f, h, s) -> None:
+    """Non-finite numbers, non-positive frequencies or std, magnitudes beyond
+    :data:`MAX_ABS_H`: a VibidError naming the first such row in the file."""
+    limit = f"beyond ±{MAX_ABS_H:g}: an AFC is a ratio of accelerations, not a measurement"
+    checks = [
+        (~np.isfinite(f), lambda k: f"frequency_hz is {float(f[k])!r}, not a finite number"),
+        (np.isfinite(f) & (f <= 0), lambda k: f"frequency_hz {float(f[k])!r} Hz is not positive"),
+        (~np.isfinite(h.real), lambda k: f"re is {float(h[k].real)!r}, not a finite number"),
+        (~np.isfinite(h.imag), lambda k: f"im is {float(h[k].imag)!r}, not a finite number"),
+        (np.isfinite(h.real) & (np.abs(h.real) > MAX_ABS_H), lambda k: f"re {float(h[k].real)!r} is {limit}"),
+        (np.isfinite(h.imag) & (np.abs(h.imag) > MAX_ABS_H), lambda k: f"im {float(h[k].imag)!r} is {limit}"),
+    ]
+    if s is not None:
+        checks += [
+            (~np.isfinite(s), lambda k: f"std is {float(s[k])!r}, not a finite number"),
+            (np.isfinite(s) & (s <= 0), lambda k: f"std {float(s[k])!r} must be positive"),
+            (np.isfinite(s) & (s > MAX_ABS_H), lambda k: f"std {float(s[k])!r} is {limit}"),
+        ]
+    bad = _first_bad(checks)
+    if bad is not None:
+        raise VibidError(say(bad[0]) + bad[1])
+
+
+def _merged_repeats(path, unit, f, h, s, rows):
+    """Sorted points with each run of equal frequencies merged into its first row when the
+    rows agree in every value; a VibidError naming two rows that disagree."""
+    same = f[1:] == f[:-1]
+    if not same.any():
+        return f, h, s, rows
+    agree = (h[1:] == h[:-1]) & (True if s is None else s[1:] == s[:-1])
+    clash = np.flatnonzero(same & ~agree)
+    if clash.size:
+        k = clash[np.argmin(np.minimum(rows[clash], rows[clash + 1]))]
+        a, b = sorted((int(rows[k]), int(rows[k + 1])))
+        raise VibidError(f"{path}: {unit[1]} {a} and {b} both give {float(f[k])!r} Hz, with "
+                         "different values: keep one of them, or average them")
+    keep = np.concatenate([[True], ~same])
+    return f[keep], h[keep], None if s is None else s[keep], rows[keep]
+
+
+def _refuse_no_signal(path, say, h, s) -> None:
+    """An AFC without a measured response (:data:`MIN_PEAK_H`, :data:`MIN_SNR`) or with a
+    std finer than any measurement (:data:`MIN_REL_STD`)."""
+    size = np.abs(h)
+    peak = float(size.max())
+    if peak == 0.0:
+        raise VibidError(f"{path}: every H is 0: no response measured (is the response "
+                         "channel connected?)")
+    if peak < MIN_PEAK_H:
+        raise VibidError(f"{path}: the largest |H| is {peak:.3g}, below {MIN_PEAK_H:g} (120 dB "
+                         "under the table's motion at every frequency): no response measured")
+    if s is None:
+        return
+    k = int(np.argmin(s))
+    if s[k] < MIN_REL_STD * peak:
+        raise VibidError(say(k) + f"std {float(s[k])!r} is below {MIN_REL_STD:g} of the largest |H| "
+                         f"({peak:.6g}): finer than any DAQ resolves")
+    snr = float(np.max(size / s))
+    if snr < MIN_SNR:
+        raise VibidError(f"{path}: no point of the AFC stands above its std (the largest "
+                         f"|H|/std is {snr:.3g}): no response measured")
+
+
+def refuse_beyond_nyquist(afc: ImportedAfc, sample_rate_hz: float, *, shown) -> None:
+    """Refuse an AFC (read from ``shown``) with a frequency at or above the Nyquist
+    frequency ``sample_rate_hz / 2`` (Hz) of the setup's DAQ: no sampled record holds it
+    (one line naming the first such row in the file). A sample rate that is not a positive
+    number is the setup's own problem (its validation says so), and checks nothing here."""
+    rate = float(sample_rate_hz)
+    if not (math.isfinite(rate) and rate > 0):
+        return
+    nyquist = rate / 2
+    above = np.flatnonzero(np.asarray(afc.frequency_hz) >= nyquist)
+    if not above.size:
+        return
+    k = int(above[0] if afc.rows is None else above[np.argmin(afc.rows[above])])
+    more = f" (and {above.size - 1} more points)" if above.size > 1 else ""
+    raise VibidError(f"{shown}: {afc.where(k)}: {float(afc.frequency_hz[k])!r} Hz is not below "
+                     f"the Nyquist frequency {nyquist!r} Hz of the setup's DAQ "
+                     f"(daq.sample_rate_hz {rate!r}){more}")

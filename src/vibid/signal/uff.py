@@ -18,18 +18,31 @@ Reading takes any UFF58 file, from other systems too: the first record with comp
 ordinates is the AFC (even abscissa spacing is expanded from its minimum and increment; a
 0 Hz line, an FFT analyser's DC line, is dropped), and the std is read only from a real
 record marked as vibid's with the same abscissa (otherwise none, as a CSV without ``std``).
+Its points are then checked, sorted and merged as a CSV's are
+(:func:`vibid.signal.imported.checked_afc`: the order of the points does not matter, repeated
+identical points count once, conflicting ones are refused naming both points).
+
+A file is UFF when its first non-blank line is ``-1`` (:func:`is_uff`); one that then is no
+readable UFF (a ``-1`` not right-justified in six columns, no dataset number, a last record
+without its closing ``-1`` line: a truncated file) is refused in one line, not read as CSV.
+Line ends may be LF or CRLF. A binary record's data must be exactly the bytes its points
+take; a binary file whose every LF was made CRLF on the way (an FTP transfer in text mode, a
+Windows checkout), which shifts the doubles that follow, is read as it was before that (the
+conversion undone in the binary data, which then has its exact length again); any other
+length is refused as truncated or damaged, never read shifted.
 """
 
 from __future__ import annotations
 
 import os
+import tempfile
 import uuid
 from pathlib import Path
 
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.signal.imported import ImportedAfc, content_session_id
+from vibid.signal.imported import ImportedAfc, checked_afc, content_session_id
 
 AFC_ID = "vibid AFC"
 STD_ID = "vibid AFC std"
@@ -49,21 +62,23 @@ _ID_WIDTH = 80
 
 
 def is_uff(path) -> bool:
-    """Whether ``path`` starts as a Universal File: a line holding ``-1`` right-justified in
-    six columns (blanks may follow), then a line whose first six columns hold a dataset
-    number. By content, whatever the extension; False for a file that cannot be read."""
+    """Whether ``path`` is a Universal File by content, whatever the extension: its first
+    non-blank line (a UTF-8 byte-order mark skipped) is ``-1``. False for a file that cannot
+    be read, and for one whose first 64 KiB are blank."""
     try:
         with open(path, "rb") as fh:
-            return _starts_as_uff(fh.read(256))
+            head = fh.read(65536)
     except OSError:
         return False
+    line = _first_line(head)
+    return line is not None and line.strip() == b"-1"
 
 
-def _starts_as_uff(head: bytes) -> bool:
-    lines = head.split(b"\n")
-    if len(lines) < 2 or lines[0].rstrip(b"\r").rstrip(b" ") != b"    -1":
-        return False
-    return lines[1][:6].strip().isdigit()
+def _first_line(raw: bytes) -> bytes | None:
+    """The first non-blank line of ``raw`` (a UTF-8 byte-order mark skipped), without its
+    line end; None if there is none."""
+    raw = raw.removeprefix(b"\xef\xbb\xbf")
+    return next((line for line in raw.splitlines() if line.strip()), None)
 
 
 def write_afc_uff(path, frequency_hz, H, std, *, session_id: str,
@@ -114,36 +129,108 @@ def read_afc_uff(path) -> ImportedAfc:
         raw = Path(path).read_bytes()
     except OSError as exc:
         raise VibidError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if not raw.strip():
+    first = _first_line(raw)
+    if first is None:
         raise VibidError(f"{path}: empty file")
-    if not _starts_as_uff(raw[:256]):
-        raise VibidError(f"{path}: not a UFF file (it does not start with a -1 line and a "
-                         "dataset number)")
-    if not raw.rstrip().endswith(b"    -1"):
-        raise VibidError(f"{path}: truncated UFF file (it does not end with a -1 line)")
-    records = _records(path)
-    afc = next((r for r in records if np.iscomplexobj(r["data"])), None)
+    if first.strip() != b"-1":
+        raise VibidError(f"{path}: not a UFF file (its first line is not -1)")
+    if first.rstrip(b" ") != _DELIMITER:
+        raise VibidError(f"{path}: not a readable UFF file (its -1 lines must be "
+                         "right-justified in six columns, '    -1')")
+    marks = _delimiters(raw)
+    if not raw.rstrip().endswith(_DELIMITER) or len(marks) % 2:
+        raise VibidError(f"{path}: truncated UFF file (its last record does not end with a "
+                         "-1 line)")
+    blocks = [raw[a:b] for a, b in zip(marks[::2], marks[1::2])]
+    if not _dataset_number(blocks[0]):
+        raise VibidError(f"{path}: not a readable UFF file (no dataset number after its "
+                         "first -1 line)")
+    records = _records_of(path, raw, marks, blocks)
+    number, afc = next(((n, r) for n, r in records if np.iscomplexobj(r["data"])), (0, None))
     if afc is None:
         what = "only real type-58 records" if records else "no type-58 record"
         raise VibidError(f"{path}: {what}; the AFC must be a record with complex ordinates")
-    mark = next((r for r in records if r.get("id1") == STD_ID and not np.iscomplexobj(r["data"])
-                 and np.array_equal(r["x"], afc["x"])), None)
+    mark = next((r for _, r in records if r.get("id1") == STD_ID
+                 and not np.iscomplexobj(r["data"]) and np.array_equal(r["x"], afc["x"])), None)
     if mark is None and afc.get("id1") == AFC_ID:
         raise VibidError(f"{path}: the std record ({STD_ID!r}) of this vibid AFC is missing "
                          "or not at its frequencies")
     f, h = afc["x"], afc["data"]
     std = None if mark is None else mark["data"]
-    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(h))):
-        raise VibidError(f"{path}: the AFC record holds values that are not finite")
+    points = np.arange(1, f.size + 1)
     keep = f != 0.0  # an FFT analyser's DC line: no point of a stepped sine
-    f, h, std = f[keep], h[keep], None if std is None else std[keep]
-    if np.any(f < 0):
-        raise VibidError(f"{path}: frequencies must be positive")
-    if f.size < 2:
-        raise VibidError(f"{path}: fewer than two AFC points")
-    if std is not None and not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-        raise VibidError(f"{path}: std must be finite and not negative")
-    return ImportedAfc(f, h, std, content_session_id(raw))
+    return checked_afc(path, f[keep], h[keep], None if std is None else std[keep], points[keep],
+                       (f"record {number}, point", f"record {number}, points"),
+                       content_session_id(raw))
+
+
+_DELIMITER = b"    -1"
+
+
+def _delimiters(raw: bytes) -> list[int]:
+    """The offsets of the ``    -1`` delimiters of a Universal File, found as pyuff 2.5.8
+    finds them (followed by a line end, the end of the file or blanks to column 80)."""
+    out, k, n = [], -1, len(raw)
+    while (k := raw.find(_DELIMITER, k + 1)) != -1:
+        end = k + len(_DELIMITER)
+        if end == n or raw[end] in b"\r\n" or (end + 74 < n and raw[end:k + 80] == b" " * 74):
+            out.append(k)
+    return out
+
+
+def _dataset_number(block: bytes) -> int | None:
+    """The dataset number of a block (columns 1-6 of the line after its ``-1``), or None."""
+    lines = block.splitlines()
+    head = lines[1][:6].strip() if len(lines) > 1 else b""
+    return int(head) if head.isdigit() else None
+
+
+def _records_of(path, raw: bytes, marks: list[int], blocks: list[bytes]) -> list[tuple[int, dict]]:
+    """``[(record number, record)]``: the type-58 records of the file (:func:`_records`),
+    each binary one's data checked for its exact length first (:func:`_binary_body`) and
+    read from a repaired copy of the file where a line-end conversion had to be undone."""
+    fixed, pieces, at = False, [], 0
+    for k, (start, block) in enumerate(zip(marks[::2], blocks)):
+        if _dataset_number(block) != 58 or block.splitlines()[1][6:7].lower() != b"b":
+            continue
+        head = b"".join(block.splitlines(True)[:13])
+        body = _binary_body(path, k + 1, block)
+        if head + body != block:
+            fixed = True
+            pieces += [raw[at:start], head, body]
+            at = start + len(block)
+    if not fixed:
+        return _records(path, numbered=True)
+    with tempfile.TemporaryDirectory() as folder:
+        copy = Path(folder) / "repaired.uff"
+        copy.write_bytes(b"".join(pieces) + raw[at:])
+        return _records(copy, shown=path, numbered=True)
+
+
+def _binary_body(path, number: int, block: bytes) -> bytes:
+    """The binary data of a 58b block (``    -1`` line, 12 header lines, data), exactly the
+    bytes its points take: as it is, less a line end after it, or with a CRLF conversion
+    undone (module docstring). A VibidError for any other length (a truncated or damaged
+    record)."""
+    lines = block.splitlines(True)
+    try:
+        if len(lines) < 14:
+            raise ValueError
+        form = lines[8]
+        kind, n_points, spacing = int(form[0:10]), int(form[10:20]), int(form[20:30])
+        size = {2: 4, 4: 8, 5: 4, 6: 8}[kind]
+    except (ValueError, KeyError):
+        raise VibidError(f"{path}: UFF record {number} (dataset 58) cannot be read") from None
+    per_point = (2 if kind in (5, 6) else 1) + (1 if spacing == 0 else 0)
+    expected = n_points * per_point * size
+    body = b"".join(lines[13:])
+    for data in (body, body.replace(b"\r\n", b"\n")):
+        for end in (b"", b"\r\n", b"\n", b"\r"):
+            if data.endswith(end) and len(data) - len(end) == expected:
+                return data[:expected]
+    raise VibidError(f"{path}: UFF record {number} (dataset 58b) holds {len(body)} bytes of "
+                     f"binary data where its {n_points} points take {expected} (truncated, or "
+                     "damaged in a copy: copy binary UFF files as binary)")
 
 
 def _checked(path, frequency_hz, H, std) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -209,16 +296,18 @@ def _set_byte_count(path: Path, start: int, n_bytes: int, *, shown) -> None:
         fh.write(b"%12d" % n_bytes)
 
 
-def _records(path, *, shown=None) -> list[dict]:
+def _records(path, *, shown=None, numbered: bool = False) -> list:
     """Every type-58 record of a UFF file, as pyuff reads it (``x`` Hz, ``data``, the
-    header fields); other dataset types are skipped unread. One-line VibidError on junk,
-    naming ``shown`` (default ``path``)."""
+    header fields); other dataset types are skipped unread; with ``numbered``, as
+    ``(record number, record)``. One-line VibidError on junk, naming ``shown`` (default
+    ``path``)."""
     import pyuff
 
     path, shown = os.fspath(path), path if shown is None else shown
     try:
-        uff = pyuff.UFF(path)
-        types = list(uff.get_set_types())
+        with np.errstate(all="ignore"):
+            uff = pyuff.UFF(path)
+            types = list(uff.get_set_types())
     except Exception:  # pyuff raises bare Exceptions (and others) on junk
         raise VibidError(f"{shown}: not a readable UFF file") from None
     out = []
@@ -226,12 +315,14 @@ def _records(path, *, shown=None) -> list[dict]:
         if kind != 58:
             continue
         try:
-            record = uff.read_sets(k)
-            x, data = np.asarray(record["x"], float), np.asarray(record["data"])
+            with np.errstate(all="ignore"):
+                record = uff.read_sets(k)
+                x, data = np.asarray(record["x"], float), np.asarray(record["data"])
         except Exception:
             raise VibidError(f"{shown}: UFF record {k + 1} (dataset 58) cannot be read") from None
         if x.size != data.size or data.size != record.get("num_pts", data.size):
             raise VibidError(f"{shown}: UFF record {k + 1} holds {data.size} values for "
                              f"{record.get('num_pts')} points (truncated or damaged)")
-        out.append(record | {"x": x, "data": data})
+        record = record | {"x": x, "data": data}
+        out.append((k + 1, record) if numbered else record)
     return out
