@@ -4,11 +4,12 @@ of other systems, detection by content, one-line errors, and `vibid afc --uff` f
 
 import dataclasses
 import json
+import struct
 
 import numpy as np
 import pyuff
 import pytest
-from afc_files import write_afc_csv
+from afc_files import write_afc_csv, write_pyuff_record
 
 from vibid.cli import main
 from vibid.errors import VibidError
@@ -30,13 +31,7 @@ def _write(tmp_path, name="afc.uff", **kw):
     return p
 
 
-def _pyuff_record(path, x, data, *, spacing, binary=0, id1="other system"):
-    """A type-58 record as another system would write it (pyuff directly)."""
-    pyuff.UFF(str(path)).write_sets({
-        "type": 58, "binary": binary, "func_type": 4, "id1": id1, "rsp_node": 1, "rsp_dir": 3,
-        "ref_node": 1, "ref_dir": 3, "abscissa_spacing": spacing, "abscissa_spec_data_type": 18,
-        "ordinate_spec_data_type": 12, "orddenom_spec_data_type": 13,
-        "z_axis_spec_data_type": 0, "x": x, "data": data}, mode="add")
+_pyuff_record = write_pyuff_record  # a type-58 record as another system would write it
 
 
 def test_round_trip_is_exact_and_the_id_follows_the_bytes(tmp_path):
@@ -227,3 +222,171 @@ def test_afc_uff_then_identify_gives_the_session_s_parameters(session, capsys):
         assert b["parameters"][name]["std"] == pytest.approx(p["std"], rel=1e-6), name
     assert b["afc"]["frequency_hz"] == a["afc"]["frequency_hz"]
     assert b["session_id"] == read_afc(uff).session_id != a["session_id"]
+
+
+# --- issue 62: the UFF58 reader never hangs and is never silently wrong --------------------
+
+def _many(n=80, seed=1):
+    """``n`` refined frequencies, an AFC and its std whose doubles hold LF bytes (0x0A) in
+    their binary form, as real ones do."""
+    rng = np.random.default_rng(seed)
+    f = np.sort(rng.uniform(20.0, 1500.0, n))
+    return f, rng.normal(size=n) + 1j * rng.normal(size=n), rng.uniform(1e-3, 2e-3, n)
+
+
+def _same(a, b):
+    assert np.array_equal(a.frequency_hz, b.frequency_hz) and np.array_equal(a.H, b.H)
+    assert (a.std is None and b.std is None) or np.array_equal(a.std, b.std)
+
+
+def test_a_shuffled_uff_reads_as_the_sorted_one(tmp_path):
+    """vibid's own binary records, another system's ASCII and binary ones, an even abscissa
+    counting down: the points come back sorted by frequency, as the sorted file's; the rows
+    named are the record's points."""
+    f, h, s = _many()
+    write_afc_uff(tmp_path / "sorted.uff", f, h, s, session_id="s")
+    clean = read_afc(tmp_path / "sorted.uff")
+    order = np.random.default_rng(2).permutation(f.size)
+    for k, order in enumerate((order, np.arange(f.size)[::-1])):
+        write_afc_uff(tmp_path / f"v{k}.uff", f[order], h[order], s[order], session_id="s")
+        back = read_afc(tmp_path / f"v{k}.uff")
+        _same(back, clean)
+        assert back.where(0) == f"record 1, point {list(order).index(0) + 1}"
+        for binary in (0, 1):
+            p = write_pyuff_record(tmp_path / f"o{k}{binary}.uff", f[order], h[order], spacing=0,
+                                   binary=binary)
+            q = write_pyuff_record(tmp_path / f"c{k}{binary}.uff", f, h, spacing=0, binary=binary)
+            _same(read_afc(p), read_afc(q))
+    x = np.arange(1, 41) * 2.5
+    data = 1.0 / (1.0 - (x / 60.0) ** 2 + 0.02j)
+    down = read_afc(write_pyuff_record(tmp_path / "down.uff", x[::-1], data[::-1], spacing=1))
+    up = read_afc(write_pyuff_record(tmp_path / "up.uff", x, data, spacing=1))
+    _same(down, up)
+
+
+def test_repeated_uff_points_count_once_and_conflicting_ones_are_refused(tmp_path):
+    p = tmp_path / "afc.uff"
+    write_afc_uff(p, F, H, STD, session_id="s")
+    clean = read_afc(p)
+    again = np.r_[np.arange(F.size), 1, 3]
+    write_afc_uff(p, F[again], H[again], STD[again], session_id="s")
+    _same(read_afc(p), clean)
+    write_afc_uff(p, np.r_[F, F[1]], np.r_[H, H[1] * 1.5], np.r_[STD, STD[1]], session_id="s")
+    with pytest.raises(VibidError) as err:
+        read_afc(p)
+    assert str(err.value) == (f"{p}: record 1, points 2 and 6 both give {float(F[1])!r} Hz, with "
+                              "different values: keep one of them, or average them")
+
+
+def test_a_crlf_uff_file_reads_as_written(tmp_path):
+    """Every LF made CRLF (a text-mode copy): the ASCII header lines read as they are, and a
+    binary record's doubles, shifted by the inserted CRs, are read as they were written —
+    before, vibid's own file lost its std record ("missing or not at its frequencies") and
+    another system's binary record read as other numbers."""
+    f, h, s = _many()
+    p = tmp_path / "afc.uff"
+    write_afc_uff(p, f, h, s, session_id="s")
+    clean = read_afc(p)
+    raw = p.read_bytes()
+    assert raw.count(b"\n") > 28  # LF bytes inside the doubles, not only line ends
+    crlf = tmp_path / "crlf.uff"
+    crlf.write_bytes(raw.replace(b"\n", b"\r\n"))
+    _same(read_afc(crlf), clean)
+    assert read_afc(crlf).session_id != clean.session_id  # the id is the file's bytes'
+    for binary in (0, 1):
+        other = write_pyuff_record(tmp_path / f"other{binary}.uff", f, h, spacing=0, binary=binary)
+        crlf.write_bytes(other.read_bytes().replace(b"\n", b"\r\n"))
+        _same(read_afc(crlf), read_afc(other))
+
+
+def test_a_damaged_binary_record_is_refused_not_read_shifted(tmp_path):
+    """Bytes lost inside a binary record that still ends with its -1 line: refused with the
+    record's sizes, never read as shifted numbers."""
+    raw = _write(tmp_path).read_bytes()
+    start = raw.index(b"NONE                \n", raw.index(b"Base accel")) + 21  # record 1's data
+    p = tmp_path / "damaged.uff"
+    p.write_bytes(raw[:start + 10] + raw[start + 13:])
+    with pytest.raises(VibidError) as err:
+        read_afc(p)
+    assert str(err.value) == (f"{p}: UFF record 1 (dataset 58b) holds 117 bytes of binary data "
+                              "where its 5 points take 120 (truncated, or damaged in a copy: "
+                              "copy binary UFF files as binary)")
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"    -1\n  garbage\n    -1\n", "not a readable UFF file (no dataset number after its "
+                                    "first -1 line)"),
+    (b"-1\n58\n-1\n", "not a readable UFF file (its -1 lines must be right-justified"),
+    (b"\n  \n\t-1\n    58\n", "not a readable UFF file (its -1 lines must be right-justified"),
+    (b"    -1\n  2411\n         1\n    -1\n    -1\n    58\n", "truncated UFF file"),
+    (b"    -1\n", "truncated UFF file"),
+])
+def test_a_file_starting_with_minus_1_is_judged_as_uff(tmp_path, content, message):
+    """A file whose first non-blank line is -1 is UFF, whatever follows: its faults are
+    UFF faults in one line (before, such files were read as CSV: "the header lacks ...")."""
+    p = tmp_path / "junk.csv"
+    p.write_bytes(content)
+    assert is_uff(p)
+    with pytest.raises(VibidError) as err:
+        read_afc(p)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_leading_blank_lines_and_a_truncated_end_of_a_uff_file(tmp_path):
+    raw = _write(tmp_path).read_bytes()
+    clean = read_afc(tmp_path / "afc.uff")
+    p = tmp_path / "blank.uff"
+    p.write_bytes(b"\n   \n" + raw)
+    _same(read_afc(p), clean)
+    end_of_first = raw.index(b"    -1\n    -1\n") + 7
+    p.write_bytes(raw[:end_of_first + 6])  # record 2's -1 line and nothing after it
+    with pytest.raises(VibidError, match="truncated UFF file"):
+        read_afc(p)
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda h, s: (h * 0.0, s), "every H is 0: no response measured"),
+    (lambda h, s: (np.where(np.arange(h.size) == 2, 1e300, h), s),
+     "record 1, point 3: re 1e+300 is beyond ±1e+06"),
+    (lambda h, s: (h, np.where(np.arange(s.size) == 4, 0.0, s)),
+     "record 1, point 5: std 0.0 must be positive"),
+])
+def test_absurd_uff_values_are_refused_naming_the_point(tmp_path, change, message):
+    h, s = change(H.copy(), STD.copy())
+    p = tmp_path / "afc.uff"
+    write_afc_uff(p, F, h, s, session_id="s")
+    with pytest.raises(VibidError) as err:
+        read_afc(p)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("value, message", [
+    (np.nan, "record 1, point 3: re is nan, not a finite number"),
+    (np.inf, "record 1, point 3: re is inf, not a finite number"),
+    (1e308, "record 1, point 3: re 1e+308 is beyond ±1e+06"),
+])
+def test_non_finite_binary_doubles_are_refused_naming_the_point(tmp_path, value, message):
+    """Point 3's real part replaced in the file's bytes (pyuff's writer would write 0 for a
+    NaN)."""
+    raw = bytearray(_write(tmp_path).read_bytes())
+    start = raw.index(b"NONE                \n", raw.index(b"Base accel")) + 21  # record 1's data
+    raw[start + 56:start + 64] = struct.pack("<d", value)  # (x, re, im) per point
+    p = tmp_path / "bad.uff"
+    p.write_bytes(bytes(raw))
+    with pytest.raises(VibidError) as err:
+        read_afc(p)
+    assert f"bad.uff: {message}" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_uff_frequency_above_the_daq_s_nyquist_is_refused(tmp_path):
+    from vibid.pipeline import afc_file
+
+    setup = tmp_path / "setup.json"
+    setup.write_text(json.dumps(example_setup().to_dict()))  # DAQ 25.6 kHz
+    p = tmp_path / "afc.uff"
+    write_afc_uff(p, np.r_[F, 20000.0], np.r_[H, 0.1], np.r_[STD, 1e-3], session_id="s")
+    with pytest.raises(VibidError) as err:
+        afc_file(p, setup)
+    assert str(err.value) == (f"{p}: record 1, point 6: 20000.0 Hz is not below the Nyquist "
+                              "frequency 12800.0 Hz of the setup's DAQ (daq.sample_rate_hz "
+                              "25600.0)")
