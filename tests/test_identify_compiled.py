@@ -169,5 +169,7 @@ def test_padding_a_basis_changes_nothing(monkeypatch):
         t = jnp.asarray(theta)
         got.append((np.asarray(kernel(arrays, t)), np.asarray(jax.hessian(chi2)(t))))
     for H, B in got[1:]:
-        np.testing.assert_allclose(H, got[0][0], rtol=1e-11, atol=0)
+        # rounding only: at the resonance below 1400 Hz an LU (one per frequency, the
+        # direct path) of the padded and unpadded systems differ by 1.5e-11 relative
+        np.testing.assert_allclose(H, got[0][0], rtol=3e-11, atol=0)
         np.testing.assert_allclose(B, got[0][1], rtol=1e-8, atol=1e-8 * np.abs(B).max())

@@ -10,6 +10,7 @@ stderr; any other exception too (``--debug`` shows the traceback instead).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
@@ -18,7 +19,7 @@ import sys
 # threads fighting over two shared cores; set before numpy loads. A user's own setting wins.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from vibid import __version__
+from vibid import __version__, heartbeat
 from vibid.errors import VibidError
 
 #: Sub-command modules, in the order ``vibid --help`` lists them.
@@ -34,17 +35,45 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"vibid {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--stall-timeout", metavar="S", default=None,
+                        help="end the command, with every thread's Python stack written "
+                        "beside the report, when its computation makes no progress for S "
+                        f"seconds (default $VIBID_STALL_TIMEOUT_S or "
+                        f"{heartbeat.DEFAULT_LIMIT_S:g}; 0: never)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
         importlib.import_module(f"vibid.cli.{name}").add_parser(sub)
     return parser
 
 
+#: Commands that only compute: the whole command is one stage of the watchdog's. A campaign
+#: is not (its acquisition has the instruments' own time-outs, and its generator must be
+#: switched off by its own code), only its identification's stages are.
+COMPUTING = ("plan", "afc", "modes", "identify", "replay")
+
+
+def stall_folder(args) -> str:
+    """Where the watchdog writes the stacks: the command's report folder, else its JSON
+    report's or output's folder, else the working folder."""
+    for name in ("report", "json", "out"):
+        value = getattr(args, name, None)
+        if value:
+            return str(value) if name == "report" else os.path.dirname(str(value)) or "."
+    return "."
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.run(args) or 0)
+        limit = heartbeat.limit_from(args.stall_timeout)
+    except ValueError as exc:
+        parser.error(f"--stall-timeout: {exc}")
+    watchdog = heartbeat.Watchdog(limit, lambda: stall_folder(args), f"vibid {args.command}")
+    try:
+        with watchdog, (heartbeat.stage(args.command) if args.command in COMPUTING
+                        else contextlib.nullcontext()):
+            return int(args.run(args) or 0)
     except VibidError as exc:
         if args.debug:
             raise

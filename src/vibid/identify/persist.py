@@ -34,6 +34,7 @@ from pathlib import Path
 
 import jax
 
+from vibid.heartbeat import stage
 from vibid.identify.threads import compiled, holding
 
 log = logging.getLogger(__name__)
@@ -107,6 +108,12 @@ class Persisted:
         self._loading = threading.Lock()  # one thread loads and compiles, the others wait
 
     def __call__(self, *args):
+        # every compiled call is a stage of the watchdog's (vibid.heartbeat): a native call
+        # that never returns (issue 62's deadlock) ends the command with its name
+        with stage(self.name):
+            return self._call(*args)
+
+    def _call(self, *args):
         # on every call (a Hessian's or a gradient's, thousands in a loop): kept cheap
         if self.identity is None:
             return self.fn(*args)

@@ -26,6 +26,8 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 
+from vibid.heartbeat import stage
+
 #: The sections vibid marks, in the order a report lists them.
 SECTIONS = ("signal stage", "matrices", "reduced bases", "full-model checks", "global search",
             "local fits", "model error", "loop scoring", "loop refits")
@@ -132,21 +134,23 @@ def recording():
 
 @contextlib.contextmanager
 def section(name: str):
-    """Count the time inside as ``name`` in the active recording (if any)."""
-    prof = _active
-    key = (threading.get_ident(), name)
-    if prof is None or key in prof.open:  # a section inside itself counts once
-        yield
-        return
-    t0 = time.perf_counter()
-    prof.open.add(key)
-    try:
-        yield
-    finally:
-        with _adding:
-            prof.open.discard(key)
-            prof.seconds[name] += time.perf_counter() - t0
-            prof.calls[name] += 1
+    """Count the time inside as ``name`` in the active recording (if any); a stage of the
+    watchdog's (:func:`vibid.heartbeat.stage`) either way."""
+    with stage(name):  # the watchdog's stage too (vibid.heartbeat)
+        prof = _active
+        key = (threading.get_ident(), name)
+        if prof is None or key in prof.open:  # a section inside itself counts once
+            yield
+            return
+        t0 = time.perf_counter()
+        prof.open.add(key)
+        try:
+            yield
+        finally:
+            with _adding:
+                prof.open.discard(key)
+                prof.seconds[name] += time.perf_counter() - t0
+                prof.calls[name] += 1
 
 
 def timed(name: str):

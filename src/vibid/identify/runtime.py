@@ -16,8 +16,12 @@ nothing on an idle machine either.
 No batched LAPACK calls: a population (the global search's) is evaluated in a loop,
 :func:`over_population`, not vmapped; jaxlib splits a batched LAPACK call over XLA's
 two-thread pool and waits for it, and two such calls at once hung the test suite for good
-(the XLA flag ``--xla_cpu_multi_thread_eigen=false`` did not prevent it). The forward-mode
-derivatives still batch their 4 or 8 tangents; no hang has been seen there.
+(the XLA flag ``--xla_cpu_multi_thread_eigen=false`` did not prevent it). The reduced
+model's direct path solves its frequencies in a loop too
+(:meth:`~vibid.identify.model.reduced.ReducedKernel._direct`). The forward-mode
+derivatives batch their 4 or 8 tangents into extra right-hand sides of one matrix, which
+runs inline; ``tests/test_no_batched_lapack.py`` reads the compiled code of every function
+of the fit for a LAPACK call on more than one matrix.
 
 Compilation cache: every vibid process compiles the same few functions (the model's AFC,
 chi2, its gradient and Hessian, the batched chi2 of the global search), which takes a few

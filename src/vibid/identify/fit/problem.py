@@ -33,6 +33,7 @@ import jax
 import numpy as np
 
 from vibid.errors import VibidError
+from vibid.heartbeat import beat
 from vibid.identify.fit.data import FitData
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.runtime import require_x64
@@ -329,6 +330,7 @@ class LeastSquaresProblem:
 
     # -- public evaluations (numpy in, numpy out) ---------------------------------------
     def _args(self):
+        beat()  # every evaluation of the fit is progress (vibid.heartbeat's watchdog)
         return self._arrays, self._H, self.sigma, self._idx, self._place
 
     def _padded(self, x):
