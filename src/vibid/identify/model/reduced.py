@@ -46,6 +46,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
+from vibid.errors import VibidError
 from vibid.identify.model.modal import arpack_start
 from vibid.identify.profile import timed
 from vibid.identify.threads import numpy_only
@@ -290,6 +291,14 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         lu = spd_lu(K)
         # every point its own modes up to f_top: a face where one modulus is soft has more
         Phi, freqs = _modes(K, M, lu, min_modes, max_modes, f_top)
+        if j == 0 and freqs[-1] < f_max_hz:
+            # modes inside the band would be missing: the model is wrong there, and a fit
+            # on a basis this wide only crawls (a point at 126 kHz: 190 unknowns, a run
+            # that never ended)
+            raise VibidError(
+                f"the plate model's {Phi.shape[1]} lowest modes reach only "
+                f"{freqs[-1]:.0f} Hz, below the AFC's highest frequency {f_max_hz:.0f} Hz: "
+                f"a band this wide holds more than {max_modes} modes; fit a narrower band")
         if freqs[-1] < f_top:
             log.warning("reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted%s",
                         Phi.shape[1], freqs[-1], f_top, "" if j == 0 else " at a face")
