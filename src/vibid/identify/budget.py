@@ -27,7 +27,8 @@ root sum of squares of independent parts:
 * ``model``, where a residual remains (the loop's ``unexplained_residual``): the spread of
   the constant across the models the loop compared (its stages and the refits the data
   support, :attr:`~vibid.identify.loop.verdicts.Verdict.compared`) whose parameters lie
-  inside their prior box (a model that bends a parameter
+  inside their prior box (the boxes the loop used, :func:`loop_box`: a material it switched
+  to has none in the setup; a model that bends a parameter
   out of it is no defensible one; where the final model bends one too, all of them),
   weighted as Burnham & Anderson average models, by
   exp(−ΔQAIC/2), QAIC = χ²/ĉ + 2p with ĉ the final model's reduced χ² (the data's
@@ -213,6 +214,30 @@ def clamp_line(setup, loop, box: dict, linearised=None) -> dict[str, float]:
     return {k: float(abs(v)) * prior for k, v in zip(keys, g @ shift)}
 
 
+def loop_box(setup, loop) -> dict:
+    """The prior boxes the loop judged its models by: the setup's
+    (``setup.identification.bounds``), and for each parameter that has none there and no
+    default box of its own (a material the loop switched to: an isotropic setup's loop that
+    added ``anisotropy`` fitted D11, D12, D22, D66 in boxes its candidate made from the box
+    of D), the box the loop's candidate gave it, replayed stage by stage from the
+    candidates' own rule (:meth:`~vibid.identify.loop.candidates.MaterialCandidate.bounds`).
+    Without a loop, the setup's boxes."""
+    from vibid.parameters import known_parameter
+
+    declared = dict(setup.identification.bounds)
+    if loop is None:
+        return declared
+    from vibid.identify.loop.candidates import all_candidates
+
+    by_name = {c.name: c for c in all_candidates()}
+    used = dict(declared)
+    for before, stage in zip(loop.stages, loop.stages[1:]):
+        if (cand := by_name.get(stage.added)) is not None:
+            used |= cand.bounds(used, before.result.parameters, before.diagnosis)
+    return declared | {n: tuple(b) for n, b in used.items() if n not in declared
+                       and getattr(known_parameter(n), "bounds", None) is None}
+
+
 def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
                  box: dict | None = None) -> dict[str, float]:
     """constant -> the between-model standard deviation across the loop's models of the
@@ -281,7 +306,7 @@ def engineering_budget(setup, result, loop=None) -> dict:
         for k, v in zip(keys, moved):
             parts[k][name] = float(abs(v))
     tau = residual_correlation(loop.final) if loop is not None else 1.0
-    box = dict(setup.identification.bounds)
+    box = loop_box(setup, loop)
     for k, v in model_spread(loop, model, h, tau=tau, box=box).items():
         parts[k]["model"] = v
     for k, v in (clamp_line(setup, loop, box, linearised) if is_final else {}).items():

@@ -138,10 +138,11 @@ class ClampCalibration:
 
 
 def calibrate_free_length(setup, result, reference: Reference,
-                          local: str = "newton") -> ClampCalibration:
+                          local: str = "newton", box: dict | None = None) -> ClampCalibration:
     """The clamp's effective free length from a reference specimen (module doc): ``result``
     is the specimen's identification (the loop's final stage), ``setup`` its declared
-    setup."""
+    setup; ``box``: the prior boxes the loop used (:func:`vibid.identify.budget.loop_box`:
+    a material it switched to has none in the setup), default the setup's."""
     from vibid.identify.effects.free_length import EFFECT as FREE_LENGTH
     from vibid.identify.engineering import engineering_constants, sensitivities
     from vibid.identify.fit.data import fit_data
@@ -168,7 +169,7 @@ def calibrate_free_length(setup, result, reference: Reference,
     ratio = reference.modulus_pa / value
     start = dict(result.parameters) | {"dL_m": result.parameters.get("dL_m", 0.0)}
     at_reference = start | {n: start[n] * ratio for n in scaled}
-    box = model.default_bounds(dict(setup.identification.bounds))
+    box = model.default_bounds(dict(setup.identification.bounds) if box is None else box)
     for n in scaled:  # the reference's stiffnesses may lie beyond the declared box
         lo, hi = box[n]
         box[n] = (min(lo, at_reference[n] / 2), max(hi, at_reference[n] * 2))
