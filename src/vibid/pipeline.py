@@ -193,15 +193,17 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
 
 
 def build_session_report(data: SessionAfc, identified: Identified,
-                         reference=None) -> dict[str, Any]:
+                         reference=None, not_done=()) -> dict[str, Any]:
     """The JSON report (:func:`vibid.report.build_report`) of one identified session;
-    ``reference``: its ``reference`` block (:func:`reference_block`)."""
+    ``reference``: its ``reference`` block (:func:`reference_block`); ``not_done``: the
+    stages that could not be done before it (:mod:`vibid.report.not_done`)."""
     from vibid.report import build_report
 
     return build_report(identified.result, session_id=data.session_id,
                         declared_model=data.setup.identification.model,
                         afc=data.afc.to_report_block(), loop=identified.loop, setup=data.setup,
-                        linearity=identified.linearity, reference=reference)
+                        linearity=identified.linearity, reference=reference,
+                        not_done=not_done)
 
 
 def require_converged(identified: Identified) -> None:
@@ -212,28 +214,35 @@ def require_converged(identified: Identified) -> None:
 
 def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
                   session_path=None, reference=None) -> tuple[dict[str, Any], dict[str, str]]:
-    """The report stage: build the JSON report, write it to ``json_path`` (if given) and the
-    readable report folder (``report.md``, ``report.json``, PNG figures:
-    :func:`vibid.report.write_lab_report`) to ``report_dir`` (if given). Returns the
+    """The report stage: build the JSON report, write the readable report folder
+    (``report.md``, ``report.json``, PNG figures: :func:`vibid.report.write_lab_report`) to
+    ``report_dir`` (if given) and the JSON report to ``json_path`` (if given). Returns the
     report and the paths written, by file name (``"json"`` for ``json_path``).
     ``reference``: the specimen's known modulus, a reference specimen that calibrates the
-    clamp (:mod:`vibid.identify.reference`)."""
-    from vibid.report import write_report
+    clamp (:mod:`vibid.identify.reference`).
 
+    The fit's result is never lost here: a stage after it that fails (the reference, the
+    budget, the figures, ...) is left out, in one line of the report's ``not_done``
+    (:mod:`vibid.report.not_done`), and the rest is written. Only writing the files
+    themselves may fail the job (a :class:`~vibid.errors.VibidError` naming the path)."""
+    from vibid.report import write_report
+    from vibid.report.not_done import attempt
+
+    not_done: list = []
     with jax_turn():  # engineering constants differentiate with JAX
-        report = build_session_report(data, identified, reference_block(data, identified,
-                                                                         reference))
+        block = attempt("reference", not_done, reference_block, data, identified, reference)
+        report = build_session_report(data, identified, block, not_done)
     paths: dict[str, str] = {}
-    if json_path is not None:
-        write_report(report, json_path)
-        paths["json"] = os.fspath(json_path)
-    if report_dir is not None:
+    if report_dir is not None:  # first: what its figures could not do is in both files
         from vibid.report import write_lab_report
 
         with jax_turn():  # the figures evaluate the model
             paths |= write_lab_report(report_dir, data, identified, report,
                                       session_path=None if session_path is None
                                       else os.fspath(session_path))
+    if json_path is not None:
+        write_report(report, json_path)
+        paths["json"] = os.fspath(json_path)
     return report, paths
 
 
@@ -243,10 +252,13 @@ def reference_block(data: SessionAfc, identified: Identified, reference) -> dict
     None without a reference."""
     if reference is None:
         return None
+    from vibid.identify.budget import loop_box
     from vibid.identify.reference import calibrate_free_length
 
+    box = loop_box(data.setup, getattr(identified, "loop", None))
     try:
-        return calibrate_free_length(data.setup, identified.result, reference).as_report()
+        return calibrate_free_length(data.setup, identified.result, reference,
+                                     box=box).as_report()
     except VibidError as exc:  # the report stays: it says why there is no calibration
         return {"note": f"reference specimen: {exc}"}
 

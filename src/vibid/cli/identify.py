@@ -78,7 +78,7 @@ def run(args) -> int:
     if args.json:
         print(f"report written to {args.json}")
     if args.report:
-        print(f"readable report: {paths['report.md']}")
+        print(f"readable report: {paths.get('report.md', paths.get('report.json'))}")
     # the report is written (it says why); the job itself failed
     require_converged(identified)
     return 0

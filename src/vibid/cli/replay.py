@@ -71,5 +71,7 @@ def run(args) -> int:
     if args.json:
         print(f"report written to {args.json}")
     if args.report:
-        print(f"readable report: {os.path.join(args.report, 'report.md')}")
+        md = os.path.join(args.report, "report.md")  # absent where it could not be made
+        shown = md if os.path.exists(md) else os.path.join(args.report, "report.json")
+        print(f"readable report: {shown}")
     return 0

@@ -4,6 +4,7 @@ never silence about a constant no material allows."""
 
 from __future__ import annotations
 
+from vibid.report.not_done import not_done_lines
 from vibid.report.values import chi2_text, quantities
 
 
@@ -37,8 +38,10 @@ def console_summary(report: dict) -> str:
 def plausibility_lines(report: dict) -> list[str]:
     """The report's plausibility findings for the console: never silent about a constant
     no material allows or one outside its material's handbook range; then what a
-    reference specimen says of the clamp (:mod:`vibid.identify.reference`)."""
+    reference specimen says of the clamp (:mod:`vibid.identify.reference`); then, one line
+    each, the stages the report could not do (:func:`vibid.report.not_done.not_done_lines`)."""
     pl = report.get("plausibility") or {}
     return ([f"NOT PHYSICAL: {v}" for v in pl.get("violations", [])]
             + [f"implausible: {v}" for v in pl.get("outside_handbook", [])]
-            + ([report["reference"]["note"]] if "reference" in report else []))
+            + ([report["reference"]["note"]] if "reference" in report else [])
+            + not_done_lines(report))

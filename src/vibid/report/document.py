@@ -6,7 +6,10 @@ it. Extra keys the format allows: ``plausibility`` (constants no material allows
 comparison with the specimen's material class), ``linearity`` (whether each resolved
 measured resonance is a linear one), ``identification`` (status sentence, warnings,
 covariance, correlation, timings, ``data``: ``"complex"`` or ``"magnitude"`` and, for a
-magnitude-only fit, ``magnitude_only_std_ratio``) and the signal stage's ``afc.diagnostics`` when given.
+magnitude-only fit, ``magnitude_only_std_ratio``), the signal stage's ``afc.diagnostics`` when given,
+and ``not_done``: the stages after the fit that could not be done, each
+``{"stage": .., "reason": ..}`` in one line, the rest of the report written
+(:mod:`vibid.report.not_done`; empty when every stage was done).
 Non-finite numbers are written as null (JSON has no NaN).
 """
 
@@ -18,6 +21,8 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+
+from vibid.report.not_done import NOT_DONE, attempt
 
 FORMAT = "vibid.report"
 FORMAT_VERSION = 1
@@ -170,9 +175,22 @@ def _loop_block(loop) -> tuple[list, dict]:
     return effects, block
 
 
+def fit_constants(setup, result) -> dict:
+    """The engineering constants with the fit's covariance and the declared thickness's
+    uncertainty through the conversion alone (:func:`vibid.identify.engineering.
+    engineering_constants`): the report's block where the budget could not be made."""
+    from vibid.identify.engineering import engineering_constants
+
+    model = getattr(result.plate_model, "model", None) or result.model
+    sp = setup.specimen
+    return engineering_constants(model, result.parameter_names, result.values,
+                                 result.covariance, sp.thickness_m,
+                                 getattr(sp, "thickness_std_m", None) or 0.0)
+
+
 def build_report(result, *, session_id: str = "", declared_model: str | None = None,
                  afc: dict | None = None, loop=None, setup=None,
-                 linearity=None, reference=None) -> dict[str, Any]:
+                 linearity=None, reference=None, not_done=()) -> dict[str, Any]:
     """The report of one identification: with ``loop`` (a
     :class:`~vibid.identify.loop.LoopResult`) every stage of the closed loop and the
     effects it added, ``result`` then being its final stage; without, the declared model
@@ -191,6 +209,9 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     linearity: the linearity tests made before the fit (:func:`linearity_block`).
     reference: with ``setup``, the ``reference`` block: what the specimen's known modulus
         says of the clamp's free length (:func:`vibid.pipeline.reference_block`).
+    not_done: the stages an earlier step could not do (:mod:`vibid.report.not_done`); the
+        report's ``not_done`` adds those of its own that fail (the linearity tests, the
+        budget, the constants, the plausibility), each leaving the rest of the report.
     """
     if loop is not None:
         result = loop.final
@@ -215,26 +236,35 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
         effects, loop_block = _loop_block(loop)
     model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
     g = result.global_result
-    extra, notes = {}, []
-    if tested := linearity_block(result, linearity):
+    extra, notes, not_done = {}, [], list(not_done)
+    if tested := attempt("linearity", not_done, linearity_block, result, linearity, default=[]):
         extra["linearity"] = tested
         warnings.extend(t["note"] for t in tested if not t["linear"])
         warnings.extend(t.left_out_note for t in linearity or () if t.left_out_hz is not None)
     if setup is not None:
         from vibid.identify.budget import engineering_budget
 
-        block = engineering_budget(setup, result, loop)
+        block = attempt("uncertainty budget", not_done, engineering_budget, setup, result, loop)
+        if block is None:  # the constants with the fit's std alone
+            block = attempt("engineering constants", not_done, fit_constants, setup, result,
+                            default={})
         if block:
-            budget, notes = block.pop("budget"), block.pop("notes")
+            budget, notes = block.pop("budget", None), block.pop("notes", [])
             extra["engineering"] = {k: {"value": _num(v["value"]),
                                         "std": None if v["std"] is None else _num(v["std"])}
                                     for k, v in block.items()}
-            extra["engineering"]["budget"] = {
-                k: {part: _num(u) for part, u in parts.items()} for k, parts in budget.items()}
-        extra["plausibility"], said = plausibility_block(model, result, block, setup, loop)
-        warnings.extend(said)
+            if budget is not None:
+                extra["engineering"]["budget"] = {
+                    k: {part: _num(u) for part, u in parts.items()}
+                    for k, parts in budget.items()}
+        found = attempt("plausibility", not_done, plausibility_block, model, result, block,
+                        setup, loop)
+        if found is not None:
+            extra["plausibility"], said = found
+            warnings.extend(said)
         if reference is not None:
             extra["reference"] = reference
+    extra[NOT_DONE] = not_done
     return extra | {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,

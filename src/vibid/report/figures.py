@@ -175,10 +175,18 @@ FIGURES: tuple[ReportFigure, ...] = (
 )
 
 
-def draw_figures(data, identified, report: dict) -> dict[str, Any]:
-    """Every figure of :data:`FIGURES` that has something to draw, by file name."""
+def draw_figures(data, identified, report: dict, not_done: list | None = None) -> dict[str, Any]:
+    """Every figure of :data:`FIGURES` that has something to draw, by file name. With
+    ``not_done`` (the report's, :mod:`vibid.report.not_done`), a figure that cannot be
+    drawn is left out with one line there, and the others are drawn."""
+    from vibid.report.not_done import attempt
+
     source = Source(data, identified, report)
-    drawn = {fig.file: fig.draw(source) for fig in FIGURES}
+    if not_done is None:
+        drawn = {fig.file: fig.draw(source) for fig in FIGURES}
+    else:
+        drawn = {fig.file: attempt("figures", not_done, fig.draw, source, about=fig.file)
+                 for fig in FIGURES}
     return {file: fig for file, fig in drawn.items() if fig is not None}
 
 

@@ -10,6 +10,7 @@ import re
 from vibid.report.document import write_report
 from vibid.report.figures import draw_figures
 from vibid.report.markdown import summary_markdown
+from vibid.report.not_done import NOT_DONE, attempt
 from vibid.report.plots import save_png
 
 #: File names in the report folder (besides the figures').
@@ -20,18 +21,23 @@ REPORT_JSON = "report.json"
 def write_lab_report(report_dir: str | os.PathLike, data, identified, report: dict, *,
                      session_path: str | None = None) -> dict[str, str]:
     """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``
-    (created); return their paths by file name."""
+    (created); return their paths by file name. Figures that cannot be drawn, or a
+    report.md that cannot be made, are left out in one line of ``report``'s ``not_done``
+    (which it appends to, before report.json is written: :mod:`vibid.report.not_done`)."""
     os.makedirs(report_dir, exist_ok=True)
     paths = {}
-    figs = draw_figures(data, identified, report)
+    not_done = report.setdefault(NOT_DONE, [])
+    figs = attempt("figures", not_done, draw_figures, data, identified, report, not_done,
+                   default={})
     for name, fig in figs.items():
         paths[name] = save_png(fig, os.path.join(report_dir, name))
     name = data.setup.specimen.name or "specimen"
-    text = summary_markdown(report, figures=list(figs), session_path=session_path,
-                            title=f"{name}: identification report")
-    paths[REPORT_MD] = os.path.join(report_dir, REPORT_MD)
-    with open(paths[REPORT_MD], "w", encoding="utf-8") as fh:
-        fh.write(text)
+    text = attempt("report.md", not_done, summary_markdown, report, figures=list(figs),
+                   session_path=session_path, title=f"{name}: identification report")
+    if text is not None:
+        paths[REPORT_MD] = os.path.join(report_dir, REPORT_MD)
+        with open(paths[REPORT_MD], "w", encoding="utf-8") as fh:
+            fh.write(text)
     paths[REPORT_JSON] = os.path.join(report_dir, REPORT_JSON)
     write_report(report, paths[REPORT_JSON])
     return paths

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 from vibid.report import figures as report_figures
 from vibid.report.figures import figure_markdown
+from vibid.report.not_done import not_done_lines
 from vibid.report.values import (Quantity, chi2_text, percent_text, quantities, reading,
                                  stage_label, unit_of)
 
@@ -173,6 +174,7 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
                          f"{n} ×{r:.2g}" for n, r in ratio.items() if r is not None))
     if ident and not ident.get("converged", True):
         lines.append(f"- **the identification did not converge**: {ident.get('message', '')}")
+    lines += [f"- **{line}**" for line in not_done_lines(report)]  # stages left out, and why
     lines += ["", "## Identified values (value ± standard deviation)", "",
               "| parameter | meaning | value | unit |", "|---|---|---|---|"]
     table = quantities(report)
