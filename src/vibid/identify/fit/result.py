@@ -3,6 +3,14 @@
 Every status maps to a sentence that tells the person at the stand what happened and what
 to do (the shape of optimistix's ``RESULTS``); nothing is returned without one, and a run
 that did not converge says so.
+
+A run the optimiser calls converged is no converged estimate where it stopped at the end of
+a parameter's physical range (:func:`physical_ends`: a positive stiffness at ~0, Poisson's
+ratio at −1 or 0.5): no plate is there, so the data do not hold the model's structure (an
+AFC without the plate's response, a wrong setup); its status is then
+:attr:`Status.AT_PHYSICAL_LIMIT`. The end of the physical range is not the prior box's edge:
+an estimate on or outside its box is a warning of its own (the box may exclude the truth),
+and may well be converged.
 """
 
 from __future__ import annotations
@@ -20,6 +28,7 @@ class Status(enum.Enum):
     MAX_ITERATIONS = "max_iterations"
     STALLED = "stalled"
     NOT_FINITE = "not_finite"
+    AT_PHYSICAL_LIMIT = "at_physical_limit"
     FAILED = "failed"
 
     @property
@@ -38,11 +47,77 @@ class Status(enum.Enum):
                 "the loss is not smooth there (check the model's accuracy and the data)"
             ),
             Status.NOT_FINITE: (
-                "the loss is not finite at the start: check the data and the start values"
+                "the loss or the estimate is not finite: check the data and the start values"
+            ),
+            Status.AT_PHYSICAL_LIMIT: (
+                "stopped at the end of a parameter's physical range, where no plate is: "
+                "not a converged estimate; check that the data hold the plate's response "
+                "and that the setup declares this specimen"
             ),
             Status.FAILED: "failed",
         }[self]
         return f"{base} ({detail})" if detail else base
+
+
+#: A parameter in an interval (Poisson's ratio in (−1, 0.5)) within this fraction of the
+#: interval's width from one of its ends is at that end: where an optimiser ran its logit
+#: coordinate off to infinity (no fit of a plate puts ν within 1.5e-6 of −1 or 0.5).
+INTERVAL_END_RTOL = 1e-6
+#: A positive parameter at most this fraction of its prior box's lower edge is at 0: three
+#: decades softer than the softest the box allows is no plate (an all-zero AFC ran the steel
+#: strip's D, box 1-100 N m, to 2.7e-5 N m in its toy model, 3e-12 N m in the plate model).
+POSITIVE_END_RTOL = 1e-3
+
+
+def physical_end(rule, value: float, low: float, high: float) -> float | None:
+    """The end of the physical range that ``value`` lies at (or beyond), or None: for the
+    rule ``"positive"`` (:attr:`vibid.parameters.Parameter.rule`) 0 where ``value`` is at
+    most :data:`POSITIVE_END_RTOL` of the prior box ``[low, high]``'s lower edge (of its
+    upper edge where the lower is not positive); for ``("interval", a, b)`` a or b where
+    ``value`` lies within :data:`INTERVAL_END_RTOL` of the interval's width of it; None for
+    any other rule (a non-negative loss factor or mass at 0 is a possible plate)."""
+    if rule == "positive":
+        scale = low if low > 0 else high
+        return 0.0 if value <= POSITIVE_END_RTOL * abs(scale) else None
+    if isinstance(rule, tuple) and rule and rule[0] == "interval":
+        a, b = float(rule[1]), float(rule[2])
+        tol = INTERVAL_END_RTOL * (b - a)
+        return a if value <= a + tol else b if value >= b - tol else None
+    return None
+
+
+def physical_ends(space, theta) -> dict[str, float]:
+    """name -> the end of its physical range, for the parameters of ``space`` (a
+    :class:`~vibid.identify.fit.space.ParameterSpace`: its transforms' names and prior
+    boxes) whose value in ``theta`` lies at it (:func:`physical_end`, the rule of the
+    parameter catalogue, :mod:`vibid.parameters`)."""
+    from vibid.parameters import known_parameter
+
+    out = {}
+    for t, v in zip(space.transforms, np.asarray(theta, float)):
+        q = known_parameter(t.name)
+        end = None if q is None else physical_end(q.rule, float(v), t.low, t.high)
+        if end is not None:
+            out[t.name] = end
+    return out
+
+
+def final_status(best, space, theta, chi2: float) -> tuple[Status, str]:
+    """(status, sentence) of the identification whose best local run is ``best`` and whose
+    estimate ``theta`` has the loss ``chi2``: the run's own, unless its estimate or loss is
+    not finite (:attr:`Status.NOT_FINITE`) or a converged run stopped at the end of a
+    parameter's physical range (:attr:`Status.AT_PHYSICAL_LIMIT`, naming each)."""
+    theta = np.asarray(theta, float)
+    if not (np.all(np.isfinite(theta)) and np.isfinite(chi2)):
+        bad = [n for n, v in zip(space.names, theta) if not np.isfinite(v)]
+        what = f"{', '.join(bad)} not finite" if bad else f"chi2 = {chi2}"
+        return Status.NOT_FINITE, f"{best.method}: {Status.NOT_FINITE.sentence(what)}"
+    if best.status.ok and (ends := physical_ends(space, theta)):
+        at = ", ".join(f"{n} = {v:.6g} at {ends[n]:g}" for n, v in zip(space.names, theta)
+                       if n in ends)
+        return (Status.AT_PHYSICAL_LIMIT,
+                f"{best.method} {Status.AT_PHYSICAL_LIMIT.sentence(at)}")
+    return best.status, f"{best.method} {best.message}"
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from vibid.identify.fit.data import FitData
 from vibid.identify.fit.minima import rival_minima
 from vibid.identify.fit.noise import fits_noise
 from vibid.identify.fit.problem import PlateForwardModel
-from vibid.identify.fit.result import IdentificationResult, LocalResult
+from vibid.identify.fit.result import IdentificationResult, LocalResult, final_status
 from vibid.identify.fit.uncertainty import fisher_uncertainty
 from vibid.identify.model.model_error import ModelErrorSplit
 
@@ -58,7 +58,7 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
     model_afc = np.full(data.H.shape, np.nan + 1j * np.nan)
     model_afc[data.used] = Hm_used
 
-    status, message = best.status, f"{best.method} {best.message}"
+    status, message = final_status(best, space, theta, chi2)
     if not status.ok:
         warnings.append(f"the local optimisation {message}")
     reaches_noise = fits_noise(chi2, dof, data.noise_known) is not False
