@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 
@@ -40,8 +41,12 @@ class Parameter:
     null : the value at which the term vanishes exactly (None for material parameters;
         may be ``inf``, e.g. a rigid clamp's stiffness).
     rule : what a prior box must respect: ``"positive"``, ``"non-negative"``,
-        ``("interval", a, b)`` (open at a, closed at b) or None.
+        ``("interval", a, b)`` (open at a, closed at b) or None. A single value respects
+        it too, the interval open at both ends (:meth:`value_problem`).
     noun : what the parameter is, for messages (``"a stiffness"``, ``"the loss factor"``).
+    limit : ``limit(x, scale) -> str | None``: why value ``x`` is beyond what a specimen
+        of the declared sizes ``scale`` (:func:`specimen_scale`) can have, or None; None
+        where no physical limit applies beyond ``rule``.
     """
 
     name: str
@@ -51,6 +56,31 @@ class Parameter:
     null: float | None = None
     rule: object = None
     noun: str = ""
+    limit: Callable[[float, Mapping[str, float]], str | None] | None = None
+
+    def value_problem(self, x: float, scale: Mapping[str, float] | None = None) -> str | None:
+        """Why ``x`` cannot be this parameter's value (a specimen's true value, a value to
+        evaluate the model at), or None. It must be a finite number (or the parameter's
+        null, e.g. a rigid clamp's ``inf``) that respects :attr:`rule`; with ``scale``
+        (the declared specimen's sizes, :func:`specimen_scale`) also :attr:`limit`."""
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            return f"{self.name} must be a number, got {x!r}"
+        if x == self.null:
+            return None
+        if not math.isfinite(x):
+            return f"{self.name} must be a finite number, got {x!r}"
+        what = f"{self.name} ({self.noun})" if self.noun else self.name
+        if self.rule == "positive" and not x > 0:
+            return f"{what} must be positive, got {x!r}"
+        if self.rule == "non-negative" and x < 0:
+            return f"{what} cannot be negative, got {x!r}"
+        if isinstance(self.rule, tuple) and self.rule[0] == "interval":
+            a, b = self.rule[1], self.rule[2]
+            if not a < x < b:
+                return f"{what} must lie in ({a:g}, {b:g}), got {x!r}"
+        if self.limit is not None and scale is not None:
+            return self.limit(x, scale)
+        return None
 
     def bounds_problem(self, low: float, high: float) -> str | None:
         """Why ``[low, high]`` cannot be this parameter's prior box, or None."""
@@ -144,10 +174,53 @@ MATERIAL_PARAMETERS: dict[str, Parameter] = {
     q.name: q for m in MODELS for pml in (False, True) for q in material_parameters(m, pml)}
 
 
+# -- physical limits of a value, given the declared specimen --------------------------------
+def specimen_scale(setup) -> dict[str, float]:
+    """The declared sizes a parameter's value is judged against (:attr:`Parameter.limit`):
+    the specimen's mass ``specimen_mass_kg`` (kg) and free length ``length_m``, its width
+    ``width_m`` and the response sensor's centre across it, ``sensor_y_m`` (m). ``setup``:
+    a :class:`vibid.setup_model.Setup` (read by attribute: no import)."""
+    sp, r = setup.specimen, setup.sensors.response
+    return {"specimen_mass_kg": sp.density_kg_m3 * sp.length_m * sp.width_m * sp.thickness_m,
+            "length_m": sp.length_m, "width_m": sp.width_m, "sensor_y_m": r.y_m}
+
+
+def _lighter_than_the_specimen(x: float, scale: Mapping[str, float]) -> str | None:
+    """An undeclared mass at the sensor (glue, a cable's share, a sensor declared too
+    light) is a small part of what vibrates: one as heavy as the whole plate is another
+    specimen, a mass on a spring (a cantilever's first bending frequency falls with a tip
+    mass M as 1/sqrt(M + 0.24 m), to 0.44 of the bare plate's at M = m, and the modes the
+    identification resolves are the mass's), no detail the setup left out."""
+    m = scale.get("specimen_mass_kg")
+    if m is not None and math.isfinite(m) and x > m:
+        return (f"mass_kg (the added mass) {x!r} kg outweighs the specimen that carries it "
+                f"({m:.4g} kg): declare such a mass in the setup's sensor, not as an effect")
+    return None
+
+
+def _a_free_length_left(x: float, scale: Mapping[str, float]) -> str | None:
+    """The free length ``length_m + dL_m`` is a length: positive."""
+    length = scale.get("length_m")
+    if length is not None and math.isfinite(length) and not length + x > 0:
+        return (f"dL_m (the free length's change) {x!r} m leaves no free length (the "
+                f"declared free length is {length:g} m)")
+    return None
+
+
+def _on_the_plate(x: float, scale: Mapping[str, float]) -> str | None:
+    """The sensor's centre, moved across the width by ``x``, is on the plate (a sensor
+    off its edge measures nothing of it)."""
+    y, width = scale.get("sensor_y_m"), scale.get("width_m")
+    if y is not None and width is not None and not 0 <= y + x <= width:
+        return (f"sensor_dy_m (the sensor's offset across the width) {x!r} m puts the "
+                f"sensor's centre off the plate (declared at y = {y:g} m of its {width:g} m)")
+    return None
+
+
 # -- the effects (vibid.identify.effects, one module each) ---------------------------------
 #: ``added_mass``: an undeclared point mass at the response sensor (null 0).
 MASS = Parameter("mass_kg", "kg", ("log",), bounds=(0.0, 5e-3), null=0.0,
-                 rule="non-negative", noun="the added mass")
+                 rule="non-negative", noun="the added mass", limit=_lighter_than_the_specimen)
 #: ``channel_delay``: the response channel's delay against the base channel (null 0).
 TAU = Parameter("tau_s", "s", ("linear",), bounds=(-1e-4, 1e-4), null=0.0,
                 noun="the delay")
@@ -166,7 +239,7 @@ GAIN = Parameter("gain", "1", ("log",), bounds=(0.8, 1.25), null=1.0, rule="posi
 #: (:func:`vibid.identify.effects.sensor_position.places`): at ±10 mm its error on the
 #: titanium strip grew from below 2e-4 of |H| to 5.7e-4.
 DY = Parameter("sensor_dy_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,
-               noun="the sensor's offset across the width")
+               noun="the sensor's offset across the width", limit=_on_the_plate)
 #: ``transverse_shear``: the transverse shear modulus, a parameter on an orthotropic or
 #: monoclinic plate only (an isotropic plate's follows from E and nu); null: the term
 #: absent.
@@ -195,7 +268,7 @@ BETA_CLAMP = Parameter("beta_clamp", "1", ("log",), bounds=(1e-4, 0.5), null=Non
                        rule="non-negative", noun="the clamp's loss factor")
 #: ``free_length``: the change of the plate's free length (null 0).
 DL = Parameter("dL_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,
-               noun="the free length's change")
+               noun="the free length's change", limit=_a_free_length_left)
 #: ``sensor_inertia``: the height of the response sensor's centre of mass (null 0).
 HEIGHT = Parameter("height_m", "m", ("linear",), bounds=(0.0, 0.02), null=0.0,
                    rule="non-negative", noun="the sensor's height")
@@ -378,5 +451,5 @@ __all__ = [
     "effect_parameters",
     # instances and look-ups
     "instance_name", "split_instance", "catalogue", "known_parameter",
-    "known_effect_parameter", "DESCRIPTIONS", "describe",
+    "known_effect_parameter", "DESCRIPTIONS", "describe", "specimen_scale",
 ]

@@ -1,8 +1,58 @@
-"""Options shared by the commands that identify (``identify``, ``replay``, ``campaign``)."""
+"""Options shared by the commands: the identification's (``identify``, ``replay``,
+``campaign``), and the readers of ``NAME=VALUE`` lists and plain numbers, which refuse in
+one line (:class:`~vibid.errors.VibidError`) whatever is not what it says: a value that is
+not a finite number, a name given twice, a value no specimen can have."""
 
 from __future__ import annotations
 
 import contextlib
+import math
+import re
+
+from vibid.errors import VibidError
+
+#: A parameter's name in ``NAME=VALUE``: letters, digits and underscores.
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def parse_number(text: str, what: str) -> float:
+    """``text`` as a finite number (``what`` names it in the one-line error): no nan, no
+    inf, no overflow to inf (``1e999``)."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise VibidError(f"{what} must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise VibidError(f"{what} must be a finite number, got {text!r}")
+    return value
+
+
+def parse_values(items, option: str) -> dict[str, float]:
+    """``["D=17.97", "nu=0.3"]`` -> ``{"D": 17.97, "nu": 0.3}``; one-line errors naming
+    ``option`` (e.g. ``"--params"``) for an item that is not ``NAME=VALUE``, a value that is
+    not a finite number and a name given twice (never the last one silently)."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not _NAME.fullmatch(name):
+            raise VibidError(f"{option}: expected NAME=VALUE, got {item!r}")
+        if name in out:
+            raise VibidError(f"{option}: {name} is given twice")
+        out[name] = parse_number(value, f"{option}: {name}")
+    return out
+
+
+def check_values(values: dict[str, float], option: str, scale=None) -> None:
+    """Refuse, naming ``option``, a value its parameter cannot take (the catalogue's rule
+    and, with ``scale`` from :func:`vibid.parameters.specimen_scale`, its physical limit:
+    :meth:`vibid.parameters.Parameter.value_problem`); names not in the catalogue are left
+    to the model, which says which it does not know."""
+    from vibid.parameters import known_parameter
+
+    for name, x in values.items():
+        q = known_parameter(name)
+        if q is not None and (problem := q.value_problem(x, scale)):
+            raise VibidError(f"{option}: {problem}")
 
 
 def add_identification_options(p, *, methods: bool = True) -> None:

@@ -39,12 +39,14 @@ def add_parser(sub):
     p.set_defaults(run=run)
 
 
-def _effects(items) -> tuple[dict[str, float], tuple[str, ...]]:
+def _effects(items, scale=None) -> tuple[dict[str, float], tuple[str, ...]]:
     """The effects' parameter values, and every effect's name (a bare name for an effect
     without parameters, e.g. ``transverse_shear``). An effect that may occur more than once
     (``stand_resonance``) takes one item per instance, its parameters unsuffixed; the k-th
-    item's become ``f_hz_k``, ... (report format)."""
-    from vibid.cli.modes import parse_params
+    item's become ``f_hz_k``, ... (report format). Each value is checked against its
+    parameter's rule and, with ``scale`` (:func:`vibid.parameters.specimen_scale`), its
+    physical limit; every error names ``--effect`` and the effect."""
+    from vibid.cli.options import check_values, parse_values
     from vibid.identify.effects import EFFECTS
     from vibid.parameters import flat_values
 
@@ -54,7 +56,10 @@ def _effects(items) -> tuple[dict[str, float], tuple[str, ...]]:
         if name not in EFFECTS:
             raise VibidError(f"--effect: unknown effect {name!r}, expected one of "
                              f"{', '.join(EFFECTS)}")
-        given.setdefault(name, []).append(parse_params(rest.split(",")) if sep and rest else {})
+        option = f"--effect {name}"
+        values = parse_values(rest.split(","), option) if sep else {}
+        check_values(values, option, scale)
+        given.setdefault(name, []).append(values)
     out = {}
     for name, instances in given.items():
         try:
@@ -65,8 +70,10 @@ def _effects(items) -> tuple[dict[str, float], tuple[str, ...]]:
 
 
 def run(args) -> int:
-    from vibid.cli.modes import load_setup, parse_params
+    from vibid.cli.modes import load_setup
+    from vibid.cli.options import check_values, parse_values
     from vibid.cli.paths import check_output_file
+    from vibid.parameters import specimen_scale
     from vibid.hardware_mocks.simulated_session import StandConditions, simulate_session
     from vibid.identify import configure
     from vibid.identify.model.forward import plate_model_for
@@ -80,13 +87,18 @@ def run(args) -> int:
     setup = load_setup(args.setup)
     if setup.excitation is None:
         raise VibidError(f"{args.setup}: the setup has no excitation to play")
+    scale = specimen_scale(setup)
     if args.params:
-        params = parse_params(args.params)
+        params = parse_values(args.params, "--params")
+        check_values(params, "--params", scale)
     else:
         params = {n: math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
                   for n, (lo, hi) in setup.identification.bounds.items()
                   if n in setup.identification.parameter_names}
-    values, effects = _effects(args.effect)
+    values, effects = _effects(args.effect, scale)
+    if twice := sorted(set(params) & set(values)):
+        raise VibidError(f"{', '.join(twice)}: given by --params and by --effect; give "
+                         "each value once")
     truth = params | values
     plate_model_for(truth, effects)  # every name known, one-line error otherwise
     configure()
