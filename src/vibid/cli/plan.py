@@ -60,24 +60,41 @@ def parse_band(text: str | None):
     return band
 
 
-def run(args) -> int:
+def check_options(args):
+    """Every option of ``vibid plan`` checked before the planning's seconds: the output
+    path, the numbers, the setup and stand configuration, the targets, the priors and the
+    band. Returns ``(setup, config, targets, priors, band_hz)``; one-line errors."""
     from vibid.acquisition.stand_config import load_stand_config
-    from vibid.identify.model.forward import plate_model
-    from vibid.identify.runtime import configure
+    from vibid.cli.paths import check_output_file
+    from vibid.parameters import MODEL_PARAMETERS
     from vibid.pipeline import read_setup
-    from vibid.planner import parse_prior, parse_targets, plan_test, planned_setup
+    from vibid.planner.prior import (check_priors_in_box, check_stand_time_cap, parse_prior,
+                                     parse_targets)
 
-    setup = read_setup(args.setup)
-    config = load_stand_config(args.stand_config)
-    names = plate_model(setup.identification.model).names
-    targets = parse_targets(args.target, names)
-    priors = parse_prior(args.prior, names)
+    check_output_file(args.out, overwrite=True)
+    if os.path.exists(args.out) and os.path.exists(args.setup) and os.path.samefile(args.out, args.setup):
+        raise VibidError(f"--out {args.out}: is the setup itself; write the plan to another file")
+    check_stand_time_cap(args.max_stand_time)
     if args.noise is not None and not (math.isfinite(args.noise) and args.noise > 0):
         raise VibidError(f"--noise {args.noise!r}: must be a positive number")
     if not args.draws >= 2:
         raise VibidError("--draws: at least 2")
+    setup = read_setup(args.setup)
+    config = load_stand_config(args.stand_config)
+    names = MODEL_PARAMETERS[setup.identification.model]
+    targets = parse_targets(args.target, names)
+    priors = parse_prior(args.prior, names)
+    check_priors_in_box(priors, setup.identification.bounds)
+    return setup, config, targets, priors, parse_band(args.band)
+
+
+def run(args) -> int:
+    from vibid.identify.runtime import configure
+    from vibid.planner import plan_test, planned_setup
+
+    setup, config, targets, priors, band = check_options(args)
     configure()
-    plan = plan_test(setup, config, targets, priors=priors, band_hz=parse_band(args.band),
+    plan = plan_test(setup, config, targets, priors=priors, band_hz=band,
                      noise=args.noise, n_draws=args.draws, seed=args.seed,
                      max_stand_time_s=args.max_stand_time, magnitude=args.magnitude_only)
     text = planned_setup(setup, plan).to_json()
@@ -89,6 +106,10 @@ def run(args) -> int:
     except OSError as exc:
         raise VibidError(f"{args.out}: cannot write: {exc.strerror or exc}") from None
     print(comparison(plan))
+    if plan.planned.stand_time_s > args.max_stand_time:
+        print(f"the plan's {plan.planned.stand_time_s:.1f} s of stand time exceed "
+              f"--max-stand-time {args.max_stand_time:g} s: its coarse sweep and the step "
+              "that reached the cap are kept whole")
     if not plan.reached_design:
         print(f"the targets are not reached within {args.max_stand_time:g} s of stand time "
               "in this band: the plan is the best found")

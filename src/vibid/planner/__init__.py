@@ -23,7 +23,8 @@ from vibid.acquisition.stand_config import StandConfig
 from vibid.errors import VibidError
 from vibid.planner.design import Steps, data_std, greedy, met, sequence_settle
 from vibid.planner.information import information
-from vibid.planner.prior import Target, parse_prior, parse_targets, prior_draws, prior_std
+from vibid.planner.prior import (Target, check_stand_time_cap, parse_prior, parse_targets, prior_draws,
+                                 prior_std)
 
 __all__ = ["Plan", "Prediction", "parse_prior", "parse_targets", "plan_test", "planned_setup"]
 
@@ -75,6 +76,7 @@ sweep's, are those at ``n_check`` other draws of the prior (held out: a design f
 its own draws flatters itself)."""
     from vibid.identify.model.forward import plate_model
 
+    check_stand_time_cap(max_stand_time_s)
     model = plate_model(setup.identification.model)
     names = tuple(model.names)
     box = model.default_bounds(dict(setup.identification.bounds))

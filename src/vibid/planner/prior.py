@@ -5,7 +5,11 @@ of the parameter's own value) or absolute (its unit). ``--prior D=17±30% nu=0.3
 normal prior per named parameter (mean ± std, std relative with ``%``); a parameter the
 prior does not name is uniform over the setup's box (log-uniform when the box spans more
 than a decade). Draws are a scrambled Sobol sequence, clipped to the box: the reduced model
-is built for that box.
+is built for that box. ``--max-stand-time S``: the stand time the plan may spend, s.
+
+Each is read whole or refused in one line (:class:`~vibid.errors.VibidError`): a number
+that is not finite (``1e999`` is inf), a name given twice, a standard uncertainty that is
+not positive.
 """
 
 from __future__ import annotations
@@ -44,15 +48,25 @@ class NormalPrior:
     std: float
 
 
+def check_stand_time_cap(seconds: float, option: str = "--max-stand-time") -> None:
+    """Refuse a stand-time cap (s) that is not a positive finite number: a cap of zero or
+    less plans nothing, and one of nan or inf caps nothing."""
+    if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds > 0):
+        raise VibidError(f"{option} {seconds!r}: must be a positive number of seconds")
+
+
 def parse_targets(texts, names) -> tuple[Target, ...]:
-    """``["D=0.1%", "nu=0.002"]`` → targets; a name outside ``names`` is an error."""
+    """``["D=0.1%", "nu=0.002"]`` → targets; a name outside ``names`` or given twice is an
+    error."""
     out = []
     for text in texts:
         m = re.fullmatch(rf"\s*(\w+)\s*=\s*({_NUMBER})\s*(%?)\s*", text)
         if not m:
             raise VibidError(f"--target {text!r}: expected NAME=VALUE or NAME=VALUE% (e.g. D=0.1%)")
-        name, value, pct = m.group(1), float(m.group(2)), bool(m.group(3))
+        name, value, pct = m.group(1), _finite(m.group(2), "--target", text), bool(m.group(3))
         _known(name, names, "--target")
+        if any(t.name == name for t in out):
+            raise VibidError(f"--target: {name} is given twice")
         if not value > 0:
             raise VibidError(f"--target {text!r}: the uncertainty must be positive")
         out.append(Target(name, value / 100 if pct else value, pct))
@@ -69,13 +83,25 @@ def parse_prior(texts, names) -> dict[str, NormalPrior]:
         if not m:
             raise VibidError(f"--prior {text!r}: expected NAME=MEAN±STD or NAME=MEAN±STD% "
                              "(e.g. D=17±30%; +- for ±)")
-        name, mean, std = m.group(1), float(m.group(2)), float(m.group(3))
+        name = m.group(1)
+        mean, std = _finite(m.group(2), "--prior", text), _finite(m.group(3), "--prior", text)
         _known(name, names, "--prior")
+        if name in out:
+            raise VibidError(f"--prior: {name} is given twice")
         std = std / 100 * abs(mean) if m.group(4) else std
-        if not std > 0:
-            raise VibidError(f"--prior {text!r}: the standard deviation must be positive")
+        if not (std > 0 and math.isfinite(std)):
+            raise VibidError(f"--prior {text!r}: the standard deviation must be a positive "
+                             "finite number")
         out[name] = NormalPrior(name, mean, std)
     return out
+
+
+def _finite(number: str, option: str, text: str) -> float:
+    """A number of ``text`` that must be finite (the pattern lets ``1e999`` through)."""
+    value = float(number)
+    if not math.isfinite(value):
+        raise VibidError(f"{option} {text!r}: {number} is not a finite number")
+    return value
 
 
 def _known(name: str, names, option: str) -> None:
@@ -84,15 +110,20 @@ def _known(name: str, names, option: str) -> None:
                          f"(its parameters: {', '.join(names)})")
 
 
-def prior_draws(names, box: dict, priors: dict[str, NormalPrior], n: int, seed: int = 0) -> np.ndarray:
-    """(n, p) parameter vectors drawn from the prior, inside ``box``."""
-    from scipy.stats import norm, qmc
-
+def check_priors_in_box(priors: dict[str, NormalPrior], box: dict) -> None:
+    """Refuse a prior whose mean is outside the setup's box (the draws are clipped to it)."""
     for p in priors.values():
         lo, hi = box[p.name]
         if not lo < p.mean < hi:
             raise VibidError(f"--prior {p.name}: the mean {p.mean:g} is outside the setup's "
                              f"bounds [{lo:g}, {hi:g}]")
+
+
+def prior_draws(names, box: dict, priors: dict[str, NormalPrior], n: int, seed: int = 0) -> np.ndarray:
+    """(n, p) parameter vectors drawn from the prior, inside ``box``."""
+    from scipy.stats import norm, qmc
+
+    check_priors_in_box(priors, box)
     u = qmc.Sobol(len(names), scramble=True, seed=seed).random(n)
     u = np.clip(u, 1e-6, 1 - 1e-6)
     out = np.empty_like(u)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.planner.prior import Target, parse_targets
+from vibid.planner.prior import Target, check_stand_time_cap, parse_targets
 
 __all__ = ["AdaptiveOptions", "coarse_sweep"]
 
@@ -47,8 +47,7 @@ class AdaptiveOptions:
         nyquist = setup.daq.sample_rate_hz / 2
         if not 0 < lo < hi < nyquist:
             raise VibidError(f"--band {lo:g}:{hi:g}: needs 0 < low < high < {nyquist:g} Hz (Nyquist)")
-        if not self.max_stand_time_s > 0:
-            raise VibidError("--max-stand-time must be positive")
+        check_stand_time_cap(self.max_stand_time_s)
         if self.batch_size < 1 or self.coarse_steps < 4:
             raise VibidError("--batch must be at least 1 and the coarse sweep at least 4 steps")
 
