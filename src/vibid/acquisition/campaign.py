@@ -194,8 +194,8 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     _check_drive(config)
     stepped_sine(setup, config)  # checks the timing before any file is touched
     if resume:
-        start, drive, near = (_resume_point(path, setup) if chooser is None
-                              else _adaptive_resume_point(path, setup, chooser))
+        start, drive, near = resume_point(path, setup,
+                                          None if chooser is None else chooser.attribute)
         writer = SessionWriter.resume(path)
         if chooser is None and start >= n_steps:  # stopped after its last step, before it was closed
             writer.close("complete")
@@ -497,10 +497,18 @@ def _progress(cmd: StepCommand, m: _Measured, nominal: dict[int, float], elapsed
 
 
 # -- resume -------------------------------------------------------------------------------------
-def _resume_point(path: str, setup: Setup) -> tuple[int, float, bool]:
-    """``(first missing step, drive of the last step Vpp, last step was unsettled)``."""
+def resume_point(path: str | os.PathLike, setup: Setup,
+                 adaptive: dict | None = None) -> tuple[int, float, bool]:
+    """``(first missing step, drive of the last step Vpp, last step was unsettled)`` of the
+    session at ``path`` resumed with ``setup`` (``adaptive``: the adaptive campaign's
+    options, as its session attribute; None for a campaign of the setup's own steps), or
+    :class:`CampaignError` in one line saying why it cannot be resumed so and what to do.
+    Reads the file only: a command calls it before anything slow starts."""
+    path = os.fspath(path)
     if not os.path.exists(path):
         raise CampaignError(f"{path}: no such session file to resume")
+    if adaptive is not None:
+        return _adaptive_resume_point(path, setup, adaptive)
     with read_session(path) as s:
         if s.setup.to_dict() != setup.to_dict():
             raise CampaignError(f"{path}: its declared setup differs from the one given; "
@@ -511,7 +519,8 @@ def _resume_point(path: str, setup: Setup) -> tuple[int, float, bool]:
         if n > len(want) or not np.array_equal(got, np.asarray(want[:n], float)):
             raise CampaignError(f"{path}: its steps do not follow the setup's frequencies")
         if n >= len(want) and s.run_status_written and s.run_status == "complete":
-            raise CampaignError(f"{path}: the session is already complete ({n} steps)")
+            raise CampaignError(f"{path}: the session is already complete ({n} steps): "
+                                "nothing to resume (vibid replay identifies it)")
         return _last_step_state(s)
 
 
@@ -525,19 +534,17 @@ def _last_step_state(s) -> tuple[int, float, bool]:
     return n, float(last.get("vibid_drive_vpp", math.nan)), bool(last.get("vibid_unsettled_first", False))
 
 
-def _adaptive_resume_point(path: str, setup: Setup, chooser: StepSource) -> tuple[int, float, bool]:
+def _adaptive_resume_point(path: str, setup: Setup, adaptive: dict) -> tuple[int, float, bool]:
     """The resume point of an adaptive campaign: its file must be adaptive, of the same
     setup apart from the excitation (the file's lists the steps it recorded) and of the
     same adaptive options."""
-    if not os.path.exists(path):
-        raise CampaignError(f"{path}: no such session file to resume")
     with read_session(path) as s:
         if s.adaptive is None:
             raise CampaignError(f"{path}: not an adaptive campaign; resume it without --adaptive")
         if replace(s.setup, excitation=None).to_dict() != replace(setup, excitation=None).to_dict():
             raise CampaignError(f"{path}: its declared setup differs from the one given (the "
                                 "excitation aside); resume a session only with its own setup")
-        if s.adaptive != chooser.attribute:
+        if s.adaptive != adaptive:
             raise CampaignError(f"{path}: it was started with other adaptive options "
                                 f"({json.dumps(s.adaptive, sort_keys=True)}); resume it with those")
         return _last_step_state(s)

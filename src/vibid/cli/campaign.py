@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from vibid.cli.options import add_identification_options, profiled
 
+import json
 import math
 import os
 import sys
@@ -120,6 +121,10 @@ def adaptive_options(args, setup):
                               600.0 if args.max_stand_time is None else args.max_stand_time,
                               4 if args.batch is None else args.batch, seed=args.seed)
     options.check(setup)
+    if recorded is not None and options.attribute() != recorded:
+        raise VibidError(f"--out {args.out}: an adaptive campaign started with other options "
+                         f"({json.dumps(recorded, sort_keys=True)}); resume it without "
+                         f"{', '.join(given)}: --resume continues with the options it records")
     return options
 
 
@@ -181,6 +186,10 @@ def run(args) -> int:
         args.out = default_out(args.setup)
         os.makedirs(os.path.dirname(args.out), exist_ok=True)
     check_out_path(args.out, args.resume)
+    if args.resume:  # the file, its setup and options resumable: before the stand opens
+        from vibid.acquisition.campaign import resume_point
+
+        resume_point(args.out, setup, None if adaptive is None else adaptive.attribute())
     if args.record_only:
         return record_only(args, setup, config)
     from vibid.cli.paths import check_output_dir
@@ -215,10 +224,17 @@ def run_flow(args, report_dir: str, candidates, adaptive: dict | None = None) ->
                               adaptive=adaptive, return_state=True)
     if not state.is_completed():
         error = state.result(raise_on_failure=False)
+        report_md = os.path.join(report_dir, "report.md")
+        if isinstance(error, VibidError):
+            # refused or failed in one line that says what to do (a resume refused is not
+            # to be resumed again): the report, if one was written, first
+            if os.path.exists(report_md):
+                print(f"report: {report_md}")
+            raise error
         message = str(error) if isinstance(error, BaseException) else (state.message or state.name)
         print(f"vibid campaign: {' '.join(message.split())}", file=sys.stderr)
-        if os.path.exists(os.path.join(report_dir, "report.md")):
-            print(f"report: {os.path.join(report_dir, 'report.md')}")
+        if os.path.exists(report_md):
+            print(f"report: {report_md}")
         elif os.path.exists(args.out):  # the campaign did not complete
             print(resume_hint(args, args.out), file=sys.stderr)
         return 1
@@ -301,9 +317,12 @@ class ProgressPrinter:
 
 
 def progress_line(p) -> str:
-    """``step 12/200  97.5 Hz  |H| 3.412  phase -12.3 deg  left 2 min 10 s`` (+ status, note)."""
+    """``step 12/200  97.5 Hz  |H| 3.412  phase -12.3 deg  left 2 min 10 s`` (+ status, note);
+    nothing about the time left while it cannot be estimated (``eta_s`` nan)."""
     text = (f"step {p.index + 1}/{p.n_steps}  {p.frequency_hz:g} Hz  |H| {p.h_abs:.4g}  "
-            f"phase {p.phase_deg:+.1f} deg  left {_duration(p.eta_s)}")
+            f"phase {p.phase_deg:+.1f} deg")
+    if math.isfinite(p.eta_s):
+        text += f"  left {_duration(p.eta_s)}"
     if p.status != "ok":
         text += f"  [{p.status}]"
     if p.note:

@@ -19,6 +19,7 @@ seconds and on the last step, with the identified model over it once the flow ha
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from pathlib import Path
@@ -59,9 +60,7 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
     logger = logger or run_logger()
 
     def step_logged(p) -> None:
-        logger.info("step %d/%d: %.2f Hz, |H| %.4g, phase %.1f deg, %s (about %.0f s left)",
-                    p.index + 1, p.n_steps, p.frequency_hz, p.h_abs, p.phase_deg, p.status,
-                    p.eta_s)
+        logger.info("%s", step_line(p))
         if live is not None:
             live.update(p)  # throttled; never raises
 
@@ -85,6 +84,18 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
         campaign_options = {k: v for k, v in campaign_options.items() if k == "temperature_c"}
         time.sleep(retry_delay_s)
     return result
+
+
+def step_line(p) -> str:
+    """The log line of a written step (a :class:`~vibid.acquisition.campaign.StepProgress`):
+    ``step 12/80: 225.00 Hz, |H| 3.412, phase -12.3 deg, ok (about 95 s left)``; nothing
+    about the time left while it cannot be estimated (an adaptive campaign's steps to come
+    are not known: ``eta_s`` nan)."""
+    line = (f"step {p.index + 1}/{p.n_steps}: {p.frequency_hz:.2f} Hz, |H| {p.h_abs:.4g}, "
+            f"phase {p.phase_deg:.1f} deg, {p.status}")
+    if math.isfinite(p.eta_s):
+        line += f" (about {p.eta_s:.0f} s left)"
+    return line
 
 
 def show_recorded(live, out) -> None:
@@ -152,15 +163,35 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
     Returns the report (a dict). A campaign that did not complete (interrupted, aborted)
     ends the flow run ``Failed`` with its reason (a returned state: no traceback in the
     log; calling the flow raises, and ``return_state=True`` gives the state); the session
-    keeps every step recorded (``resume=True`` continues it).
+    keeps every step recorded (``resume=True`` continues it). Bad input or a refused resume
+    (a :class:`~vibid.errors.VibidError`, e.g. a complete session, another setup's) ends it
+    ``Failed`` the same way, its one line logged, the error the state's result.
     """
     from prefect.states import Failed
 
-    from vibid.acquisition.stand_config import load_stand_config
-
-    from vibid.flows.live import LiveAfc
+    from vibid.errors import VibidError
 
     logger = run_logger()
+    try:
+        return _campaign(setup_path, stand=stand, stand_config=stand_config, out=out,
+                         report_dir=report_dir, resume=resume, realtime=realtime, loop=loop,
+                         candidates=candidates, retries=retries, operator=operator, notes=notes,
+                         temperature_c=temperature_c, restarts=restarts, seed=seed,
+                         magnitude_only=magnitude_only, adaptive=adaptive, logger=logger)
+    except VibidError as exc:
+        logger.error("%s", exc)
+        return Failed(message=str(exc), data=exc)
+
+
+def _campaign(setup_path, *, stand, stand_config, out, report_dir, resume, realtime, loop,
+              candidates, retries, operator, notes, temperature_c, restarts, seed,
+              magnitude_only, adaptive, logger):
+    """The body of :func:`campaign_flow` (its docstring), in the flow run."""
+    from prefect.states import Failed
+
+    from vibid.acquisition.stand_config import load_stand_config
+    from vibid.flows.live import LiveAfc
+
     setup = read_setup(setup_path)
     config = load_stand_config(stand_config)
     chooser = None
