@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
@@ -9,7 +11,8 @@ def add_parser(sub) -> None:
         help="check session files against the session format",
         description="Check session files against shared/spec/session-format.md. A valid file "
         "prints one summary line; an invalid one prints one line per problem, as "
-        "'FILE: /path/in/file: what is wrong'. Exit 0 if all are valid, 1 otherwise.",
+        "'FILE: /path/in/file: what is wrong' (a path with no file: one line on stderr). "
+        "Exit 0 if all are valid, 1 otherwise.",
     )
     p.add_argument("sessions", nargs="+", metavar="SESSION.h5", help="session file(s)")
     p.set_defaults(run=run)
@@ -17,9 +20,14 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from vibid.session import file_problems, read_session
+    from vibid.session.validate import no_file
 
     status = 0
     for path in args.sessions:
+        if (missing := no_file(path)) is not None:  # bad input, not a file's problem
+            status = 1
+            print(f"vibid validate: {path}: {missing}", file=sys.stderr)
+            continue
         problems = file_problems(path)
         if problems:
             status = 1

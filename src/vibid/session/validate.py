@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass
 from typing import Iterator
 
 import h5py
@@ -33,13 +34,30 @@ def file_problems(path: str | os.PathLike, *, check_samples: bool = True) -> lis
         close_quietly(opened)
 
 
+@dataclass(frozen=True)
+class NoFile(Problem):
+    """A path with no file to check (missing, or a folder): nothing inside it to locate, so
+    it reads as its message alone (``S.h5: no such file``, not ``S.h5: /: no such file``)."""
+
+    def __str__(self) -> str:
+        return self.message
+
+
+def no_file(path: str | os.PathLike) -> NoFile | None:
+    """Why there is no file at ``path`` to read (missing, a folder), or None."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        return NoFile("/", "no such file")
+    if os.path.isdir(path):
+        return NoFile("/", "is a directory, not a session file")
+    return None
+
+
 def open_hdf5(path: str | os.PathLike) -> h5py.File | Problem:
     """Open read-only without taking a lock (a live writer must never be blocked), or say why not."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        return Problem("/", "no such file")
-    if os.path.isdir(path):
-        return Problem("/", "is a directory, not a session file")
+    if (missing := no_file(path)) is not None:
+        return missing
     size = os.path.getsize(path)
     if size == 0:
         return Problem("/", "empty file (0 bytes), not an HDF5 session")
