@@ -2,6 +2,7 @@
 parameter that the terms use, and the instance-suffix rule."""
 
 import dataclasses
+import math
 import subprocess
 import sys
 
@@ -213,3 +214,28 @@ def test_setup_bounds_may_name_an_instance():
     doc["identification"]["bounds"]["tau_s_1"] = [-1e-4, 1e-4]
     with pytest.raises(SetupError, match="tau_s_1 is not a parameter"):
         parse_setup(doc)
+
+
+def test_a_single_value_respects_its_parameters_rule_and_the_specimens_scale():
+    """value_problem (issue 62): a prior box's rule for one value, the interval open at both
+    ends (an isotropic nu in (-1, 0.5)); the term's null is a value (the rigid clamp's inf);
+    the physical limits need the declared specimen's sizes."""
+    from vibid.parameters import specimen_scale
+    from vibid.setup_model import example_setup
+
+    nu, k, mass, dl, dy = (known_parameter(n) for n in ("nu", "k_theta_N_per_rad", "mass_kg",
+                                                        "dL_m", "sensor_dy_m"))
+    assert nu.value_problem(0.3) is None and nu.value_problem(-0.999) is None
+    assert "must lie in (-1, 0.5)" in nu.value_problem(0.5)
+    assert "must lie in (-1, 0.5)" in nu.value_problem(-1.0)
+    assert nu.bounds_problem(0.0, 0.5) is None  # a box may end at 0.5, a value may not
+    assert k.value_problem(math.inf) is None and "must be positive" in k.value_problem(0.0)
+    assert "finite" in mass.value_problem(math.nan)
+    scale = specimen_scale(example_setup())  # 15.84 g of steel, 100 x 20 mm, sensor at y = 15 mm
+    assert scale["specimen_mass_kg"] == pytest.approx(0.01584)
+    assert mass.value_problem(1e6) is None  # no scale: no limit
+    assert "outweighs the specimen" in mass.value_problem(0.02, scale)
+    assert mass.value_problem(0.015, scale) is None
+    assert "leaves no free length" in dl.value_problem(-0.1, scale) and dl.value_problem(-0.09, scale) is None
+    assert "off the plate" in dy.value_problem(0.0051, scale) and dy.value_problem(-0.015, scale) is None
+    assert known_parameter("q_2").value_problem(-5.0).startswith("q_2 (a quality factor) must be positive")
