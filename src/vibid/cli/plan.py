@@ -108,8 +108,8 @@ def run(args) -> int:
     print(comparison(plan))
     if plan.planned.stand_time_s > args.max_stand_time:
         print(f"the plan's {plan.planned.stand_time_s:.1f} s of stand time exceed "
-              f"--max-stand-time {args.max_stand_time:g} s: its coarse sweep and the step "
-              "that reached the cap are kept whole")
+              f"--max-stand-time {args.max_stand_time:g} s: the coarse sweep a plan starts "
+              "from, and the step that crosses the cap, are kept whole")
     if not plan.reached_design:
         print(f"the targets are not reached within {args.max_stand_time:g} s of stand time "
               "in this band: the plan is the best found")
