@@ -349,3 +349,14 @@ def test_reading_a_missing_session_names_no_location_inside_it(tmp_path):
     with pytest.raises(VibidError) as info:
         read_session(missing)
     assert str(info.value) == f"{missing}: no such file"
+
+
+@pytest.mark.parametrize("cap", ["0", "inf", "nan", "-5"])
+def test_an_adaptive_campaign_refuses_a_cap_that_is_no_positive_number(cap, tmp_path, no_campaign,
+                                                                      capsys):
+    out = tmp_path / "a.h5"
+    assert main(["campaign", _setup_file(tmp_path, short_setup()), "--stand", "simulated",
+                 "--out", str(out), "--adaptive", "--target", "D=1%", "--max-stand-time", cap]) == 1
+    assert one_line(capsys, "campaign") == f"--max-stand-time {float(cap)!r}: must be a positive " \
+                                           "number of seconds"
+    assert not out.exists()
