@@ -275,3 +275,22 @@ def test_replay_command_rejects_bad_input_in_one_line(tmp_path, capsys):
     assert main(["replay", str(junk)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("vibid replay: error:") and "junk.h5" in err and "\n" not in err
+
+
+def test_artifacts_that_cannot_be_published_are_one_warning_and_the_flow_goes_on(
+        monkeypatch, caplog):
+    """The report is written before its Prefect artifacts: an artifact that cannot be made
+    is one warning of the run's log, never the job's failure (issue 62)."""
+    import logging
+
+    from vibid.flows import tasks
+
+    def broken(*a, **k):
+        raise KeyError("E_Pa")
+
+    monkeypatch.setattr(tasks, "_publish", broken)
+    with caplog.at_level(logging.WARNING, logger="vibid.flows"):
+        assert tasks.publish_artifacts({"session_id": "s"}, specimen="strip") is None
+    (record,) = [r for r in caplog.records if "artifacts" in r.getMessage()]
+    assert record.getMessage() == ("the report's Prefect artifacts could not be published: "
+                                   "KeyError: 'E_Pa'")

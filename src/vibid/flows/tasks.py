@@ -172,7 +172,19 @@ def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
     """The report's summary as Prefect artifacts: a markdown summary (with the report
     folder's figures embedded, :func:`figures_markdown`) and a parameter table, keyed by
     specimen (``<specimen>-report``, ``<specimen>-parameters``) so one specimen's runs form
-    a history in the Prefect UI. Call inside a flow run."""
+    a history in the Prefect UI. Call inside a flow run, once the report is written: artifacts
+    that cannot be made are one warning line of the run's log, and the flow goes on (the
+    report's files hold everything they would show)."""
+    from vibid.report.not_done import reason
+
+    try:
+        _publish(report, specimen, report_dir)
+    except Exception as exc:  # the report is written; the UI's copy of it is not the job
+        run_logger().warning("the report's Prefect artifacts could not be published: %s",
+                             reason(exc))
+
+
+def _publish(report: dict, specimen: str, report_dir) -> None:
     from prefect.artifacts import create_markdown_artifact, create_table_artifact
 
     from vibid.report import artifact_key, parameter_table, summary_markdown

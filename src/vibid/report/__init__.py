@@ -15,7 +15,9 @@ source; every other form reads its values from it through one list of quantities
 * :func:`write_lab_report`: the report folder (report.md, report.json, the figures;
   :mod:`~vibid.report.folder`);
 * :func:`summary_row`, :func:`summary_csv`, :func:`summary_table_markdown`: the summary of
-  many sessions (:mod:`~vibid.report.batch`).
+  many sessions (:mod:`~vibid.report.batch`);
+* the report's ``not_done``: each stage after the fit that failed, in one line, the rest of
+  the report written (:mod:`~vibid.report.not_done`).
 
 Importing it loads neither matplotlib nor JAX: the figures and the fine model import them
 when drawn.
