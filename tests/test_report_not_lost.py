@@ -132,7 +132,7 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
         f"{fi:.17g},{h.real:.17g},{h.imag:.17g},{0.003 * abs(h) + 1e-4:.17g}\n"
         for fi, h in zip(f, H)))
 
-    import vibid.identify.fit as fit
+    from vibid.identify import fit
     from vibid.identify import budget, reference
     from vibid.report import figures
 

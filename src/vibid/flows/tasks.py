@@ -179,7 +179,7 @@ def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
 
     try:
         _publish(report, specimen, report_dir)
-    except Exception as exc:  # the report is written; the UI's copy of it is not the job
+    except Exception as exc:  # noqa: BLE001 - the report is written; the UI's copy is not the job
         run_logger().warning("the report's Prefect artifacts could not be published: %s",
                              reason(exc))
 
