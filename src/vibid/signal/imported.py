@@ -29,9 +29,12 @@ line, a UFF record's point):
 
 A CSV file is UTF-8 (a byte-order mark is skipped), UTF-16 with its byte-order mark, or,
 failing UTF-8, Latin-1 (numbers and the header are ASCII alike); line ends LF, CRLF or CR;
-blank lines are skipped; columns are found by their header names (others are ignored), a
-row holding more non-empty fields than the header is refused (a decimal comma splits
-numbers into two fields).
+blank lines are skipped; columns are found by their exact header names (others are
+ignored, but not one that is a known name in other case or with other characters, nor
+one whose name holds ``std``: a ``Std`` or ``std_re`` column ignored would leave the fit
+unweighted), a row holding more non-empty fields than the header is refused (a decimal
+comma splits numbers into two fields). One truncation no reader can see: a cut inside the
+last number of the file's last line (a shorter number is a number too).
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ import io
 import math
 import uuid
 from dataclasses import dataclass
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -121,23 +125,28 @@ def read_afc_csv(path) -> ImportedAfc:
         raw = p.read_bytes()
     except OSError as exc:
         raise VibidError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if raw.startswith(b"\x89HDF\r\n\x1a\n"):
+        raise VibidError(f"{path}: an HDF5 file, not an AFC (a session file is identified "
+                         "without --afc)")
     rows = _csv_rows(path, _decoded(raw))
-    if not rows:
-        raise VibidError(f"{path}: empty file")
-    (_, header), body = rows[0], rows[1:]
-    cols = _columns(path, header)
-    values = {name: np.empty(len(body)) for name in cols}
-    lines = np.empty(len(body), int)
-    for i, (line, row) in enumerate(body):
+    try:
+        _, header = next(rows)
+    except StopIteration:
+        raise VibidError(f"{path}: empty file") from None
+    cols = _columns(path, header)  # before the rest is parsed: junk is refused at once
+    values = {name: [] for name in cols}
+    lines = []
+    for line, row in rows:
         if (filled := sum(1 for c in row if c.strip())) > len(header):
             raise VibidError(f"{path}: line {line}: {filled} fields, more than the header's "
                              f"{len(header)} (a decimal comma?)")
         for name, k in cols.items():
-            values[name][i] = _number(path, line, name, row[k] if k < len(row) else None)
-        lines[i] = line
-    H = np.empty(len(body), complex)
+            values[name].append(_number(path, line, name, row[k] if k < len(row) else None))
+        lines.append(line)
+    H = np.empty(len(lines), complex)
     H.real, H.imag = values["re"], values["im"]  # not re + 1j * im: 1j * inf has a nan real part
-    return checked_afc(path, values["frequency_hz"], H, values.get("std"), lines,
+    return checked_afc(path, np.array(values["frequency_hz"], float), H,
+                       np.array(values["std"], float) if "std" in values else None, lines,
                        ("line", "lines"), content_session_id(raw))
 
 
@@ -155,18 +164,16 @@ def _decoded(raw: bytes) -> str:
         return raw.decode("latin-1")
 
 
-def _csv_rows(path, text: str) -> list[tuple[int, list[str]]]:
-    """The non-blank rows of a CSV text with the line each ends on (1-based); any line end
-    (LF, CRLF, CR)."""
+def _csv_rows(path, text: str) -> Iterator[tuple[int, list[str]]]:
+    """The non-blank rows of a CSV text with the line each ends on (1-based), as they are
+    parsed; any line end (LF, CRLF, CR)."""
     reader = csv.reader(io.StringIO(text, newline=None))
-    out = []
     try:
         for row in reader:
             if any(c.strip() for c in row):
-                out.append((reader.line_num, row))
+                yield reader.line_num, row
     except csv.Error as exc:
         raise VibidError(f"{path}: line {reader.line_num}: not CSV ({exc})") from None
-    return out
 
 
 def _columns(path, header: list[str]) -> dict[str, int]:
@@ -182,6 +189,12 @@ def _columns(path, header: list[str]) -> dict[str, int]:
     twice = [c for c in wanted if names.count(c) > 1]
     if twice:
         raise VibidError(f"{path}: the header names {', '.join(twice)} more than once")
+    for name in names:  # 'Std', 'std_re' or a damaged 'std' ignored: the fit unweighted
+        plain = "".join(c for c in name.lower() if c.isalnum() or c == "_")
+        if name not in wanted and (plain in wanted or "std" in plain):
+            like = plain if plain in wanted else "std"
+            raise VibidError(f"{path}: the header's column {name!r} is not {like!r} (the "
+                             "column names are exact)")
     return {name: names.index(name) for name in wanted if name in names}
 
 
@@ -191,8 +204,8 @@ def _number(path, line: int, name: str, cell: str | None) -> float:
     if cell is None or not cell.strip():
         raise VibidError(f"{path}: line {line}: {name} is missing")
     try:
-        if "_" in cell:  # Python's float() takes 1_000; a CSV's number does not
-            raise ValueError
+        if "_" in cell or not cell.strip().isascii():  # float() takes 1_000 and other
+            raise ValueError                           # scripts' digits; a CSV does not
         return float(cell)
     except ValueError:
         shown = cell.strip()

@@ -219,8 +219,12 @@ def _binary_body(path, number: int, block: bytes) -> bytes:
         form = lines[8]
         kind, n_points, spacing = int(form[0:10]), int(form[10:20]), int(form[20:30])
         size = {2: 4, 4: 8, 5: 4, 6: 8}[kind]
+        order = int(lines[1][7:13])
     except (ValueError, KeyError):
         raise VibidError(f"{path}: UFF record {number} (dataset 58) cannot be read") from None
+    if order not in (1, 2):  # pyuff would read any other as big-endian
+        raise VibidError(f"{path}: UFF record {number} (dataset 58b): byte ordering {order} is "
+                         "neither 1 (little-endian) nor 2 (big-endian)")
     per_point = (2 if kind in (5, 6) else 1) + (1 if spacing == 0 else 0)
     expected = n_points * per_point * size
     body = b"".join(lines[13:])
