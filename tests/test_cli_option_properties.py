@@ -379,19 +379,12 @@ def test_a_setup_value_that_is_no_possible_number_is_a_one_line_error(path, raw)
     assert what.startswith("setup"), what
 
 
-@pytest.mark.xfail(strict=True, reason="setup_model._Reader._num: float() of a JSON integer "
-                   "beyond the floats raises OverflowError, and one of over 4300 digits "
-                   "json.loads' ValueError, not SetupError (setup_model.py is not this "
-                   "change's to edit)")
 @pytest.mark.parametrize("digits", [400, 5000])
 def test_a_setup_integer_beyond_the_floats_is_a_one_line_error(digits):
     kind, what = read(setup_text(("specimen", "length_m"), "1" * digits))
     assert kind == "error" and what.startswith("setup.specimen.length_m")
 
 
-@pytest.mark.xfail(strict=True, reason="setup_model: a bounds name with a line break is "
-                   "quoted as it is, so the error is two lines (setup_model.py is not this "
-                   "change's to edit)")
 def test_a_setup_bounds_name_with_a_line_break_is_a_one_line_error():
     doc = example_setup().to_dict()
     doc["identification"]["bounds"]["D\nnu"] = [1.0, 2.0]

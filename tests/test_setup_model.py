@@ -104,3 +104,62 @@ def test_a_planned_setup_lists_settle_and_record_times_per_step():
     assert err.value.problems == [
         "setup.excitation.settle_s: lists 2 values for 3 frequencies (one per step)",
         "setup.excitation.record_s[1]: must be positive, got 0.0"]
+
+
+@pytest.mark.parametrize("raw, digits", [("1" * 400, 400), ("-" + "9" * 5000, 5000)])
+def test_an_integer_beyond_the_floats_names_its_field_in_one_line(raw, digits):
+    """issue 62: a JSON integer too large for a float (OverflowError) or of more digits than
+    Python's int-string limit (json's ValueError) is a SetupError naming the field."""
+    text = example_setup().to_json().replace('"length_m": 0.1,', f'"length_m": {raw},')
+    with pytest.raises(SetupError) as err:
+        parse_setup(text)
+    assert err.value.problems == [
+        f"setup.specimen.length_m: must be a finite number, got an integer of {digits} digits "
+        "(beyond the floating-point range)"]
+
+
+def test_integers_beyond_the_floats_in_lists_and_bounds_name_their_place():
+    doc = example_setup().to_dict()
+    doc["excitation"]["frequencies_hz"][1] = 10 ** 400
+    doc["excitation"]["settle_s"] = [0.5] * 199 + [-(10 ** 5000)]
+    doc["identification"]["bounds"]["D"] = [1, 10 ** 5000]
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    assert [p.split(":")[0] for p in err.value.problems] == [
+        "setup.excitation.frequencies_hz[1]", "setup.excitation.settle_s[199]",
+        "setup.identification.bounds.D[1]"]
+    assert "401 digits" in err.value.problems[0] and "5001 digits" in err.value.problems[2]
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("name", ["D\nnu", "D\r", "x\u2028y", "\x00"])
+def test_an_odd_bounds_name_is_quoted_on_one_line(name):
+    doc = example_setup().to_dict()
+    doc["identification"]["bounds"][name] = [1.0, 2.0]
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    text = str(err.value)
+    assert text.splitlines() == [text]
+    assert f"setup.identification.bounds: {name!r} is not a parameter" in text
+    doc["identification"]["bounds"][name] = "1..2"
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    assert err.value.problems == [f"setup.identification.bounds[{name!r}]: expected [low, high], "
+                                  'got "1..2"']
+
+
+def test_a_bad_bounds_pair_is_shown_short_on_one_line():
+    doc = example_setup().to_dict()
+    doc["identification"]["bounds"]["D"] = [1.0] * 1000
+    doc["identification"]["bounds"]["nu"] = {"a\nb": 10 ** 5000}
+    with pytest.raises(SetupError) as err:
+        parse_setup(doc)
+    d, nu = err.value.problems
+    assert d.startswith("setup.identification.bounds.D: expected [low, high], got [1.0, 1.0")
+    assert d.endswith("...") and len(d) < 150
+    assert nu == "setup.identification.bounds.nu: expected [low, high], got an object"
+
+
+def test_json_nested_too_deeply_is_a_setup_error():
+    with pytest.raises(SetupError, match=r"^setup: not valid JSON \(nested too deeply\)$"):
+        parse_setup("[" * 100_000)

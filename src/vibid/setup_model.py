@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -154,9 +155,11 @@ class Setup:
     @classmethod
     def from_json(cls, text: str) -> "Setup":
         try:
-            doc = json.loads(text)
+            doc = json.loads(text, parse_int=_parse_int)
         except (json.JSONDecodeError, TypeError) as exc:
             raise SetupError([f"setup: not valid JSON ({exc})"]) from None
+        except RecursionError:
+            raise SetupError(["setup: not valid JSON (nested too deeply)"]) from None
         return cls.from_dict(doc)
 
     def to_dict(self) -> dict[str, Any]:
@@ -295,9 +298,9 @@ def _identification_problems(ident: Identification) -> list[str]:
             f"setup.identification.bounds: model {ident.model!r} needs bounds for "
             f"{', '.join(missing)}"
         )
-    if extra := sorted(n for n in got if declared(n) is None):
+    if extra := sorted((n for n in got if declared(n) is None), key=str):
         out.append(
-            f"setup.identification.bounds: {', '.join(extra)} "
+            f"setup.identification.bounds: {', '.join(map(_name, extra))} "
             f"{'is' if len(extra) == 1 else 'are'} not a parameter of model {ident.model!r} "
             f"({', '.join(names)}) nor of an effect ({', '.join(EFFECT_PARAMETERS)})"
         )
@@ -325,10 +328,23 @@ class _Reader:
             self.problems.append(f"{path}.{key}: missing")
             return math.nan
         v = doc[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
+        if not _is_number(v):
             self.problems.append(f"{path}.{key}: expected a number, got {_kind(v)}")
             return math.nan
-        return float(v)
+        return self._float(v, f"{path}.{key}")
+
+    def _float(self, v, path: str) -> float:
+        """The number ``v`` (a JSON number: :func:`_is_number`) as a float; an integer
+        beyond the floats (or beyond Python's digits of an integer string) is a problem
+        named by ``path``, not an OverflowError, and reads as nan."""
+        try:
+            if isinstance(v, _LongInteger):
+                raise OverflowError
+            return float(v)
+        except OverflowError:
+            self.problems.append(f"{path}: must be a finite number, got an integer of "
+                                 f"{_digits(v)} digits (beyond the floating-point range)")
+            return math.nan
 
     def _str(self, doc: dict, key: str, path: str) -> str:
         if key not in doc:
@@ -395,19 +411,19 @@ class _Reader:
             self.problems.append(f"{path}: missing")
             return ()
         v = exc["frequencies_hz"]
-        if not isinstance(v, list) or any(isinstance(f, bool) or not isinstance(f, (int, float)) for f in v):
+        if not isinstance(v, list) or not all(map(_is_number, v)):
             self.problems.append(f"{path}: expected a list of numbers")
             return ()
-        return tuple(float(f) for f in v)
+        return tuple(self._float(f, f"{path}[{i}]") for i, f in enumerate(v))
 
     def _per_step(self, exc: dict, key: str) -> float | tuple[float, ...]:
         """An excitation time: one number, or a list of numbers (one per step)."""
         v = exc.get(key)
         if isinstance(v, list):
-            if any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v):
+            if not all(map(_is_number, v)):
                 self.problems.append(f"setup.excitation.{key}: expected a number or a list of numbers")
                 return math.nan
-            return tuple(float(x) for x in v)
+            return tuple(self._float(x, f"setup.excitation.{key}[{i}]") for i, x in enumerate(v))
         return self._num(exc, key, "setup.excitation")
 
     def _bounds(self, ide: dict) -> dict[str, tuple[float, float]]:
@@ -421,21 +437,75 @@ class _Reader:
             return {}
         out = {}
         for name, pair in raw.items():
-            ok = (
-                isinstance(pair, list)
-                and len(pair) == 2
-                and all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in pair)
-            )
+            where = _field(path, name)
+            ok = isinstance(pair, list) and len(pair) == 2 and all(map(_is_number, pair))
             if not ok:
-                self.problems.append(f"{path}.{name}: expected [low, high], got {json.dumps(pair)}")
+                self.problems.append(f"{where}: expected [low, high], got {_show(pair)}")
                 continue
-            out[name] = (float(pair[0]), float(pair[1]))
+            out[name] = (self._float(pair[0], f"{where}[0]"), self._float(pair[1], f"{where}[1]"))
         return out
 
 
 def _kind(v: Any) -> str:
     return {dict: "an object", list: "a list", str: "a string", bool: "a boolean",
-            type(None): "null", int: "a number", float: "a number"}.get(type(v), type(v).__name__)
+            type(None): "null", int: "a number", float: "a number",
+            _LongInteger: "a number"}.get(type(v), type(v).__name__)
+
+
+class _LongInteger:
+    """A JSON integer of more digits than Python converts (``sys.get_int_max_str_digits``),
+    kept as its text so that the reader names its field instead of json's ValueError."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+
+def _parse_int(text: str) -> int | _LongInteger:
+    try:
+        return int(text)
+    except ValueError:  # json matched the digits already: only the digit limit is left
+        return _LongInteger(text)
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float, _LongInteger)) and not isinstance(v, bool)
+
+
+def _digits(v: int | _LongInteger) -> int:
+    """How many digits the integer ``v`` has (without str(), which has a digit limit)."""
+    if isinstance(v, _LongInteger):
+        return len(v.text.lstrip("-"))
+    n, k = abs(v), max(1, int(abs(v).bit_length() * 0.30102999566398120))  # x log10(2)
+    while 10 ** k <= n:  # the count: the least k with n < 10**k
+        k += 1
+    while k > 1 and 10 ** (k - 1) > n:
+        k -= 1
+    return k
+
+
+#: A name that can be written as it is in a JSON path (``setup.identification.bounds.D``).
+_PLAIN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _name(name: Any) -> str:
+    """A document's key as a message shows it: as it is when a plain name, else quoted
+    (``repr``: a line break or other control character escaped, the message one line)."""
+    return name if isinstance(name, str) and _PLAIN_NAME.fullmatch(name) else repr(name)
+
+
+def _field(path: str, name: Any) -> str:
+    """The path of the key ``name`` under ``path``: ``path.name``, or ``path['odd name']``."""
+    plain = isinstance(name, str) and _PLAIN_NAME.fullmatch(name)
+    return f"{path}.{name}" if plain else f"{path}[{name!r}]"
+
+
+def _show(v: Any, limit: int = 60) -> str:
+    """``v`` as JSON on one line, shortened to about ``limit`` characters."""
+    try:
+        text = json.dumps(v, default=_kind)
+    except (ValueError, TypeError, RecursionError):  # an integer beyond str()'s digits, ...
+        text = _kind(v)
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def example_setup() -> Setup:
