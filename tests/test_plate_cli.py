@@ -44,3 +44,30 @@ def test_modes_bad_input_one_line(setup_file, capsys, params, message):
 def test_modes_missing_file(tmp_path, capsys):
     assert main(["modes", str(tmp_path / "nope.json"), "--params", "D=1", "nu=0.3", "beta=0"]) == 1
     assert "no such file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("params, message", [
+    (["D=17.97", "nu=0.286", "beta=0.003", "D=18"], "--params: D is given twice"),
+    (["D=17.97", "nu=0.7", "beta=0.003"], "--params: nu (Poisson's ratio) must lie in (-1, 0.5), got 0.7"),
+    (["D=-5", "nu=0.3", "beta=0.003"], "--params: D (a stiffness) must be positive, got -5"),
+    (["D=17.97", "nu=0.3", "beta=-0.01"], "--params: beta (the loss factor) cannot be negative, got -0.01"),
+    (["D=1e999", "nu=0.3", "beta=0.003"], "--params: D must be a finite number, got '1e999'"),
+    (["D=17.97", "nu=0.3", "beta=0.003", "mass_kg=1"], "--params: mass_kg (the added mass) 1.0 kg "
+     "outweighs the specimen"),
+])
+def test_modes_refuses_params_as_simulate_does(setup_file, tmp_path, capsys, monkeypatch, params,
+                                               message):
+    """issue 62: `vibid modes` reads --params with `vibid simulate`'s readers: a name given
+    twice is refused (never the last one silently), and so is a value its parameter's rule
+    or the declared specimen rules out, in the same one line, before any model is built."""
+    import vibid.hardware_mocks.simulated_session as simulated
+    import vibid.identify.model.forward as forward
+
+    monkeypatch.setattr(forward, "natural_frequencies", lambda *a, **k: pytest.fail("computed"))
+    monkeypatch.setattr(simulated, "simulate_session", lambda *a, **k: pytest.fail("simulated"))
+    assert main(["modes", str(setup_file), "--params", *params]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"vibid modes: error: {message}") and err.count("\n") == 1, err
+    out = tmp_path / "S.h5"
+    assert main(["simulate", str(setup_file), "--out", str(out), "--params", *params]) == 1
+    assert capsys.readouterr().err == err.replace("vibid modes:", "vibid simulate:", 1)

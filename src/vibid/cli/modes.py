@@ -13,7 +13,6 @@ loss factor per modulus); any effect's parameters add that effect (e.g.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 from vibid.errors import VibidError
@@ -33,23 +32,6 @@ def add_parser(sub):
                    help="discretisation preset (default: default)")
     p.add_argument("--json", metavar="OUT.json", help="also write the results as JSON")
     p.set_defaults(run=run)
-
-
-def parse_params(items) -> dict[str, float]:
-    """``["D=17.97", "nu=0.3"]`` -> ``{"D": 17.97, "nu": 0.3}``, one-line errors."""
-    out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise VibidError(f"--params: expected NAME=VALUE, got {item!r}")
-        try:
-            v = float(value)
-        except ValueError:
-            raise VibidError(f"--params: {name} must be a number, got {value!r}") from None
-        if not math.isfinite(v):
-            raise VibidError(f"--params: {name} must be finite, got {value!r}")
-        out[name] = v
-    return out
 
 
 def load_setup(path: str):
@@ -75,18 +57,18 @@ def load_setup(path: str):
 def run(args) -> int:
     if args.n < 1:
         raise VibidError("--n must be at least 1")
-    params = parse_params(args.params)
+    from vibid.cli.options import check_values, parse_values
+    from vibid.parameters import specimen_scale
+
+    # the readers `vibid simulate` uses: a name given twice, a value that is no finite
+    # number, one its parameter's rule or the declared specimen rules out: one line each
+    params = parse_values(args.params, "--params")
     setup = load_setup(args.source)
+    check_values(params, "--params", specimen_scale(setup))
     from vibid.identify import configure
     from vibid.identify.model.forward import natural_frequencies, plate_model_for
 
-    model = plate_model_for(params)
-    for q in model.parameters:
-        if q.rule == "positive" and params[q.name] <= 0:
-            raise VibidError(f"--params: {q.name} is {q.noun or 'positive'} and must be positive")
-        if isinstance(q.rule, tuple) and not q.rule[1] < params[q.name] < q.rule[2]:
-            raise VibidError(f"--params: {q.name} must lie in ({q.rule[1]:g}, {q.rule[2]:g}), "
-                             f"got {params[q.name]}")
+    plate_model_for(params)  # every name known and the model complete, one line otherwise
     configure()
     freq, decay = natural_frequencies(setup, params, args.n, accuracy=args.accuracy)
     print(f"{'mode':>4}  {'frequency_hz':>14}  {'decay_1_per_s':>14}")
