@@ -62,6 +62,13 @@ def stall_folder(args) -> str:
     return "."
 
 
+def one_line(text: object) -> str:
+    """``text`` on one line: its lines (every break ``str.splitlines`` knows, ``\\r`` and
+    ``\\u2028`` too) joined by ``"; "``, blank ones dropped. The backstop of the rule that an
+    error is one line, whatever message an exception carries."""
+    return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -77,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     except VibidError as exc:
         if args.debug:
             raise
-        print(f"vibid {args.command}: error: {exc}", file=sys.stderr)
+        print(f"vibid {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"vibid {args.command}: interrupted", file=sys.stderr)
@@ -86,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         print(
-            f"vibid {args.command}: internal error: {type(exc).__name__}: {exc} "
+            f"vibid {args.command}: internal error: {type(exc).__name__}: {one_line(exc)} "
             "(run with --debug for the traceback)",
             file=sys.stderr,
         )
