@@ -179,6 +179,13 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
               "| parameter | meaning | value | unit |", "|---|---|---|---|"]
     table = quantities(report)
     lines += _param_rows([q for q in table if q.source == "model"])
+    if ident.get("model_error_std"):
+        lines += ["", "Each std holds, in quadrature, the fit's noise (the data's Fisher information, "
+                  "widened by rival minima where there are some) and the discretisation error of "
+                  "the estimate against a mesh-converged model (Richardson's extrapolation over "
+                  "three meshes): " + ", ".join(f"{n} {v:.2g}" for n, v in
+                                                 ident["model_error_std"].items() if v is not None)
+                  + "."]
     if "engineering" in report:
         lines += ["", "Engineering constants (from the stiffnesses and the declared thickness):", "",
                   "| constant | meaning | value | unit |", "|---|---|---|---|"]
