@@ -23,8 +23,8 @@ def _raising(exc):
      "vibid modes: error: first; second; third; fourth; fifth"),
     (SetupError(["setup.x: bad\nvalue", "setup.y: missing"]),
      "vibid modes: error: setup.x: bad; value; setup.y: missing"),
-    (RuntimeError("boom\non two lines"), "vibid modes: internal error: RuntimeError: boom; on two "
-     "lines (run with --debug for the traceback)"),
+    (RuntimeError("boom\non two lines"), ("vibid modes: internal error: RuntimeError: boom; on "
+                                          "two lines (run with --debug for the traceback)")),
 ])
 def test_an_error_message_with_line_breaks_is_printed_on_one_line(monkeypatch, capsys, exc, shown):
     monkeypatch.setattr(vibid.cli.modes, "run", _raising(exc))

@@ -52,16 +52,16 @@ def test_modes_missing_file(tmp_path, capsys):
     (["D=-5", "nu=0.3", "beta=0.003"], "--params: D (a stiffness) must be positive, got -5"),
     (["D=17.97", "nu=0.3", "beta=-0.01"], "--params: beta (the loss factor) cannot be negative, got -0.01"),
     (["D=1e999", "nu=0.3", "beta=0.003"], "--params: D must be a finite number, got '1e999'"),
-    (["D=17.97", "nu=0.3", "beta=0.003", "mass_kg=1"], "--params: mass_kg (the added mass) 1.0 kg "
-     "outweighs the specimen"),
+    (["D=17.97", "nu=0.3", "beta=0.003", "mass_kg=1"], ("--params: mass_kg (the added mass) 1.0 kg "
+                                                       "outweighs the specimen")),
 ])
 def test_modes_refuses_params_as_simulate_does(setup_file, tmp_path, capsys, monkeypatch, params,
                                                message):
     """issue 62: `vibid modes` reads --params with `vibid simulate`'s readers: a name given
     twice is refused (never the last one silently), and so is a value its parameter's rule
     or the declared specimen rules out, in the same one line, before any model is built."""
-    import vibid.hardware_mocks.simulated_session as simulated
-    import vibid.identify.model.forward as forward
+    from vibid.hardware_mocks import simulated_session as simulated
+    from vibid.identify.model import forward
 
     monkeypatch.setattr(forward, "natural_frequencies", lambda *a, **k: pytest.fail("computed"))
     monkeypatch.setattr(simulated, "simulate_session", lambda *a, **k: pytest.fail("simulated"))

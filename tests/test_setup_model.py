@@ -114,8 +114,8 @@ def test_an_integer_beyond_the_floats_names_its_field_in_one_line(raw, digits):
     with pytest.raises(SetupError) as err:
         parse_setup(text)
     assert err.value.problems == [
-        f"setup.specimen.length_m: must be a finite number, got an integer of {digits} digits "
-        "(beyond the floating-point range)"]
+        (f"setup.specimen.length_m: must be a finite number, got an integer of {digits} digits "
+         "(beyond the floating-point range)")]
 
 
 def test_integers_beyond_the_floats_in_lists_and_bounds_name_their_place():
@@ -145,7 +145,7 @@ def test_an_odd_bounds_name_is_quoted_on_one_line(name):
     with pytest.raises(SetupError) as err:
         parse_setup(doc)
     assert err.value.problems == [f"setup.identification.bounds[{name!r}]: expected [low, high], "
-                                  'got "1..2"']
+                                  + 'got "1..2"']
 
 
 def test_a_bad_bounds_pair_is_shown_short_on_one_line():
