@@ -176,8 +176,8 @@ def test_repeated_rows_count_once_and_conflicting_ones_are_refused(tmp_path):
     (["10,0,0", "20,0,0", "30,-0.0,0"], "every H is 0: no response measured"),
     (["10,1e-300,0,1", "20,0,1e-300,1"], "the largest |H| is 1e-300, below 1e-06"),
     (["10,1e-9,0", "20,2e-9,0"], "the largest |H| is 2e-09, below 1e-06"),
-    (["10,1e-3,0,1", "20,0,2e-3,1"], "no point of the AFC stands above its std (the largest "
-                                     "|H|/std is 0.002)"),
+    (["10,1e-3,0,1", "20,0,2e-3,1"], ("no point of the AFC stands above its std (the largest "
+                                      "|H|/std is 0.002)")),
 ])
 def test_an_afc_without_signal_is_refused_when_read(tmp_path, rows, message):
     """Every |H| zero (a response channel not connected), tiny, or under its own std: no
@@ -192,7 +192,8 @@ def test_an_afc_without_signal_is_refused_when_read(tmp_path, rows, message):
 
 def test_an_afc_without_signal_is_rc_1_before_any_fit(tmp_path, capsys):
     p = tmp_path / "zero.csv"
-    p.write_text("frequency_hz,re,im,std\n" + "".join(f"{10 * k},0,0,0.001\n" for k in range(1, 80)))
+    p.write_text("frequency_hz,re,im,std\n"
+                 + "".join(f"{10 * k},0,0,0.001\n" for k in range(1, 80)))
     start = time.perf_counter()
     assert main(["identify", "--afc", str(p), "--setup", str(TITANIUM_SETUP),
                  "--json", str(tmp_path / "x.json")]) == 1
@@ -265,15 +266,15 @@ def test_latin_1_and_utf_16_files_read_as_the_clean_file(tmp_path, raw):
 
 
 @pytest.mark.parametrize("raw, message", [
-    ("frequency_hz;re;im\n10;1;0\n20;1;0\n", "(is it separated by ';' or tabs? commas are "
-                                             "expected)"),
+    ("frequency_hz;re;im\n10;1;0\n20;1;0\n",
+     "(is it separated by ';' or tabs? commas are expected)"),
     ("frequency_hz,re,im,re\n10,1,0,2\n20,1,0,2\n", "the header names re more than once"),
-    ("frequency_hz,re,im,Std\n10,1,0,2\n20,1,0,2\n", "the header's column 'Std' is not 'std' "
-                                                     "(the column names are exact)"),
-    ("frequency_hz,re,im,\x00std\n10,1,0,2\n20,1,0,2\n", "the header's column '\\x00std' is "
-                                                        "not 'std'"),
-    ("frequency_hz,re,im,std_re\n10,1,0,2\n20,1,0,2\n", "the header's column 'std_re' is not "
-                                                      "'std'"),
+    ("frequency_hz,re,im,Std\n10,1,0,2\n20,1,0,2\n",
+     "the header's column 'Std' is not 'std' (the column names are exact)"),
+    ("frequency_hz,re,im,\x00std\n10,1,0,2\n20,1,0,2\n",
+     "the header's column '\\x00std' is not 'std'"),
+    ("frequency_hz,re,im,std_re\n10,1,0,2\n20,1,0,2\n",
+     "the header's column 'std_re' is not 'std'"),
     ('frequency_hz,re,im\n10,1,"' + "9" * 200_000 + '"\n', "line 2: not CSV (field larger"),
 ])
 def test_csv_that_cannot_be_read_is_one_line(tmp_path, raw, message):

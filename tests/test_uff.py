@@ -7,8 +7,8 @@ import json
 import struct
 
 import numpy as np
-import pyuff
 import pytest
+import pyuff
 from afc_files import write_afc_csv, write_pyuff_record
 
 from vibid.cli import main
@@ -246,8 +246,8 @@ def test_a_shuffled_uff_reads_as_the_sorted_one(tmp_path):
     f, h, s = _many()
     write_afc_uff(tmp_path / "sorted.uff", f, h, s, session_id="s")
     clean = read_afc(tmp_path / "sorted.uff")
-    order = np.random.default_rng(2).permutation(f.size)
-    for k, order in enumerate((order, np.arange(f.size)[::-1])):
+    shuffled = np.random.default_rng(2).permutation(f.size)
+    for k, order in enumerate((shuffled, np.arange(f.size)[::-1])):
         write_afc_uff(tmp_path / f"v{k}.uff", f[order], h[order], s[order], session_id="s")
         back = read_afc(tmp_path / f"v{k}.uff")
         _same(back, clean)
@@ -314,8 +314,8 @@ def test_a_damaged_binary_record_is_refused_not_read_shifted(tmp_path):
 
 
 @pytest.mark.parametrize("content, message", [
-    (b"    -1\n  garbage\n    -1\n", "not a readable UFF file (no dataset number after its "
-                                    "first -1 line)"),
+    (b"    -1\n  garbage\n    -1\n",
+     "not a readable UFF file (no dataset number after its first -1 line)"),
     (b"-1\n58\n-1\n", "not a readable UFF file (its -1 lines must be right-justified"),
     (b"\n  \n\t-1\n    58\n", "not a readable UFF file (its -1 lines must be right-justified"),
     (b"    -1\n  2411\n         1\n    -1\n    -1\n    58\n", "truncated UFF file"),

@@ -45,8 +45,8 @@ import hashlib
 import io
 import math
 import uuid
-from dataclasses import dataclass
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -222,7 +222,7 @@ def checked_afc(path, frequency_hz, H, std, rows, unit: tuple[str, str],
     h = np.asarray(H, complex)
     s = None if std is None else np.asarray(std, float)
     rows = np.asarray(rows, int)
-    say = lambda k: f"{path}: {unit[0]} {int(rows[k])}: "  # noqa: E731
+    say = lambda k: f"{path}: {unit[0]} {int(rows[k])}: "
     _refuse_bad_values(say, f, h, s)
     order = np.argsort(f, kind="stable")
     f, h, rows = f[order], h[order], rows[order]
@@ -254,8 +254,10 @@ def _refuse_bad_values(say, f, h, s) -> None:
         (np.isfinite(f) & (f <= 0), lambda k: f"frequency_hz {float(f[k])!r} Hz is not positive"),
         (~np.isfinite(h.real), lambda k: f"re is {float(h[k].real)!r}, not a finite number"),
         (~np.isfinite(h.imag), lambda k: f"im is {float(h[k].imag)!r}, not a finite number"),
-        (np.isfinite(h.real) & (np.abs(h.real) > MAX_ABS_H), lambda k: f"re {float(h[k].real)!r} is {limit}"),
-        (np.isfinite(h.imag) & (np.abs(h.imag) > MAX_ABS_H), lambda k: f"im {float(h[k].imag)!r} is {limit}"),
+        (np.isfinite(h.real) & (np.abs(h.real) > MAX_ABS_H),
+         lambda k: f"re {float(h[k].real)!r} is {limit}"),
+        (np.isfinite(h.imag) & (np.abs(h.imag) > MAX_ABS_H),
+         lambda k: f"im {float(h[k].imag)!r} is {limit}"),
     ]
     if s is not None:
         checks += [
@@ -300,8 +302,8 @@ def _refuse_no_signal(path, say, h, s) -> None:
         return
     k = int(np.argmin(s))
     if s[k] < MIN_REL_STD * peak:
-        raise VibidError(say(k) + f"std {float(s[k])!r} is below {MIN_REL_STD:g} of the largest |H| "
-                         f"({peak:.6g}): finer than any DAQ resolves")
+        raise VibidError(say(k) + f"std {float(s[k])!r} is below {MIN_REL_STD:g} of the "
+                         f"largest |H| ({peak:.6g}): finer than any DAQ resolves")
     snr = float(np.max(size / s))
     if snr < MIN_SNR:
         raise VibidError(f"{path}: no point of the AFC stands above its std (the largest "
