@@ -6,7 +6,9 @@ it. Extra keys the format allows: ``plausibility`` (constants no material allows
 comparison with the specimen's material class), ``linearity`` (whether each resolved
 measured resonance is a linear one), ``identification`` (status sentence, warnings,
 covariance, correlation, timings, ``data``: ``"complex"`` or ``"magnitude"`` and, for a
-magnitude-only fit, ``magnitude_only_std_ratio``), the signal stage's ``afc.diagnostics`` when given,
+magnitude-only fit, ``magnitude_only_std_ratio``; ``discretisation``: the model's meshes,
+measured order and bias, :func:`discretisation_block`), the signal stage's
+``afc.diagnostics`` when given,
 and ``not_done``: the stages after the fit that could not be done, each
 ``{"stage": .., "reason": ..}`` in one line, the rest of the report written
 (:mod:`vibid.report.not_done`; empty when every stage was done).
@@ -175,6 +177,20 @@ def _loop_block(loop) -> tuple[list, dict]:
     return effects, block
 
 
+def discretisation_block(result) -> dict[str, Any] | None:
+    """The report's ``identification.discretisation``: how the forward model estimated its
+    discretisation error (Richardson's extrapolation over three meshes,
+    :mod:`vibid.identify.model.model_error`) and the signed shift of the estimate it causes,
+    per parameter (``model_error_bias``, whose b bᵀ the covariance holds); None where the
+    fit estimated none."""
+    info, bias = getattr(result, "discretisation", None), result.model_error_bias
+    if info is None or bias is None:
+        return None
+    return {"meshes": list(info.meshes), "order": _num(info.order), "factor": _num(info.factor),
+            "limited": bool(info.limited),
+            "bias": {n: _num(b) for n, b in zip(result.parameter_names, bias)}}
+
+
 def fit_constants(setup, result) -> dict:
     """The engineering constants with the fit's covariance and the declared thickness's
     uncertainty through the conversion alone (:func:`vibid.identify.engineering.
@@ -287,6 +303,7 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
             "chi2_reduced_data_weights": _num(result.chi2_reduced_data_weights),
             "model_error_std": None if result.model_error_bias is None else {
                 n: _num(abs(b)) for n, b in zip(result.parameter_names, result.model_error_bias)},
+            "discretisation": discretisation_block(result),
             "dof": int(result.dof),
             "parameter_names": list(result.parameter_names),
             "covariance": [_nums(row) for row in result.covariance],

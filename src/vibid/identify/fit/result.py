@@ -170,6 +170,28 @@ class GlobalResult:
 
 
 @dataclass(frozen=True)
+class DiscretisationInfo:
+    """How the model's discretisation error (the one ``model_error_bias`` comes from) was
+    estimated: ``meshes``, the labels of the next coarser, the model's and the next finer
+    mesh; ``order``, the measured ``p`` of ``C h^p``; ``factor``, the model's error over the
+    finer step alone; ``limited``, whether the order was held at the slowest one trusted
+    (:class:`~vibid.identify.model.model_error.Extrapolation`)."""
+
+    meshes: tuple[str, ...]
+    order: float
+    factor: float
+    limited: bool = False
+
+    @classmethod
+    def of(cls, error) -> DiscretisationInfo:
+        """From a forward model's
+        :class:`~vibid.identify.model.forward.DiscretisationError`."""
+        ext = error.extrapolation
+        return cls(tuple(str(m) for m in error.meshes), float(ext.order), float(ext.factor),
+                   bool(ext.limited))
+
+
+@dataclass(frozen=True)
 class IdentificationResult:
     """The identified parameters of one model with their uncertainty and provenance.
 
@@ -191,6 +213,9 @@ class IdentificationResult:
         discretisation error causes, to first order (:mod:`vibid.identify.model.model_error`);
         ``covariance`` includes it as the systematic term bias bias^T. None when the model
         gives no signed error estimate or the noise is unknown.
+    discretisation: how that error was estimated (:class:`DiscretisationInfo`: the three
+        meshes, the measured order and factor); None where ``model_error_bias`` is, or the
+        model gives no extrapolation.
     chi2_reduced_data_weights: the reduced chi2 with the signal stage's standard
         uncertainties alone as weights (``chi2_reduced`` also weighs the model's
         unexplained error); nan when they are unknown.
@@ -237,6 +262,7 @@ class IdentificationResult:
     magnitude: bool = False
     magnitude_only_std_ratio: dict[str, float] | None = None
     rivals: tuple = ()
+    discretisation: DiscretisationInfo | None = None
 
     @property
     def weighted_residuals(self) -> np.ndarray:

@@ -52,7 +52,8 @@ from vibid.identify.fit.noise import fits
 from vibid.identify.fit.peaks import grid_heights, measured_peaks, peak_score, peaks_matched
 from vibid.identify.fit.problem import (ForwardModel, GivesModes, LeastSquaresProblem,
                                        PlateForwardModel, SplitsModelError)
-from vibid.identify.fit.result import GlobalResult, IdentificationResult, LocalResult
+from vibid.identify.fit.result import (DiscretisationInfo, GlobalResult, IdentificationResult,
+                                      LocalResult)
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
@@ -579,12 +580,25 @@ def identify(
         global_result = None
         found = [Fit(LOCAL_METHODS[local](problem, _start_u(space, start)), problem)]
     found = polish_on_local_model(found, opts)
-    split = None
+    split = disc = None
     if data.noise_known and weights is None:
+        at = found[0]
         found, split = weigh_model_error(found, opts)
+        if split is not None:
+            disc = discretisation_of(at.problem.model, at.run.theta)
     best = found[0]
-    return summarise(best.problem, data, model, best.run, tuple(f.run for f in found),
-                     global_result, warnings, t0, throw, split, on_final_weights(found))
+    result = summarise(best.problem, data, model, best.run, tuple(f.run for f in found),
+                       global_result, warnings, t0, throw, split, on_final_weights(found))
+    return result if disc is None else replace(result, discretisation=disc)
+
+
+def discretisation_of(model, theta) -> DiscretisationInfo | None:
+    """How ``model`` estimated its discretisation error at ``theta`` (the meshes, the
+    measured order: :class:`DiscretisationInfo`), from the estimate
+    :func:`weigh_model_error` asked for there (the model keeps it: no new solve); None for
+    a model without one."""
+    estimate = getattr(model, "discretisation_error", None)
+    return None if estimate is None else DiscretisationInfo.of(estimate(theta))
 
 
 def _check_point_count(data: FitData, p: int, model: str) -> None:
