@@ -69,6 +69,59 @@ def test_the_thickness_and_density_move_E_as_the_plate_scales(massless):
     assert not {"thickness_m", "density_kg_m3", "length_m"} - set(parts)
 
 
+def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_the_total(
+        massless):
+    """The fit's covariance C holds the discretisation's bias b as b bᵀ: the budget splits
+    it into ``fit`` √(gᵀ (C − b bᵀ) g) and ``discretisation`` |gᵀ b|, g the constant's
+    gradient, which add in quadrature to the std C alone gave before the split. g here is
+    the closed form's: E = 12 D (1 − ν²) / h³, G = 6 D (1 − ν) / h³."""
+    from vibid.identify.budget import fit_parts
+    from vibid.identify.engineering import sensitivities
+
+    s, result = massless
+    b = np.asarray(result.model_error_bias, float)
+    assert result.parameter_names == ("D", "nu", "beta") and np.all(np.abs(b[:2]) > 0)
+    block = engineering_budget(s, result)
+    D, nu = result.parameters["D"], result.parameters["nu"]
+    h = s.specimen.thickness_m
+    g = {"E_Pa": [12 * (1 - nu**2) / h**3, -24 * D * nu / h**3, 0.0], "nu": [0.0, 1.0, 0.0],
+         "G_Pa": [6 * (1 - nu) / h**3, -6 * D / h**3, 0.0]}
+    keys, J, _ = sensitivities("isotropic", result.parameter_names, result.values, h)
+    C = np.asarray(result.covariance, float)
+    for i, k in enumerate(keys):
+        parts = block["budget"][k]
+        assert parts["discretisation"] == pytest.approx(abs(np.dot(g[k], b)), rel=1e-6)
+        assert parts["discretisation"] > 0
+        # the total as before the split: the fit's part gᵀ C g and the declared ones
+        before = J[i] @ C @ J[i] + sum(v**2 for n, v in parts.items()
+                                        if n not in ("fit", "discretisation"))
+        assert block[k]["std"] == pytest.approx(math.sqrt(before), rel=1e-12)
+        assert math.hypot(parts["fit"], parts["discretisation"]) == pytest.approx(
+            math.sqrt(J[i] @ C @ J[i]), rel=1e-12)
+    # without a bias (no signed model error) the fit's part is gᵀ C g, as before
+    plain = fit_parts(keys, J, C)
+    assert all(set(p) == {"fit"} for p in plain.values())
+    assert [plain[k]["fit"] for k in keys] == pytest.approx(
+        [math.sqrt(J[i] @ C @ J[i]) for i in range(len(keys))], rel=1e-15)
+
+
+def test_the_fit_part_is_the_covariance_less_the_bias_term():
+    """A covariance A + b bᵀ: ``fit`` is √(gᵀ A g), ``discretisation`` |gᵀ b|, whatever
+    their sizes; a bias that is all of C leaves the fit's part at 0, never NaN."""
+    from vibid.identify.budget import fit_parts
+
+    rng = np.random.default_rng(0)
+    M = rng.normal(size=(3, 3))
+    A, b, g = M @ M.T, rng.normal(size=3), rng.normal(size=(2, 3))
+    parts = fit_parts(["a", "c"], g, A + np.outer(b, b), b)
+    for i, k in enumerate(("a", "c")):
+        assert parts[k]["fit"] == pytest.approx(math.sqrt(g[i] @ A @ g[i]), rel=1e-12)
+        assert parts[k]["discretisation"] == pytest.approx(abs(g[i] @ b), rel=1e-15)
+    only = fit_parts(["a"], g[:1], np.outer(b, b), b)["a"]
+    assert only["fit"] == pytest.approx(0.0, abs=1e-7 * only["discretisation"])
+    assert only["discretisation"] == pytest.approx(abs(g[0] @ b), rel=1e-15)
+
+
 def test_the_model_part_is_the_weighted_spread_of_the_compared_models():
     """Two isotropic models 2 ln 3 apart in QAIC weigh 3 : 1; their E differ by ΔE, so the
     spread is √(w₁ w₂) ΔE = √3/4 ΔE."""
@@ -154,7 +207,8 @@ def test_the_clamp_line_part_covers_a_free_span_the_data_cannot_name():
     assert loop.unexplained_residual and "free_length" not in loop.effects
     block = engineering_budget(s, loop.final, loop)
     value, parts = block["E_Pa"]["value"], block["budget"]["E_Pa"]
-    assert E - value > 4 * math.hypot(parts["fit"], parts.get("model", 0.0))
+    assert E - value > 4 * math.hypot(parts["fit"], parts.get("discretisation", 0.0),
+                                      parts.get("model", 0.0))
     assert E - value < 2 * block["E_Pa"]["std"]
 
 
@@ -164,11 +218,23 @@ def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_val
     s, result = massless
     report = build_report(result, setup=s)
     eng = report["engineering"]
-    assert set(eng["budget"]["E_Pa"]) == {"fit", "thickness_m", "density_kg_m3", "length_m"}
+    assert set(eng["budget"]["E_Pa"]) == {"fit", "discretisation", "thickness_m",
+                                          "density_kg_m3", "length_m"}
     assert report["plausibility"]["material_class"] == "steel"  # "steel strip 100x20x1"
     assert not report["plausibility"]["violations"]
     md = summary_markdown(report)
-    assert "| constant | fit | thickness_m |" in md and "Plausibility (the specimen is steel)" in md
+    assert "| constant | fit | discretisation | thickness_m |" in md
+    assert "discretisation: the mesh's error, Richardson-extrapolated" in md
+    assert "Plausibility (the specimen is steel)" in md
+    # how the discretisation error was estimated, and the bias it causes, signed
+    disc = report["identification"]["discretisation"]
+    assert len(disc["meshes"]) == 3 and len(set(disc["meshes"])) == 3
+    assert disc["meshes"][1] == result.discretisation.meshes[1]
+    assert disc["order"] > 1 and disc["factor"] >= 1 and disc["limited"] is False
+    assert disc["bias"] == pytest.approx(dict(zip(result.parameter_names,
+                                                  result.model_error_bias)), rel=1e-15)
+    assert report["identification"]["model_error_std"] == pytest.approx(
+        {n: abs(b) for n, b in disc["bias"].items()}, rel=1e-15)
     # the same fit with nu pushed past 0.5: a warning in the report, report.md and console
     bent = dataclasses.replace(result, values=np.array([17.97, 0.55, 0.003]))
     report = build_report(bent, setup=s)

@@ -150,6 +150,44 @@ def test_markdown_console_and_ui_table_show_the_json_values_alike():
     assert "(1.9800156 ± 0.0000012)e+11" in md and "(2.00000 ± 0.00010)e-5 s" in console
 
 
+def test_the_budget_table_says_what_its_fit_and_discretisation_columns_hold():
+    r = _report("a", 17.97, 2e-5)
+    r["engineering"] = {"E_Pa": {"value": 1.98e11, "std": 5e9},
+                        "budget": {"E_Pa": {"fit": 3e9, "discretisation": 4e9}}}
+    r["identification"] = {"uncertainty_notes": ["E_Pa's uncertainty is mostly the mesh"]}
+    md = report.summary_markdown(r)
+    assert "| constant | fit | discretisation |" in md and "| E_Pa | 3e+09 | 4e+09 |" in md
+    (legend,) = [t for t in md.splitlines() if t.startswith("- columns: ")]
+    assert legend == ("- columns: fit: the data's noise and the model's misfit; "
+                      "discretisation: the mesh's error, Richardson-extrapolated over three "
+                      "meshes (the shift of the estimate it causes)")
+    # a budget of declared quantities alone needs no legend: their columns are setup fields
+    r["engineering"]["budget"] = {"E_Pa": {"thickness_m": 5e9}}
+    assert "- columns:" not in report.summary_markdown(r)
+
+
+def test_the_report_says_how_the_discretisation_error_was_estimated():
+    """``identification.discretisation``: the three meshes, the measured order and factor
+    and the signed bias per parameter, from the result; null where the fit estimated none."""
+    from types import SimpleNamespace
+
+    from vibid.identify.fit.result import DiscretisationInfo
+    from vibid.report.document import discretisation_block
+
+    info = DiscretisationInfo.of(SimpleNamespace(
+        meshes=("20x4c3", "30x6c4", "45x9c5"),
+        extrapolation=SimpleNamespace(order=5.9, factor=1.11, limited=False)))
+    result = SimpleNamespace(discretisation=info, parameter_names=("D", "nu", "beta"),
+                             model_error_bias=np.array([-2e-3, 4e-4, float("nan")]))
+    assert discretisation_block(result) == {
+        "meshes": ["20x4c3", "30x6c4", "45x9c5"], "order": 5.9, "factor": 1.11,
+        "limited": False, "bias": {"D": -2e-3, "nu": 4e-4, "beta": None}}
+    assert discretisation_block(SimpleNamespace(discretisation=None,
+                                                model_error_bias=None)) is None
+    assert discretisation_block(SimpleNamespace(discretisation=info,
+                                                model_error_bias=None)) is None
+
+
 def test_the_figure_list_drives_the_png_files_report_md_and_the_ui(tmp_path, monkeypatch):
     from types import SimpleNamespace
 

@@ -3,9 +3,16 @@
 The combined standard uncertainty of each constant c (E, ν, G or E1, E2, G12, ν12) is the
 root sum of squares of independent parts:
 
-* ``fit``: the estimate's covariance C (Fisher information, widened by rival minima and the
-  model's discretisation error, scaled by the misfit and by its correlation along
-  frequency where a residual remains), through the conversion: u² = gᵀ C g, g = ∂c/∂θ;
+* ``fit``: the data's noise and misfit: the estimate's covariance C (Fisher information,
+  widened by rival minima and the model's discretisation error, scaled by the misfit and
+  by its correlation along frequency where a residual remains) less the discretisation's
+  own term b bᵀ, through the conversion: u² = gᵀ (C − b bᵀ) g, g = ∂c/∂θ. Where the misfit
+  scales C, the scaling's share of b bᵀ stays here (it is the misfit's);
+* ``discretisation``, where the fit estimated the model's discretisation error (the
+  result's ``model_error_bias`` b, the shift of the estimate that the mesh's error causes
+  against Richardson's extrapolation over three meshes,
+  :mod:`vibid.identify.model.model_error`): u = |gᵀ b|. C holds b bᵀ, so ``fit`` and this
+  part add in quadrature to gᵀ C g, the constant's std from C alone, as before the split;
 * one part per declared quantity with a standard uncertainty in the setup (the optional
   ``*_std`` fields: thickness, length, width, density, the sensor's position and mass):
   a declared value off by one standard uncertainty s moves the estimate too, since the
@@ -89,6 +96,14 @@ WORDS = {"thickness_m": "thickness", "length_m": "length", "width_m": "width",
 #: How the report's sentences name the clamp's line's part.
 CLAMP_LINE_WORDS = ("the clamp's effective line, which these data cannot tell from the "
                     "stiffness (a longer free span is a softer plate)")
+
+
+#: How the report's sentences name the parts that are no declared quantity.
+PART_WORDS = {"fit": "the fit (the data's noise and the model's misfit)",
+              "discretisation": "the discretisation (the mesh's error, Richardson-extrapolated "
+                                "over three meshes)",
+              "model": "the choice of model (the loop's competitive models disagree)",
+              "clamp_line": CLAMP_LINE_WORDS}
 
 
 #: The relative step of the central differences in a declared quantity: a step of a whole
@@ -274,7 +289,8 @@ def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
 
 def engineering_budget(setup, result, loop=None) -> dict:
     """The report's ``engineering`` block: ``{constant: {"value", "std"}, ...,
-    "budget": {constant: {"fit": u, <declared quantity>: u, ..., "model": u}},
+    "budget": {constant: {"fit": u, "discretisation": u, <declared quantity>: u, ...,
+    "model": u}},
     "notes": [each constant's largest part in words]}`` (standard uncertainties in the
     constant's unit; ``std`` their root sum of squares); empty for a model without closed
     forms."""
@@ -285,10 +301,7 @@ def engineering_budget(setup, result, loop=None) -> dict:
     if not keys:
         return {}
     base = constants(model, dict(zip(names, theta)), h)
-    C = np.asarray(result.covariance, float)
-    fit = np.einsum("ij,jk,ik->i", g, np.where(np.isfinite(C), C, np.nan), g)
-    parts = {k: {"fit": float(math.sqrt(v)) if np.isfinite(v) and v >= 0 else math.nan}
-             for k, v in zip(keys, fit)}
+    parts = fit_parts(keys, g, result.covariance, getattr(result, "model_error_bias", None))
     std = declared_uncertainties(setup)
     is_final = loop is not None and loop.final is result
     held = loop.stages[-1].held if is_final else ()
@@ -325,6 +338,26 @@ def engineering_budget(setup, result, loop=None) -> dict:
     return block
 
 
+def fit_parts(keys, g, covariance, bias=None) -> dict[str, dict[str, float]]:
+    """constant -> ``{"fit": u}`` and, with the discretisation's bias ``bias`` (p,) (the
+    result's ``model_error_bias``, whose b bᵀ ``covariance`` holds), ``"discretisation"``:
+    ``|gᵀ b|``, ``fit`` then ``√(gᵀ (C − b bᵀ) g)`` (module doc). ``g``: (k, p) the
+    constants' gradients in the parameters."""
+    C = np.asarray(covariance, float)
+    total = np.einsum("ij,jk,ik->i", g, np.where(np.isfinite(C), C, np.nan), g)
+    disc = None if bias is None else np.abs(g @ np.asarray(bias, float))
+    parts = {}
+    for i, k in enumerate(keys):
+        v = total[i]
+        if disc is not None and np.isfinite(v):
+            # C − b bᵀ is a covariance itself: a negative rest is the subtraction's rounding
+            v = max(v - disc[i] ** 2, 0.0) if v >= 0 else v
+        parts[k] = {"fit": float(math.sqrt(v)) if np.isfinite(v) and v >= 0 else math.nan}
+        if disc is not None:
+            parts[k]["discretisation"] = float(disc[i])
+    return parts
+
+
 def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
     """The budget's largest part in words, and what halving the combined uncertainty would
     take (``std_of``: the declared quantities' standard uncertainties)."""
@@ -334,9 +367,7 @@ def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
         return None
     name, u = max(finite.items(), key=lambda kv: kv[1])
     share = (u / total) ** 2
-    what = {"fit": "the fit (the data's noise and the model's misfit)",
-            "model": "the choice of model (the loop's competitive models disagree)",
-            "clamp_line": CLAMP_LINE_WORDS}.get(name, f"the declared {WORDS.get(name, name)}")
+    what = PART_WORDS.get(name, f"the declared {WORDS.get(name, name)}")
     text = f"{constant}'s uncertainty is mostly {what}: {100 * share:.0f} % of its variance"
     if name in std_of:
         # halving the total needs u_new² = u² − ¾ total²: possible when this part is most
@@ -347,6 +378,9 @@ def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
                      f"(now {_fmt(std_of[name], unit)}) to halve it")
         else:
             text += "; even knowing it exactly would not halve the total"
+    elif name == "discretisation":
+        text += ("; a finer mesh (the forward model's accuracy \"fine\") would shrink it, "
+                 "at the cost of a slower fit")
     elif name == "clamp_line":
         text += ("; a reference strip of known modulus in the same clamp measures it "
                  "(vibid identify --reference-E), and the setup's specimen.length_std_m "

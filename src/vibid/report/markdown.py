@@ -18,9 +18,21 @@ from vibid.report.values import (Quantity, chi2_text, percent_text, quantities, 
                                  stage_label, unit_of)
 
 
+#: What the budget's columns that are no declared quantity hold
+#: (:mod:`vibid.identify.budget`; a declared quantity's column is named by its setup field).
+BUDGET_PARTS = {
+    "fit": "the data's noise and the model's misfit",
+    "discretisation": "the mesh's error, Richardson-extrapolated over three meshes (the shift "
+                      "of the estimate it causes)",
+    "model": "the spread across the models the loop compared",
+    "clamp_line": "the clamp's effective line, which the data cannot tell from the stiffness",
+}
+
+
 def _budget_text(budget: dict | None, notes) -> list[str]:
     """The uncertainty budget as a table (one column per source, standard uncertainties in
-    the constant's unit) and each constant's largest part in words."""
+    the constant's unit), what its columns that are no declared quantity hold, and each
+    constant's largest part in words."""
     if not budget:
         return []
     sources = list(dict.fromkeys(s for parts in budget.values() for s in parts))
@@ -29,7 +41,9 @@ def _budget_text(budget: dict | None, notes) -> list[str]:
     for k, parts in budget.items():
         lines.append(f"| {k} | " + " | ".join(
             "–" if parts.get(s) is None else f"{parts[s]:.3g}" for s in sources) + " |")
-    return lines + [""] + [f"- {n}" for n in notes]
+    named = [f"{s}: {BUDGET_PARTS[s]}" for s in sources if s in BUDGET_PARTS]
+    return (lines + [""] + ([f"- columns: {'; '.join(named)}"] if named else [])
+            + [f"- {n}" for n in notes])
 
 
 def _plausibility_text(pl: dict | None) -> list[str]:
