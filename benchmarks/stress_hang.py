@@ -89,7 +89,8 @@ def one_run(i: int, folder: Path, setup: Path, threads: str, stall_s: float,
            "--report", str(report), "--candidates", candidates]
     t0 = time.monotonic()
     try:
-        done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=limit_s)
+        done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=limit_s,
+                              check=False)
         rc, err = done.returncode, done.stderr
     except subprocess.TimeoutExpired:
         rc, err = "timeout", ""

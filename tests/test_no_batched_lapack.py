@@ -15,17 +15,11 @@ import re
 
 import numpy as np
 import pytest
+from test_identify_compiled import _problem  # the paper strip, 120 frequencies
 
 from vibid.identify.compiled import kernel_functions
-from vibid.identify.fit.data import fit_data
-from vibid.identify.fit.problem import LeastSquaresProblem
-from vibid.identify.fit.space import ParameterSpace
-from vibid.identify.model.forward import build_forward_model
 from vibid.identify.model.structure import embed
-from vibid.setup_model import example_setup
 
-TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
-FREQS = np.linspace(7.5, 1500.0, 120)
 CALL = re.compile(r'custom_call_target="(?P<target>lapack_\w+)".*?'
                   r"operand_layout_constraints=\{(?P<operands>.*?)\}, "
                   r'.*?num_batch_dims="(?P<n>\d+)"')
@@ -62,18 +56,6 @@ def test_the_parser_sees_a_batched_solve():
     assert batches and max(b for _, b, _ in batches) == 5
     one = jax.jit(jnp.linalg.solve).lower(A[0], jnp.ones((3, 1), complex)).compile().as_text()
     assert {b for _, b, _ in lapack_batches(one)} == {1}
-
-
-def _problem(effects, extra):
-    setup = example_setup()
-    values = TRUTH | extra
-    fm = build_forward_model(setup, FREQS, effects=effects, theta0=values)
-    box = fm.param.default_bounds(dict(setup.identification.bounds))
-    space = ParameterSpace.from_bounds(fm.parameter_names, box,
-                                       {q.name: q.kind for q in fm.param.parameters})
-    theta = np.array([values[n] for n in fm.parameter_names])
-    H = np.asarray(fm.afc(theta))
-    return LeastSquaresProblem(fm, fit_data(FREQS, H, np.full(FREQS.size, 1e-3)), space), theta
 
 
 def _compiled(jitted, *args) -> str:

@@ -32,7 +32,7 @@ def test_a_loop_on_the_direct_path_ends(tmp_path):
         [sys.executable, "-m", "vibid", "--stall-timeout", "300", "identify", str(session),
          "--json", str(tmp_path / "r.json"), "--candidates",
          "clamp_compliance,clamp_loss,channel_delay"],
-        capture_output=True, text=True, env=env, timeout=LIMIT_S)
+        capture_output=True, text=True, env=env, timeout=LIMIT_S, check=False)
     assert done.returncode == 0, done.stderr[-1500:]
     report = json.loads((tmp_path / "r.json").read_text())
     assert len(report["loop"]["stages"]) >= 2  # the loop ran a round and added an effect

@@ -156,7 +156,7 @@ class Watchdog:
         self._stop = threading.Event()
         self._thread = None
 
-    def start(self) -> "Watchdog":
+    def start(self) -> Watchdog:
         if self.limit_s > 0:
             beat()
             self._thread = threading.Thread(target=self._run, name="vibid-watchdog",
