@@ -6,10 +6,9 @@ a stiffer strip from a longer one. A clamp's effective line lies where the strip
 turning, often inside its jaws (a soft or worn clamp, a clamping force too low for the
 strip's thickness), so the free length that the resonances see is longer than the one
 measured from the jaws' edge, and every modulus identified in that clamp comes out low by
-the same length factor. The seed paper's stand shows it on both of its strips: an
-independent beam puts titanium at 90–91 GPa and steel at 174–176 GPa under their declared
-setups, ~10 % below their handbooks, and each needs its free length +3–4 mm for its
-authors' nominal modulus (``benchmarks/real_strips_beam.py``).
+the same length factor. A real stand shows it: an independent beam puts
+its strips ~10 % below their handbooks under their declared setups, each needing its free
+length +3–4 mm for the nominal modulus (``benchmarks/real_strips_beam.py``).
 
 A lab calibrates this as it calibrates a sensor: it measures a reference strip of known
 modulus in the same clamp. The identified model is refitted with the free length free
@@ -24,8 +23,8 @@ modulus held and the other material parameters free (Poisson's ratio, the stiffn
 ratios; the first stiffness follows them so that the modulus stays), from the refit's
 Fisher information scaled as the identification's own covariance is (by the misfit and its
 correlation along frequency where a residual remains). A strip's two bending modes barely
-determine ν, and ν sets which D the known E means: on the steel strip (ν 0.41 ± 0.19) this
-part is 1.24 mm, where with ν held it would be 0.11 mm. And the reference's: its modulus's
+determine ν, and ν sets which D the known E means: on a real strip (ν 0.41 ± 0.19) this
+part was 1.24 mm, where with ν held it would be 0.11 mm (BENCHMARKS.md). And the reference's: its modulus's
 relative uncertainty times how far the best free length moves per relative change of it.
 Declared (``length_m`` and ``length_std_m``, the sensor's ``x_m`` moved alike) for the
 specimens measured in that clamp, it enters their fits and their uncertainty budgets.

@@ -222,7 +222,7 @@ class PlateMatrices:
 class SharedPattern:
     """Sparse matrices of one size stored on the union of their patterns (CSC, sorted):
     a weighted sum of them is a sum of their value arrays, where summing scipy matrices
-    merges patterns term by term (on the titanium strip's 2861 unknowns 3.6 ms per
+    merges patterns term by term (on a strip mesh of 2861 unknowns 3.6 ms per
     ``Σ c_k K_k`` of seven matrices, thousands per loop). The sums are taken in the same
     order and the entries that come out zero dropped, as scipy's would be: the same
     matrix to the last bit, so the sparse LU orders it the same way (a model with an
@@ -370,8 +370,8 @@ def model_matrices(geometry: Geometry, discretisation: Discretisation,
 @functools.lru_cache(maxsize=32)
 def _term_matrices(term, geometry: Geometry, discretisation: Discretisation) -> dict:
     """A term's own matrices and probes on all degrees of freedom, assembled once per mesh:
-    the structures of a loop's later rounds hold the same term beside other ones (on the
-    titanium strip the sensor's shifted disc, 2.3 s a mesh, was assembled four times)."""
+    the structures of a loop's later rounds hold the same term beside other ones (on a
+    real strip's loop the sensor's shifted disc, 2.3 s a mesh, was assembled four times)."""
     return term.assemble(assemble_all(geometry, discretisation).context)
 
 

@@ -191,7 +191,7 @@ def _coefficient_jacobians(model, theta0):
 def spd_lu(K):
     """SuperLU's factors of a symmetric positive definite ``K`` in its symmetric mode: a
     minimum-degree ordering of K + Kᵀ and the diagonal as pivots (no pivoting is needed
-    for a positive definite matrix). On the titanium strip's 2861 unknowns 7.8 ms and
+    for a positive definite matrix). On a strip mesh of 2861 unknowns 7.8 ms and
     0.21 ms a solve, against 12.0 and 0.27 ms for the general ordering; the same
     solutions to 3e-11 (its condition)."""
     return spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
@@ -199,8 +199,8 @@ def spd_lu(K):
 
 
 #: The first eigensolve asks for this many modes at least (ARPACK's cost grows with the
-#: count: on the titanium strip's 2922 unknowns 8 modes took 14 ms and 16 took 29 ms, the
-#: same frequencies to 1e-15). Of the calibrated titanium run's 218 bases 217 keep 6 or 7
+#: count: on a strip mesh of 2922 unknowns 8 modes took 14 ms and 16 took 29 ms, the
+#: same frequencies to 1e-15). Of a real strip's calibrated run's 218 bases 217 keep 6 or 7
 #: modes; the declared fit's wide basis keeps 9 and takes a second solve (43 ms against
 #: 29; ``benchmarks/modes.py``).
 FIRST_MODES = 8
@@ -399,7 +399,7 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
 #: shapes and so a few compilations: 16, 32, 64, 96, 128, 160, then steps of 1.2-1.5. (A
 #: size's eigensolve costs its cube: the CFRP plate's wide basis of 131 padded to 192 cost
 #: 3.6 ms a member in the peak search, 2.3 ms at 160. A strip's basis of 15 unknowns padded
-#: to 16 instead of 32 made the titanium AFC's exact Hessian 1.8 ms instead of 5.3 ms, the
+#: to 16 instead of 32 made a measured strip AFC's exact Hessian 1.8 ms instead of 5.3 ms, the
 #: same to 1e-14; a size 24, and 48, cost the loop more compilations than they saved.)
 PAD_SIZES = (16, 32, 64, 96, 128, 160, 192, 256, 384, 512)
 
