@@ -211,7 +211,7 @@ def _modes(K, M, lu, n_min, n_max, f_top):
     above ``f_top`` (at least ``n_min``, at most ``n_max``), by shift-invert Lanczos on
     ``lu``; where a solve stops short of ``f_top``, the next asks for as many more as a
     plate's mode count, which grows in proportion to the frequency, says it needs (at
-    least twice as many): a 150 x 100 x 2 mm steel plate's 46 modes to 9 kHz in two
+    least twice as many): a 150 x 100 x 2 mm plate's 46 modes to 9 kHz in two
     solves (8, then 81), 0.48 s, where doubling took three (16, 32, 64), 0.56-0.60 s."""
     opinv = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
     most = min(n_max, K.shape[0] - 2)
