@@ -4,7 +4,7 @@
 
 Runs ``vibid identify`` on the real titanium AFC (``../shared/data/real-titanium``, or
 ``tests/data/titanium_afc.csv.gz`` and its setup where that is absent) and keeps the
-arguments of every call of :func:`vibid.identify.diagnosis.diagnose` (the declared fit's
+arguments of every call of :func:`vibid.identify.loop.diagnosis.diagnose` (the declared fit's
 residual, each passing refit's, the final one). Each is then diagnosed again ``--draws``
 times with the model's AFC multiplied by ``1 + 1e-9 n`` (``n`` standard normal per point:
 rounding-level, far below any model change the loop makes). Prints, per call, the features
@@ -45,7 +45,7 @@ def main() -> int:
     from vibid.identify.runtime import configure
 
     configure()
-    import vibid.identify.diagnosis as diagnosis
+    import vibid.identify.loop.diagnosis as diagnosis
     from vibid.cli import main as cli
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

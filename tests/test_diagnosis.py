@@ -1,4 +1,4 @@
-"""Residual diagnosis (vibid.identify.diagnosis) on an analytic three-mode AFC, independent of
+"""Residual diagnosis (vibid.identify.loop.diagnosis) on an analytic three-mode AFC, independent of
 the plate model: H = 1 + sum_k a_k r_k^2 / (1 - r_k^2 + i r_k / Q_k), r_k = f / f_k, sampled
 on an unsorted stepped-sine-like grid (sparse overall, dense around the modes), with complex
 Gaussian noise of standard deviation 0.3 % of |H| per real and imaginary part."""
@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vibid.identify.diagnosis import Diagnosis, Feature, diagnose
+from vibid.identify.loop.diagnosis import Diagnosis, Feature, diagnose
 
 MODES_HZ = np.array([150.0, 420.0, 1100.0])
 AMPLITUDES = np.array([1.0, 0.6, 0.3])
@@ -143,7 +143,7 @@ def test_the_titanium_strips_664_hz_feature_is_not_causal_and_its_modes_are():
     import gzip
     from pathlib import Path
 
-    from vibid.identify.diagnosis import causal
+    from vibid.identify.loop.diagnosis import causal
 
     path = Path(__file__).parent / "data" / "titanium_afc.csv.gz"
     with gzip.open(path, "rt") as fh:
@@ -202,7 +202,7 @@ def test_the_pole_polish_converges_and_rounding_does_not_move_it():
     times the band's top."""
     from scipy.optimize import minimize
 
-    from vibid.identify.diagnosis import _REACH, _chi2, _columns, _polish, _quiet, _vector_fit
+    from vibid.identify.loop.diagnosis import _REACH, _chi2, _columns, _polish, _quiet, _vector_fit
 
     rng = np.random.default_rng(0)
     f = np.linspace(150.0, 1600.0, 1500)

@@ -16,7 +16,7 @@ import beam_sessions as bs
 import numpy as np
 import pytest
 
-from vibid.identify.diagnosis import Diagnosis, Feature
+from vibid.identify.loop.diagnosis import Diagnosis, Feature
 from vibid.identify.effects import EFFECTS
 from vibid.identify.loop import close_loop
 

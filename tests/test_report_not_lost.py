@@ -185,3 +185,34 @@ def test_attempt_returns_the_default_and_says_why_in_one_line():
         attempt("nonsense", [], lambda: None)
     with pytest.raises(KeyboardInterrupt):  # an interrupt still stops the job
         attempt("figures", [], lambda: (_ for _ in ()).throw(KeyboardInterrupt()))
+
+
+def test_the_report_says_how_sure_the_loop_is(strip):
+    """The criterion and, per stage, the explanations compared with their probabilities,
+    the chosen first, in report.json (the format's ``loop.criterion`` and
+    ``loop.stages[].alternatives``) and in report.md."""
+    from dataclasses import replace
+
+    from vibid.identify.loop.verdicts import LoopResult, Stage
+    from vibid.report import build_report
+    from vibid.report.markdown import summary_markdown
+
+    s, iso = strip
+    alts = ({"added": "stand_resonance", "criterion": 120.0, "probability": 0.97,
+             "f_hz": 664.0},
+            {"added": "clamp_loss", "criterion": 116.5, "probability": 0.02},
+            {"added": None, "criterion": 0.0, "probability": 0.01})
+    stop = ({"added": None, "criterion": 3.0, "probability": 0.9},
+            {"added": "sensor_gain", "criterion": 1.0, "probability": 0.1, "estimated": True})
+    loop = LoopResult((replace(Stage.of(None, iso), alternatives=alts),
+                       replace(Stage.of("stand_resonance", iso), alternatives=stop)), (), True)
+    report = build_report(iso, loop=loop, setup=s)
+    assert report["loop"]["criterion"]["name"] == "log_evidence"
+    first, last = (st["alternatives"] for st in report["loop"]["stages"])
+    assert [a["added"] for a in first] == ["stand_resonance", "clamp_loss", None]
+    assert sum(a["probability"] for a in first) == pytest.approx(1.0)
+    assert last[0]["added"] is None and last[1]["estimated"] is True
+    text = summary_markdown(report)
+    assert "after the declared model: stand resonance at 664 Hz: 0.97; clamp loss: 0.02; " \
+           "stop here: 0.01" in text
+    assert "after + stand_resonance: stop here: 0.9; sensor gain: 0.1 (estimated)" in text

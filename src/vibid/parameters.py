@@ -263,8 +263,9 @@ Q_FIXTURE = Parameter("q_fixture", "1", ("log",), bounds=(2.0, 500.0), null=None
 A_FIXTURE = Parameter("a_fixture", "1", ("linear",), bounds=(-2.0, 2.0), null=0.0,
                       noun="the clamp's share of the fixture's mode")
 #: ``clamp_loss``: the clamp's own loss factor (its null is the plate's beta, not a
-#: fixed number).
-BETA_CLAMP = Parameter("beta_clamp", "1", ("log",), bounds=(1e-4, 0.5), null=None,
+#: fixed number). Its physical range starts at 0, the lossless spring (report format), so
+#: its box does too, on a linear scale (a log scale cannot reach 0).
+BETA_CLAMP = Parameter("beta_clamp", "1", ("linear",), bounds=(0.0, 0.5), null=None,
                        rule="non-negative", noun="the clamp's loss factor")
 #: ``free_length``: the change of the plate's free length (null 0).
 DL = Parameter("dL_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,

@@ -163,13 +163,20 @@ def _loop_block(loop) -> tuple[list, dict]:
     for st in loop.stages:
         block = _stage_block(st.added, st.result)
         block["ljung_box_p"] = _num(st.ljung_box_p)
+        if st.alternatives:
+            block["alternatives"] = [
+                {k: (_num(v) if isinstance(v, float) else v) for k, v in a.items()}
+                for a in st.alternatives]
         stages.append(block)
     rounds = [[{"candidate": sc.name, "score": _num(sc.score), "dof": sc.dof,
                 "p_value": _num(sc.p_value), "collinearity": _num(sc.collinearity),
                 "delta_chi2": _num(sc.delta_chi2), "kept": sc.kept,
+                "log_evidence": _num(sc.log_evidence), "probability": _num(sc.probability),
+                "estimated": sc.estimated,
                 "verdict": sc.verdict.value, "note": sc.note}
                for sc in rnd] for rnd in loop.rounds]
     block = {"stages": stages, "unexplained_residual": bool(loop.unexplained_residual),
+             "criterion": loop.criterion,
              "rounds": rounds, "seconds": _num(loop.seconds)}
     if any(st.diagnosis is not None for st in loop.stages):
         block["diagnosis"] = [[] if st.diagnosis is None else st.diagnosis.as_report()

@@ -117,6 +117,34 @@ def _points_text(frequency_hz, linearity) -> str:
             "out: a top whose response depends on its amplitude)")
 
 
+#: How many explanations of a stage the report names (most probable first).
+ODDS_NAMED = 4
+
+
+def _odds_text(report: dict) -> list[str]:
+    """How sure the loop is: at each stage, the explanations it compared by its criterion
+    (``loop.criterion``) with their probabilities, the chosen first."""
+    stages = report["loop"].get("stages") or []
+    if not any(st.get("alternatives") for st in stages):
+        return []
+    crit = report["loop"].get("criterion") or {}
+    lines = ["", f"How sure the loop is ({crit.get('meaning', 'its criterion')}):", ""]
+    for st in stages:
+        alts = st.get("alternatives")
+        if not alts:
+            continue
+        after = "the declared model" if st["added"] is None else f"+ {st['added']}"
+        named = []
+        for a in alts[:ODDS_NAMED]:
+            what = "stop here" if a["added"] is None else a["added"].replace("_", " ")
+            if a.get("f_hz"):
+                what += f" at {a['f_hz']:.4g} Hz"
+            p = a["probability"]
+            named.append(f"{what}: {p:.2g}" + (" (estimated)" if a.get("estimated") else ""))
+        lines.append(f"- after {after}: " + "; ".join(named))
+    return lines
+
+
 #: How many of the candidates the loop kept out the report names (largest χ² drop first).
 KEPT_OUT_NAMED = 3
 
@@ -212,7 +240,7 @@ def summary_markdown(report: dict, *, figures: Sequence[str] = (), title: str = 
                   "modulus trades with the free length as L⁴):", "",
                   f"- {report['reference']['note']}"]
     lines += (["", "## Effects the loop found", ""] + _effect_text(report)
-              + _kept_out_text(report))
+              + _odds_text(report) + _kept_out_text(report))
     lines += ["", "## Fit quality, stage by stage", "",
               "| stage | χ²/dof (the data's std) | χ²/dof (with the model's own error) | "
               "relative RMS residual |", "|---|---|---|---|"]

@@ -24,7 +24,7 @@ is unchanged. On the titanium strip it is the stand's 665 Hz feature with its st
 Null value ``a_fixture = 0``. The loop places it at the diagnosed extra pole across which
 |H / model| steps most (:meth:`FixtureResonance.placed_at`), also one whose phase is no
 causal factor's, and it is the one candidate credited with removing such a pole
-(``acausal_pole``, :attr:`vibid.identify.diagnosis.Feature.kinds`): the ratio divides by
+(``acausal_pole``, :attr:`vibid.identify.loop.diagnosis.Feature.kinds`): the ratio divides by
 the base sensor's motion. Its frequency starts at the pole and stays within the loop's
 span of it (:data:`vibid.identify.loop.candidates.POLE_SPAN`); its quality factor is free
 in its box (the step's width sets it, not the pole's sharpness).

@@ -2,9 +2,15 @@
 
 A candidate is an effect term (:class:`EffectCandidate`) or a change of material
 (:class:`MaterialCandidate`: the isotropic plate replaced by the orthotropic one). The loop
-asks each the same questions: does it apply to this model and this diagnosis, what is the
-extended model, where does the extended model equal the current one (its null), what are
-its new parameters' prior boxes and starts, how far from its null did a refit leave it.
+asks each the same questions: does it apply to this model (a structural fact: the effect it
+refines is there, it may share the model, an instance is left), what is the extended model,
+where does the extended model equal the current one (its null), what are its new
+parameters' prior boxes and starts, how far from its null did a refit leave it.
+
+A resonance of the stand or the fixture has no null for its frequency and Q: it is proposed
+once per place it may start from (:meth:`EffectCandidate.placements`), each diagnosed pole
+and the residual's largest maxima along the band, and the place that scores best is the
+one refitted. The diagnosis never decides which effects are tried.
 """
 
 from __future__ import annotations
@@ -15,30 +21,40 @@ from typing import Protocol
 
 import numpy as np
 
+from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel, clash
 
 #: How many instances of an effect that may occur more than once the loop adds.
-MAX_INSTANCES = 2
-#: A resonance the diagnosis placed stays within this factor of the pole's frequency: one
-#: that slides further explains another structure than the pole it was added for (the
-#: titanium strip's stand resonance, started at its 661 Hz pole, slid to 190 Hz to stand
-#: in for the first mode's flat top).
-POLE_SPAN = 1.1
-#: ... and its quality factor within this factor of the pole's: a refit that widens it to
-#: a broad bump (the titanium strip's, from the pole's Q 324 to Q 1) stands in for a
-#: smooth misfit, not for the pole.
-Q_SPAN = 3.0
+MAX_INSTANCES = DEFAULT.max_instances
+#: A resonance placed on a pole is fitted within this factor of the pole's frequency
+#: (:attr:`Policy.pole_span`) ...
+POLE_SPAN = DEFAULT.pole_span
+#: ... and its quality factor within this factor of the pole's (:attr:`Policy.q_span`).
+Q_SPAN = DEFAULT.q_span
+
+
+@dataclass(frozen=True)
+class Place:
+    """Where a resonance is tried: a frequency and a quality factor (a diagnosed pole's,
+    or a maximum of the residual's with the policy's Q), and what found it."""
+
+    f_hz: float
+    q: float
+    source: str = "pole"
+    significance: float = 1.0
+    kinds: tuple = ("extra_pole",)
 
 
 class Candidate(Protocol):
     """What the loop needs of a way to extend a model."""
 
     name: str
-    #: 0 for an effect of the stand or sensor, 1 for a new material: the loop prefers the
-    #: plainer explanation
-    plainness: int
-    #: the diagnosis's feature kinds it can explain (:mod:`vibid.identify.diagnosis`)
+    #: its name, and where a resonance is tried (the report's words)
+    label: str
+    #: where a resonance is tried (None: an effect without one, or not placed)
+    at: "Place | None"
+    #: the diagnosis's feature kinds it can explain (:mod:`vibid.identify.loop.diagnosis`)
     explains: tuple[str, ...]
     #: whether the extended model's best basin may lie away from the current fit's (a new
     #: material moves every resonance its own way): only such a candidate is searched
@@ -49,7 +65,7 @@ class Candidate(Protocol):
     #: whether it changes H's phase alone (a fit of |H| cannot see it)
     phase_only: bool
 
-    def applies(self, model: PlateModel, diagnosis) -> bool: ...
+    def applies(self, model: PlateModel) -> bool: ...
 
     def modes_needed(self, model: PlateModel) -> int: ...
 
@@ -58,6 +74,8 @@ class Candidate(Protocol):
     def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict: ...
 
     def bounds(self, box: dict, values: dict, diagnosis=None) -> dict: ...
+
+    def prior_bounds(self, box: dict, values: dict) -> dict: ...
 
     def held(self, values: dict, diagnosis) -> dict: ...
 
@@ -76,12 +94,19 @@ class Candidate(Protocol):
 
 @dataclass(frozen=True)
 class EffectCandidate:
-    """An effect of :mod:`vibid.identify.effects`, added as a term."""
+    """An effect of :mod:`vibid.identify.effects`, added as a term; a resonance, at
+    ``at`` (a :class:`Place`; None: the diagnosis's own pole for it, if any)."""
 
     name: str
-    plainness = 0
+    at: Place | None = None
+    policy: Policy = DEFAULT
     moves_basin = False
     peaks_first = False
+
+    @property
+    def label(self) -> str:
+        """Its name, and where a resonance was tried."""
+        return self.name if self.at is None else f"{self.name} at {self.at.f_hz:.4g} Hz"
 
     @property
     def term(self):
@@ -97,28 +122,51 @@ class EffectCandidate:
     def phase_only(self) -> bool:
         return self.term.phase_only
 
-    def applies(self, model: PlateModel, diagnosis) -> bool:
+    def applies(self, model: PlateModel) -> bool:
         term = self.term
         if term.requires and term.requires not in model.effect_names:
             return False  # a clamp's own loss needs the clamp's spring first
         if clash((*model.effects, term)):
             return False  # the shear field beside a stretched mesh or a moved sensor
-        if term.needs_feature and not self.feature(diagnosis):
-            return False  # a stand resonance needs a pole where the plate has none
         if term.instance is not None:
-            return model.effect_names.count(self.name) < MAX_INSTANCES
+            return model.effect_names.count(self.name) < self.policy.max_instances
         return self.name not in model.effect_names
+
+    def placements(self, diagnosis, peaks: tuple = ()) -> tuple["EffectCandidate", ...]:
+        """This candidate once per place to try it: itself for an effect without a
+        resonance; for a resonance, every diagnosed pole (whatever the diagnosis read it
+        as: a pole beside a model's antiresonance may be read as a misplaced mode) and
+        ``peaks`` (:class:`Place`: the residual's maxima along the band), one per
+        :attr:`Policy.pole_span` of frequency, the term's own choice of pole first."""
+        if not self.term.needs_feature:
+            return (self,)
+        places = []
+        own = self.term.placed_at(diagnosis) if diagnosis is not None else None
+        for f in ([own] if own is not None else []) + list(getattr(diagnosis, "features", ())):
+            if np.isfinite(f.f_hz) and f.f_hz > 0 and f.kind != "trend":
+                q = f.q if np.isfinite(f.q) and f.q > 0 else self.policy.trial_q
+                places.append(Place(float(f.f_hz), float(q), f.kind, float(f.significance),
+                                    tuple(f.kinds)))
+        places += list(peaks)
+        span = math.log(self.policy.pole_span)
+        kept = []
+        for p in places:
+            if all(abs(math.log(p.f_hz / k.f_hz)) > span for k in kept):
+                kept.append(p)
+        return tuple(replace(self, at=p) for p in kept)
 
     def modes_needed(self, model: PlateModel) -> int:
         """An effect asks nothing of the modes' pattern."""
         return 0
 
     def feature(self, diagnosis):
-        """The diagnosed feature that places its new parameters (the term's choice,
-        ``Term.placed_at``: the strongest pole the model has no resonance for), or None."""
-        if diagnosis is None or not self.term.needs_feature:
+        """The place of its new parameters: :attr:`at`, else the diagnosed feature the
+        term chooses (``Term.placed_at``), or None."""
+        if not self.term.needs_feature:
             return None
-        return self.term.placed_at(diagnosis)
+        if self.at is not None:
+            return self.at
+        return None if diagnosis is None else self.term.placed_at(diagnosis)
 
     def extend(self, model: PlateModel) -> PlateModel:
         return model.with_effect(self.term_after(model.names))
@@ -138,9 +186,13 @@ class EffectCandidate:
         """The prior box of its new parameters (the setup's where it names them); a
         resonance the diagnosis placed, within :data:`POLE_SPAN` of its pole's frequency
         and :data:`Q_SPAN` of its Q."""
+        return self.prior_bounds(box, values) | self._pole_span(values, diagnosis)
+
+    def prior_bounds(self, box: dict, values: dict) -> dict:
+        """The physical prior box of its new parameters (the setup's where it names them),
+        whatever place it is tried at: the evidence's prior."""
         term = self.term_after(values)
-        out = {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
-        return out | self._pole_span(values, diagnosis)
+        return {q.name: tuple(box.get(q.name, q.bounds)) for q in term.parameters}
 
     def held(self, values: dict, diagnosis) -> dict:
         """The transforms (:func:`~vibid.identify.fit.space.make_transform`'s ``kind``) that
@@ -154,7 +206,8 @@ class EffectCandidate:
             return {}
         from vibid.parameters import split_instance
 
-        spans = {"f_hz": (feature.f_hz, POLE_SPAN), "q": (feature.q, Q_SPAN)}
+        spans = {"f_hz": (feature.f_hz, self.policy.pole_span),
+                 "q": (feature.q, self.policy.q_span)}
         places = self.term.feature_places
         out = {}
         for name in self.placed(values):
@@ -280,7 +333,8 @@ class MaterialCandidate:
     fit (its null: D11 = D22 = D, D12 = ν D, D66 = (1 − ν) D / 2)."""
 
     name: str = "anisotropy"
-    plainness = 1
+    at = None
+    label = "anisotropy"
     moves_basin = True
     explains = ("mode_shift",)
     #: the anisotropic material moves every resonance its own way, and the isotropic fit
@@ -288,8 +342,11 @@ class MaterialCandidate:
     peaks_first = True
     phase_only = False
 
-    def applies(self, model: PlateModel, diagnosis) -> bool:
+    def applies(self, model: PlateModel) -> bool:
         return model.material.model == "isotropic"
+
+    def placements(self, diagnosis, peaks: tuple = ()) -> tuple:
+        return (self,)
 
     def modes_needed(self, model: PlateModel) -> int:
         """The plate's modes the band must hold for the modes' pattern to ask for a new
@@ -305,6 +362,9 @@ class MaterialCandidate:
         lo, hi = box["D"]
         return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
                 "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
+
+    def prior_bounds(self, box: dict, values: dict) -> dict:
+        return self.bounds(box, values)
 
     def at_null(self, values: dict, box: dict, thickness_m: float, diagnosis) -> dict:
         D, nu = values["D"], values["nu"]
@@ -355,8 +415,8 @@ class MaterialCandidate:
         return max(z)
 
 
-def all_candidates() -> tuple:
+def all_candidates(policy: Policy = DEFAULT) -> tuple:
     """Every candidate the loop knows, and tries unless told which."""
     from vibid.identify.effects import EFFECTS
 
-    return tuple(EffectCandidate(n) for n in EFFECTS) + (MaterialCandidate(),)
+    return tuple(EffectCandidate(n, policy=policy) for n in EFFECTS) + (MaterialCandidate(),)

@@ -17,26 +17,34 @@ from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
 
 
-def extended_problem(setup, data, res, cand, box, diagnosis):
+def extended_problem(setup, data, res, cand, box, diagnosis, like=None):
     """(the least-squares problem of the model extended by ``cand`` under ``res``'s weights,
-    its start at the null, its prior box)."""
+    its start at the null, its prior box). ``like``: the extended problem of the same
+    candidate at another place (a resonance tried elsewhere), whose forward model it
+    shares: the places differ in a resonance's frequency and Q, which move no stiffness
+    or inertia, so the basis is the same."""
     from vibid.identify.model.forward import build_forward_model
 
     values = res.parameters
     model = cand.extend(res.plate_model)
     start = cand.at_null(values, box, setup.specimen.thickness_m, diagnosis)
     ext_box = model.default_bounds(box | cand.bounds(box, values, diagnosis))
-    fm = build_forward_model(setup, data.frequency_hz[data.used], model=model, theta0=start,
-                             bounds=ext_box)
+    if like is not None:
+        fm = like[0].model
+    else:
+        fm = build_forward_model(setup, data.frequency_hz[data.used], model=model,
+                                 theta0=start, bounds=ext_box)
     space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
                                        {q.name: q.kind for q in model.parameters}
                                        | cand.held(values, diagnosis))
     return LeastSquaresProblem(fm, data, space, res.weights), start, ext_box
 
 
-def score(extended, res, cand) -> tuple[float, int, float]:
-    """(LM statistic, its degrees of freedom, collinearity) of ``cand`` at ``res``, on
-    ``extended``: :func:`extended_problem`'s (the caller keeps it for the refit)."""
+def score(extended, res, cand, prior: dict) -> tuple[float, int, float, np.ndarray]:
+    """(LM statistic, its degrees of freedom, collinearity, the new parameters' Fisher
+    information given the others in the coordinates of their prior box ``prior``, unit
+    noise) of ``cand`` at ``res``, on ``extended``: :func:`extended_problem`'s (the
+    caller keeps it for the refit)."""
     problem, start, _ = extended
     names = problem.space.names
     theta = np.array([start[n] for n in names])
@@ -49,9 +57,38 @@ def score(extended, res, cand) -> tuple[float, int, float]:
         r0 = res.weighted_residuals
         d = r - r0
         lm = max(projected(np.column_stack([J, d]), r0) - projected(J, r0), 0.0)
-        return float(lm), 1, collinearity(J, d[:, None])
+        return float(lm), 1, collinearity(J, d[:, None]), np.zeros((0, 0))
     lm = max(projected(J, r) - projected(J_small, r), 0.0)
-    return float(lm), len(names) - len(res.parameter_names), collinearity(J_small, J[:, new])
+    model = cand.extend(res.plate_model)
+    kinds = {q.name: q.kind for q in model.parameters}
+    info = new_information(problem.space.names, theta, J, J_small, new,
+                           model.default_bounds(prior), kinds)
+    return (float(lm), len(names) - len(res.parameter_names),
+            collinearity(J_small, J[:, new]), info)
+
+
+def new_information(all_names, theta, J, J_small, new, prior: dict,
+                    kinds: dict) -> np.ndarray:
+    """The new parameters' Fisher information given the current ones (the Schur
+    complement of JᵀJ), in the coordinates in which their prior is uniform over ``prior``
+    (each one's fit coordinate over its physical box, box -> [-1, 1])."""
+    names = [all_names[k] for k in new]
+    space = ParameterSpace.from_bounds(names, {n: prior[n] for n in names},
+                                       {n: kinds.get(n) for n in names})
+    sub = theta[new]
+    g = np.empty(len(new))
+    for i, t in enumerate(sub):
+        h = 1e-6 * max(abs(t), 1e-12)
+        up, down = sub.copy(), sub.copy()
+        up[i], down[i] = t + h, t - h
+        with np.errstate(all="ignore"):
+            g[i] = (space.to_u(up)[i] - space.to_u(down)[i]) / (2 * h)
+    Jn = J[:, new] / np.where(np.isfinite(g) & (g != 0), g, np.inf)  # d r / d u
+    Q, s, _ = np.linalg.svd(J_small / np.maximum(np.linalg.norm(J_small, axis=0), 1e-300),
+                            full_matrices=False)
+    Q = Q[:, s > 1e-10 * s.max()]
+    R = Jn - Q @ (Q.T @ Jn)  # what the current parameters cannot mimic
+    return R.T @ R
 
 
 def projected(J, r) -> float:

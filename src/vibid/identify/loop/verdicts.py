@@ -18,54 +18,38 @@ class Verdict(enum.Enum):
     """What became of a candidate in a round."""
 
     CHOSEN = "chosen"
-    EXPLAINS_EXCURSION = "explains_excursion"
-    KEPT_BACK = "kept_back"
-    OUTRANKED = "outranked"
+    LESS_PROBABLE = "less_probable"
+    COMPARED = "compared"  # refitted and weighed; :func:`~vibid.identify.loop.rounds.compare` decides
     NOT_SCORED = "not_scored"
-    BELOW_SCORE = "below_score"
     TOO_FEW_POINTS = "too_few_points"
     NO_MODE_PATTERN = "no_mode_pattern"
     NOT_REFITTED = "not_refitted"
     REFIT_FAILED = "refit_failed"
     NOT_CONVERGED = "not_converged"
-    AT_NULL = "at_null"
-    LEFT_ITS_FEATURE = "left_its_feature"
-    OUTSIDE_PRIOR = "outside_prior"
-    WITHIN_MISFIT = "within_misfit"
-    NO_STRUCTURE = "no_structure"
-    NOT_SIGNIFICANT = "not_significant"
     WITHDRAWN = "withdrawn"
 
     @property
     def passes(self) -> bool:
-        """Whether the refit passed the judge (chosen or not)."""
-        return self in (Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION, Verdict.KEPT_BACK,
-                        Verdict.OUTRANKED)
+        """Whether the refit is a model the round compared by its evidence."""
+        return self in (Verdict.CHOSEN, Verdict.LESS_PROBABLE, Verdict.COMPARED)
 
     @property
     def compared(self) -> bool:
-        """Whether the refit is a model the data support (converged, away from its null,
-        significant), kept or not: the budget's spread is over these
+        """Whether the refit is a model the round compared (converged, its evidence
+        weighed), chosen or not: the budget's spread is over these
         (:func:`vibid.identify.budget.model_spread`)."""
-        return self.passes or self in (Verdict.WITHIN_MISFIT, Verdict.NO_STRUCTURE)
+        return self.passes
 
     def sentence(self, **d) -> str:
         """The report's note; ``d`` holds the numbers it quotes."""
+        p = d.get("probability", math.nan)
+        by, p_by = d.get("by", "another"), d.get("by_probability", math.nan)
         return {
-            Verdict.CHOSEN: (f"added: it explains what the residual showed ({d['feature']})"
-                             if d.get("feature") else "added: it explains the residual best"),
-            Verdict.EXPLAINS_EXCURSION: (
-                f"added: it brings {d.get('outside', 'the estimate')} back inside the prior "
-                "box at a chi2 the data cannot tell from the current one (the excursion was "
-                "this effect)"),
-            Verdict.KEPT_BACK: (
-                f"kept back: it leaves {d.get('left', 'a parameter')} outside the prior box, "
-                "and an effect that brings the estimate back inside it goes first"),
-            Verdict.OUTRANKED: f"it passes, but {d.get('by', 'another')} explains the "
-                               "residual better or more plainly (a candidate next round)",
+            Verdict.CHOSEN: f"added: the most probable explanation (probability {p:.2g})",
+            Verdict.LESS_PROBABLE: (f"compared: probability {p:.2g}, against {p_by:.2g} "
+                                    f"for {by}"),
+            Verdict.COMPARED: "refitted and weighed",
             Verdict.NOT_SCORED: f"could not be scored: {d.get('error', '')}",
-            Verdict.BELOW_SCORE: "its score test does not ask for it (p "
-                                 f"{d.get('p', math.nan):.2g})",
             Verdict.TOO_FEW_POINTS: (
                 f"not refitted: too few points for its {d.get('n', '?')} parameters "
                 f"({d.get('residuals', '?')} real residuals)"),
@@ -74,56 +58,35 @@ class Verdict(enum.Enum):
                 f"which the current material places; a new material needs "
                 f"{d.get('needed', '?')} for their pattern to ask for it"),
             Verdict.NOT_REFITTED: (
-                f"not refitted: {d.get('by', 'another candidate')} already fits the residual "
-                "to the noise level" if d.get("by") else
-                "not refitted: lower scores than the ones refitted"),
+                f"not refitted: {d['fitted_by']}'s refit already fits the residual to the "
+                "noise level" if d.get("fitted_by") else
+                f"not refitted: its evidence estimated from the score test (probability "
+                f"{p:.2g}) is below the refitted ones'"),
             Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
             Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
-            Verdict.AT_NULL: (
-                f"the refit takes it to its null value, beyond its box: {d['beyond']}"
-                if d.get("beyond") else
-                f"the refit leaves it at its null value ({d.get('z', math.nan):.2g} std "
-                "from it)"),
-            Verdict.LEFT_ITS_FEATURE: (
-                f"{d.get('moved', 'it left the feature it was added for')}: it explains "
-                "another structure than the one the diagnosis found"),
-            Verdict.OUTSIDE_PRIOR: (
-                f"its refit explains the residual only with {d.get('left', 'a parameter')} "
-                "outside the prior box, which the current fit kept inside: no physical "
-                "explanation"),
-            Verdict.WITHIN_MISFIT: (
-                f"it lowers chi2 by {d.get('gain', math.nan):.3g}, no more than a parameter "
-                "that explains nothing removes from a misfit this large and this smooth (needs "
-                f"{d.get('need', math.nan):.3g}: chi-square's 0.99 quantile times the reduced "
-                f"chi2 {d.get('birge', math.nan):.3g} times {d.get('tau', math.nan):.3g} "
-                "neighbouring points per independent one along the change it makes)"),
-            Verdict.NO_STRUCTURE: (
-                f"it lowers chi2 significantly but removes no structure the diagnosis found "
-                f"and leaves {d.get('left_share', math.nan):.2g} % of the misfit: a share of "
-                "a misfit that remains is no explanation of it"),
-            Verdict.NOT_SIGNIFICANT: "the refit does not improve chi2 significantly",
             Verdict.WITHDRAWN: (
-                f"withdrawn: added in an earlier round, it lies at its null value once "
+                f"withdrawn: added in an earlier round, it lies near its null once "
                 f"{d.get('by', 'the new effect')} is in the model ({d.get('z', math.nan):.2g} "
-                "std from it), and the data cannot tell the model without it from the one "
-                "with it"),
+                f"std from it), and the model without it is the more probable (log odds "
+                f"{d.get('odds', math.nan):.3g})"),
         }[self] + (" (global search)" if d.get("searched") else "") + (
             f"; {d['held']}" if d.get("held") else "")
 
 
-#: The verdicts of a refit that moved its effect off its null and was not kept: what may
-#: have come close to explaining a residual that remains (not one at its null, whose chi2
-#: drop is the other parameters' or round-off's, nor a refit that failed).
-CLOSE_CALLS = frozenset({Verdict.WITHIN_MISFIT, Verdict.OUTSIDE_PRIOR, Verdict.NO_STRUCTURE,
-                         Verdict.LEFT_ITS_FEATURE, Verdict.KEPT_BACK,
-                         Verdict.NOT_SIGNIFICANT})
+#: The verdicts of a refit the round compared and did not choose: what may have come
+#: close to explaining a residual that remains.
+CLOSE_CALLS = frozenset({Verdict.LESS_PROBABLE})
 
 
 def is_close_call(verdict, delta_chi2) -> bool:
     """Whether a refit (its verdict, a :class:`Verdict` or its report name, and the chi2 it
     removed) may have come close to explaining a residual that remains: one of
     :data:`CLOSE_CALLS` that lowered chi2."""
-    return (Verdict(verdict) in CLOSE_CALLS and delta_chi2 is not None
+    try:
+        verdict = Verdict(verdict)
+    except ValueError:  # a report written by an earlier loop
+        return False
+    return (verdict in CLOSE_CALLS and delta_chi2 is not None
             and math.isfinite(delta_chi2) and delta_chi2 > 0)
 
 
@@ -138,14 +101,19 @@ class Score:
     p_value: float
     collinearity: float  # 0: orthogonal to the current parameters, 1: indistinguishable
     delta_chi2: float = math.nan  # the refit's likelihood ratio (same weights), if refitted
-    verdict: Verdict = Verdict.BELOW_SCORE
+    verdict: Verdict = Verdict.COMPARED
     detail: tuple = ()  # (key, value) pairs the verdict's sentence quotes
-    asked: bool = False  # whether the diagnosis found a feature it explains
+    #: its log evidence (:mod:`~vibid.identify.loop.evidence`): its refit's, or where it
+    #: was not refitted (``estimated``) the score test's approximation
+    log_evidence: float = math.nan
+    probability: float = math.nan  # its posterior share among the round's explanations
+    estimated: bool = False
+    at_hz: float | None = None  # where a resonance was tried
 
     @property
     def kept(self) -> bool:
         """Whether the loop added it this round."""
-        return self.verdict in (Verdict.CHOSEN, Verdict.EXPLAINS_EXCURSION)
+        return self.verdict is Verdict.CHOSEN
 
     @property
     def note(self) -> str:
@@ -154,16 +122,13 @@ class Score:
 
 @dataclass(frozen=True)
 class Judgement:
-    """The judge's word on one candidate in a round: its verdict, the numbers the
-    verdict's sentence quotes, its refit (None where it was not refitted), the names of
-    the refit's parameters outside their prior box, and the diagnosis of a passing refit's
-    residual (read on the refit's own thread)."""
+    """The round's word on one candidate: its verdict, the numbers the verdict's sentence
+    quotes, its refit (None where it was not refitted) and the refit's log evidence."""
 
     verdict: Verdict
     detail: tuple = ()
     fit: object = None  # :class:`vibid.identify.loop.refit.Refit`
-    left: tuple[str, ...] = ()
-    diagnosis: object = None  # :class:`vibid.identify.diagnosis.Diagnosis`
+    evidence: float = math.nan  # the refit's log evidence
 
     @property
     def gain(self) -> float:
@@ -172,8 +137,7 @@ class Judgement:
 
     def becomes(self, verdict: Verdict, **more) -> "Judgement":
         """This judgement with another verdict and more numbers for its sentence."""
-        return Judgement(verdict, self.detail + tuple(more.items()), self.fit, self.left,
-                         self.diagnosis)
+        return Judgement(verdict, self.detail + tuple(more.items()), self.fit, self.evidence)
 
 
 @dataclass(frozen=True)
@@ -188,6 +152,10 @@ class Stage:
     #: parameters its refit held at the previous stage's values (:mod:`~vibid.identify.
     #: loop.held`): its estimate is no minimum of chi2 along them
     held: tuple[str, ...] = ()
+    #: the explanations compared at this stage, the chosen first (each ``{"added": name or
+    #: None for stopping here, "criterion": log evidence, "probability": ..}``, report
+    #: format ``loop.stages[].alternatives``); empty where none was compared
+    alternatives: tuple = ()
 
     @classmethod
     def of(cls, added, result: IdentificationResult) -> "Stage":
@@ -209,6 +177,13 @@ class LoopResult:
     #: the stages, the models the loop compared (the uncertainty budget's model part,
     #: :mod:`vibid.identify.budget`)
     alternatives: tuple = ()
+
+    @property
+    def criterion(self) -> dict:
+        """The report's ``loop.criterion``: the loop's one criterion and what it means."""
+        from vibid.identify.loop.evidence import CRITERION, MEANING
+
+        return {"name": CRITERION, "meaning": MEANING}
 
     @property
     def final(self) -> IdentificationResult:

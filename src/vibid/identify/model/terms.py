@@ -75,11 +75,12 @@ class Term:
     #: effects it cannot share a model with (the shear field's mass would no longer be
     #: the plate's: a stretched mesh, a moved sensor disc)
     excludes: tuple[str, ...] = ()
-    #: the residual's features (:mod:`vibid.identify.diagnosis`) it can explain: the loop
-    #: prefers a kept effect whose feature the diagnosis found
+    #: the residual's features (:mod:`vibid.identify.loop.diagnosis`) it can explain (the
+    #: pole a resonance is placed at first, :meth:`placed_at`)
     explains: tuple[str, ...] = ("mode_shift",)
-    #: True for an effect the loop tries only where the diagnosis found its feature (a
-    #: stand resonance: a pole where the plate has none, which also places its start)
+    #: True for an effect whose new parameters need a place to start (a resonance: its
+    #: frequency and Q have no null): the loop tries it at each diagnosed pole and at the
+    #: residual's maxima along the band
     needs_feature = False
     #: which of its parameters (unsuffixed names) the diagnosed feature places, and by
     #: which of the feature's values (``"f_hz"``, ``"q"``): the loop starts them there and
@@ -121,7 +122,7 @@ class Term:
         return H
 
     def placed_at(self, diagnosis):
-        """The diagnosed feature (:mod:`vibid.identify.diagnosis`) that places a term that
+        """The diagnosed feature (:mod:`vibid.identify.loop.diagnosis`) that places a term that
         ``needs_feature``: the most significant one it explains, or None."""
         found = [f for f in diagnosis.features if set(f.kinds) & set(self.explains)]
         return max(found, key=lambda f: f.significance, default=None)
