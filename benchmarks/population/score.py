@@ -96,8 +96,9 @@ def score_case(truth, report, meta) -> dict:
                coverage=coverage(truth, report),
                values={k: _param(report, k)[0] for k in truth["material"]},
                stds={k: _param(report, k)[1] for k in truth["material"]})
-    if "criterion" in loop:
-        row["criterion"] = loop["criterion"]
+    if loop.get("criterion"):
+        crit = loop["criterion"]
+        row["criterion"] = crit.get("name") if isinstance(crit, dict) else str(crit)
     alts = [s.get("alternatives") for s in loop.get("stages", []) if s.get("alternatives")]
     if alts:
         row["alternatives"] = alts
