@@ -208,7 +208,7 @@ def system(plate: Plate, order, clamp, dL=0.0, dy=0.0, added_mass=0.0, height=0.
     rho_a = plate.mass / area  # the declared disc: its mass over the disc, through h
     M = M + rho_a * (Mf + h**2 / 12 * Mg)
     load1, loadx = load1 + rho_a * d1, loadx + rho_a * (dx + h**2 / 12 * dgx)
-    f, fx, fy = (a[:, 0] for a in b.fields(np.array([xs]), np.array([ys])))
+    f = b.fields(np.array([xs]), np.array([ys]))[0][:, 0]
     if added_mass:  # moves with the sensor: over its disc (glue under it, its cable)
         ra = added_mass / area
         M = M + ra * (Mf + h**2 / 12 * Mg)

@@ -21,8 +21,8 @@ ORDER = (16, 5)
 
 
 def _beam_kw(**kw):
-    return dict(L=L, EI=D * W * (1 + 0.003j), rhoA=RHO * H_M * W,
-                rhoI=RHO * H_M**3 / 12 * W, x_s=0.09) | kw
+    return {"L": L, "EI": D * W * (1 + 0.003j), "rhoA": RHO * H_M * W,
+            "rhoI": RHO * H_M**3 / 12 * W, "x_s": 0.09} | kw
 
 
 def test_cantilever_strip_frequencies_are_the_rayleigh_beams():

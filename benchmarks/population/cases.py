@@ -2,7 +2,7 @@
 model of tests/population_model.py (numpy/scipy, no vibid), and written as
 ``cases/<name>/{afc.csv, setup.json, truth.json}``.
 
-    python -m benchmarks.population.cases [--check]
+    python -m benchmarks.population.cases [--only 3,17]
 
 Kinds: strips (0.5-3 mm thick, steel/aluminium/titanium, 100-200 x 20-30 mm) and plates
 (isotropic metal, or an orthotropic laminate declared orthotropic, or declared isotropic:
@@ -19,7 +19,8 @@ that is not detectable as such names ``clamp_loss`` optional. The whole case is 
 too. Complex Gaussian noise, its std per point (0.2-0.5 % of |H| plus a floor) written in
 the CSV. The cases are split once (seeded) into a ``calibration`` and a ``measured`` half.
 
-``--check`` regenerates in memory and compares with the files on disk (reproducibility).
+``--only`` regenerates the cases of those indices alone (each case draws from its own
+seed [SEED, index], so one case regenerates without the others).
 """
 
 from __future__ import annotations
@@ -35,12 +36,12 @@ import sys
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")  # small matrices: threads only contend (15x slower)
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-import population_model as pm  # noqa: E402
+import population_model as pm
 
 CASES_DIR = HERE / "cases"
 SEED = 63
@@ -169,7 +170,7 @@ def grid(rng, grid_kind, modes, f_lo, f_hi, beta):
     if grid_kind == "fft":
         n = int(rng.integers(200, 501))
         df = f_hi / n
-        k0 = max(1, int(math.ceil(f_lo / df)))
+        k0 = max(1, math.ceil(f_lo / df))
         return df * np.arange(k0, n + 1)
     n = int(rng.integers(60, 151))
     inband = [m for m in modes if f_lo < m < f_hi]

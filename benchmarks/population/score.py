@@ -16,17 +16,17 @@ from collections import Counter
 
 #: How the named effects are counted against the truth (also written into population.json).
 EQUIVALENCES = [
-    "clamp_loss (a clamp whose spring dissipates otherwise than the plate) counts as named "
-    "only when clamp_compliance and clamp_loss were both added; clamp_compliance counts as "
-    "named whether or not clamp_loss came with it",
-    "clamp_loss is tolerated (no false addition) wherever the truth has a clamp spring: its "
-    "null is the plate's beta, and a lossless clamp (beta_clamp = 0) that the data cannot "
-    "tell from a clamp of the plate's loss names it optional",
-    "anisotropy counts as named when the report's final model is orthotropic",
-    "stand_resonance and fixture_resonance count per instance (a second instance where the "
-    "truth has one is a false addition)",
-    "free_length and clamp_compliance are NOT equivalent, nor added_mass and sensor_inertia, "
-    "nor sensor_gain and channel_delay",
+    ("clamp_loss (a clamp whose spring dissipates otherwise than the plate) counts as named "
+     "only when clamp_compliance and clamp_loss were both added; clamp_compliance counts as "
+     "named whether or not clamp_loss came with it"),
+    ("clamp_loss is tolerated (no false addition) wherever the truth has a clamp spring: its "
+     "null is the plate's beta, and a lossless clamp (beta_clamp = 0) that the data cannot "
+     "tell from a clamp of the plate's loss names it optional"),
+    ("anisotropy counts as named when the report's final model is orthotropic"),
+    ("stand_resonance and fixture_resonance count per instance (a second instance where the "
+     "truth has one is a false addition)"),
+    ("free_length and clamp_compliance are NOT equivalent, nor added_mass and sensor_inertia, "
+     "nor sensor_gain and channel_delay"),
 ]
 
 #: nu's tolerance for an out-of-library case: 5 % of the truth's nu
