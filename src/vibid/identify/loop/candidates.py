@@ -81,15 +81,12 @@ class Candidate(Protocol):
 
     def placed(self, values: dict) -> set[str]: ...
 
-    def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None: ...
-
     def resonances_hz(self, fitted: dict, values: dict) -> tuple[float, ...]: ...
 
     def directions(self, J, names, values: dict, current_names): ...
 
     def distance_from_null(self, result) -> float: ...
 
-    def beyond_null(self, result, box: dict) -> str: ...
 
 
 @dataclass(frozen=True)
@@ -243,30 +240,6 @@ class EffectCandidate:
         term = self.term_after(values)
         return set(term.names) - set(term.null_values(values))
 
-    def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
-        """Where a refit (``fitted``, from the current ``values``) took a resonance the
-        diagnosed pole placed: beyond its span, or onto the span's face (the best
-        resonance near the pole is another structure than the pole), in words; None if it
-        stayed inside."""
-        from vibid.parameters import split_instance
-
-        feature = self.feature(diagnosis)
-        for name, (lo, hi) in self._pole_span(values, diagnosis).items():
-            v = fitted.get(name)
-            if v is None:
-                continue
-            if self.term.feature_places.get(split_instance(name)[0]) == "q":
-                its, value, pole = "its Q", f"{v:.3g}", f"the diagnosed pole's Q {feature.q:.3g}"
-            else:
-                its, value, pole = ("its resonance", f"{v:.4g} Hz",
-                                    f"the diagnosed pole at {feature.f_hz:.4g} Hz")
-            edge = 1e-3 * (hi - lo)
-            if not lo <= v <= hi:
-                return f"{its} moved from {pole} to {value}"
-            if v < lo + edge or v > hi - edge:
-                return f"{its} ran to the face of the span around {pole} ({value})"
-        return None
-
     def resonances_hz(self, fitted: dict, values: dict) -> tuple[float, ...]:
         """Where a refit (``fitted``, from the current ``values``) put the resonances the
         diagnosis placed (Hz; none for an effect without one): the poles it can explain
@@ -288,17 +261,6 @@ class EffectCandidate:
         """How many standard deviations the fitted effect lies from its null (Wald z; for
         a null at infinity, in the compliance 1/k: z = k / std k)."""
         return distance_from_null(self._fitted(result), result)
-
-
-    def beyond_null(self, result, box: dict) -> str:
-        """Its parameters whose null lies at infinity that a refit took past their box's
-        face on that side, in words ("" if none): a clamp stiffer than the box's stiffest
-        is the rigid clamp, its null. Out there the stiffness's round-off, not the data,
-        moves chi2 (the titanium strip's clamp refit ran to 1.3e37 N/rad)."""
-        p = result.parameters
-        return ", ".join(f"{n} {p[n]:.3g} (box top {box[n][1]:.3g})"
-                         for n, null in self._fitted(result).null_values(p).items()
-                         if math.isinf(null) and n in box and p[n] >= box[n][1])
 
     def _fitted(self, result):
         """Its term in ``result``'s model (the last instance added)."""
@@ -379,9 +341,6 @@ class MaterialCandidate:
     def held(self, values: dict, diagnosis) -> dict:
         return {}
 
-    def strayed(self, fitted: dict, values: dict, diagnosis) -> str | None:
-        return None
-
     def resonances_hz(self, fitted: dict, values: dict) -> tuple[float, ...]:
         return ()
 
@@ -394,10 +353,6 @@ class MaterialCandidate:
         jnu = D * J[:, i["D12"]] - 0.5 * D * J[:, i["D66"]]
         shared = [i[n] for n in current_names if n in i]
         return np.column_stack([jD, jnu] + [J[:, k] for k in shared]), [i["D22"], i["D66"]]
-
-    def beyond_null(self, result, box: dict) -> str:
-        """A material has no null at infinity."""
-        return ""
 
     def distance_from_null(self, result) -> float:
         """Wald z of the anisotropy's two contrasts, D22 − D11 and 2 D66 − D11 + D12 (the

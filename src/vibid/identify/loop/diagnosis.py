@@ -40,7 +40,7 @@ Features below ``min_significance`` are dropped; without ``std`` it is NaN and f
 ``size < min_size`` are dropped instead. So is a pole whose half-power band
 ``f (1 ± 1/2q)`` lies inside a band the fit leaves out (``left_out_hz``: a resonance's
 top whose response depends on its amplitude): no fitted point sees it; the rational fit
-bridged the gap (the steel strip's "mode at 142.4 Hz (Q 53)" inside its left-out
+bridged the gap (a real strip's "mode at 142.4 Hz (Q 53)" inside its left-out
 133.6-144.7 Hz).
 """
 
@@ -369,8 +369,8 @@ def causal(f_hz, R, f_p: float) -> bool | None:
     10 % of ``f_p`` (correlation above 0.5: True, below −0.5: False). None where the grid
     there is not uniform and dense (200 points or more: an FFT's bins), or where the
     minimum phase swings by less than 0.1 rad (too small a feature to judge). Any resonance
-    of a linear stand multiplies or adds to H causally; on the titanium strip's 664 Hz
-    feature the phase rises by 27° where a causal factor's would fall by 57°."""
+    of a linear stand multiplies or adds to H causally (on a real strip's 664 Hz feature
+    the phase rose by 27° where a causal factor's would fall by 57°)."""
     window = (f_hz >= f_p / CAUSAL_SPAN) & (f_hz <= f_p * CAUSAL_SPAN)
     f, R = f_hz[window], R[window]
     step = np.diff(f)
