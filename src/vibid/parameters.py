@@ -236,8 +236,8 @@ GAIN = Parameter("gain", "1", ("log",), bounds=(0.8, 1.25), null=1.0, rule="posi
                  noun="a gain")
 #: ``sensor_position``: the response sensor's offset across the width (null 0). The box
 #: is also the reach of the interpolation across the width
-#: (:func:`vibid.identify.effects.sensor_position.places`): at ±10 mm its error on the
-#: titanium strip grew from below 2e-4 of |H| to 5.7e-4.
+#: (:func:`vibid.identify.effects.sensor_position.places`): its error grows with the
+#: offset, and on a real strip's setup grew from below 2e-4 of |H| to 5.7e-4 at ±10 mm.
 DY = Parameter("sensor_dy_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,
                noun="the sensor's offset across the width", limit=_on_the_plate)
 #: ``transverse_shear``: the transverse shear modulus, a parameter on an orthotropic or

@@ -22,12 +22,13 @@ root sum of squares of independent parts:
   small step, each a model built for that setup, scaled to s: :data:`STEP`) and H its
   exact Hessian (JAX's, as the trust region's). Where a misfit remains, the Jacobian's
   own change times the residual is part of Δg and H: the Gauss–Newton shift ``−J⁺ Δr``,
-  which drops it, put the steel strip's length part of E at 9.4 GPa for 0.5 mm where the
-  refit at the longer length moves E by 2.0 GPa;
+  which drops it, put a real strip's length part of E at 9.4 GPa for 0.5 mm where the
+  refit at the longer length moves E by 2.0 GPa (``tests/test_budget.py``);
   a parameter the loop's last refit held (:mod:`~vibid.identify.loop.held`: the estimate
-  is no minimum along it) is held in the shift too (the titanium strip in the calibrated
-  clamp, nu held at 0.084: refitted at the length 0.62 mm longer with nu free, nu runs
-  to 0.50 and E moves by −4.5 GPa, with nu held by +1.7 GPa, and −2.0 GPa 0.62 mm shorter);
+  is no minimum along it) is held in the shift too: freed, it would carry the shift off
+  along the direction the data leave open (a real strip's refit at the length 0.62 mm
+  longer with nu free runs nu to 0.50 and moves E by −4.5 GPa, with nu held by +1.7 GPa,
+  and −2.0 GPa 0.62 mm shorter: BENCHMARKS.md);
   the part is ``|gᵀ Δθ + ∂c/∂q s|``, the last term for the thickness alone (the
   conversion's h⁻³). A thicker plate is heavier: D grows with h and E goes as h⁻², which
   the conversion alone (h⁻³) would overstate;
@@ -57,10 +58,10 @@ root sum of squares of independent parts:
   trusted: on an exact beam 3 mm longer than declared, with a 2 % crosstalk no candidate
   explains, it put the line at the declared edge within 0.60 mm (one Gauss–Newton step
   towards the line the data prefer, within 0.95 mm), where the box's 2.9 mm covers the truth
-  (``tests/test_budget.py``). On the titanium strip under its declared setup this part is
-  11.1 GPa of E, where the fit's part is 2.4 GPa. A reference strip in the same clamp
-  measures the line, and the setup's ``length_std_m`` then declares it
-  (``examples/real-steel/titanium_setup.json``).
+  (``tests/test_budget.py``). It can outweigh the fit's own part severalfold (a real strip
+  under its declared setup: 11.1 GPa of E against 2.4 GPa, BENCHMARKS.md). A reference
+  strip in the same clamp measures the line, and the setup's ``length_std_m`` then
+  declares it (the example in ``examples/real-steel/``).
 
 The parts are independent by construction (different sources), so they add in quadrature.
 """
@@ -259,9 +260,9 @@ def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
     final material (module doc); empty without a loop or where the final model explains
     the data. ``tau``: the final residual's autocorrelation time; ``box``: the prior box
     (the setup's bounds) outside which a model is not defensible (None: every model; every
-    model too where the final one lies outside it: on the titanium strip every model the
-    loop compared keeps the declared fit's nu below the box, and weighing the final alone
-    would make the choice of model cost nothing)."""
+    model too where the final one lies outside it: where every model the loop compared
+    keeps a parameter outside the box, as a real strip's nu below it, weighing the final
+    alone would make the choice of model cost nothing; BENCHMARKS.md)."""
     if loop is None or not loop.unexplained_residual:
         return {}
     from vibid.identify.loop.rounds import outside_prior

@@ -15,8 +15,9 @@ An analyser's H at a bin is the response averaged over its resolution bandwidth 
 window's: 1.5 bins), which lowers a linear resonance's top by a few per cent at 6 points
 per band, over a few of the band's hundreds of points: one pole pair still fits it well
 within the scatter (the tests' analyser-smoothed oscillator). A linear
-structure's poles are stable: the pole pairs are fitted with their damping ≥ 0 (the steel
-strip's first resonance, unconstrained, took a pole of Q −45 and fitted "linearly").
+structure's poles are stable: the pole pairs are fitted with their damping ≥ 0 (left free,
+an unstable pole of negative Q bends the sum onto a nonlinear resonance, which then passes
+as "linear": a real strip's first resonance took one of Q −45, BENCHMARKS.md).
 It does not use vibid's plate model, so it also says something the model cannot: whether
 any linear model could fit this resonance at all.
 
@@ -50,8 +51,8 @@ MAX_PAIRS = 3
 #: A resonance is linear when some linear model leaves a relative RMS residual within this
 #: factor of the scatter (√2 × the per-part scatter, for the complex residual).
 FACTOR = 3.0
-#: Points the grid must have per half-power bandwidth (f / Q) for the test to run (the
-#: steel strip's first resonance has 7 on its 0.122 Hz grid).
+#: Points the grid must have per half-power bandwidth (f / Q) for the test to run (an FFT
+#: analyser's 0.122 Hz bins give a real strip's first resonance 7: BENCHMARKS.md).
 POINTS_PER_BANDWIDTH = 5
 #: The band fitted: this fraction of the peak's frequency either side (cut halfway to a
 #: neighbouring peak).

@@ -4,7 +4,7 @@ JAX's persistent compilation cache (:mod:`vibid.identify.runtime`) spares a new 
 XLA's compilation, not the work before it: every process traces each function again in
 Python and lowers it to StableHLO, only to find the compiled code under that program's
 hash. For the reduced model's Hessian that is 0.3 s of the 0.5 s its first call takes with
-the cache filled, and an identification of the titanium AFC calls about 55 such functions.
+the cache filled, and an identification of a real strip's AFC calls about 55 such functions.
 
 A :class:`Persisted` function keeps each program it traces as a :mod:`jax.export` artefact
 (serialised StableHLO, tens of kB) in a folder within the compilation cache's. A later process

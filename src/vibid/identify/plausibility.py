@@ -21,8 +21,9 @@ logs nothing (the report, the console and the loop say them).
   first mode ``φ``, ∫φ² = L), and the first frequency stays put where ``r = (1 − μ) a + μ``
   for a density factor ``a``, ``r = c³ ((1 − μ) c + μ)`` for a length factor ``c`` (the
   sensor keeping its place relative to the length) and ``r c³ = (1 − μ) c + μ`` for a
-  thickness factor ``c``, each solved for its factor (on the titanium strip μ is 0.18: the
-  density +14 % instead of the bare strip's +12 %).
+  thickness factor ``c``, each solved for its factor (a sensor of a few grams near a real
+  strip's free end carries μ = 0.18, and the density then needs +14 % where the bare
+  strip's factor says +12 %: ``tests/test_plausibility.py``).
 
 Sources of the ranges (room temperature, typical values, not design allowables): ASM
 Handbook Vol. 1 (Properties and Selection: Irons, Steels) and Vol. 2 (Nonferrous Alloys);

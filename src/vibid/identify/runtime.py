@@ -36,7 +36,8 @@ The cache is shared by every vibid process of the machine (the test suite's work
 batch's Dask workers, a replay beside a campaign), and JAX writes an entry in place: without
 a size limit it takes no lock, and a process that finds an entry another is still writing
 reads it truncated and dies in XLA's deserialisation (a segmentation fault in a fresh
-clone's suite, in the titanium test, while the other worker compiled the same function).
+clone's suite, in one worker's test while the other compiled the same function:
+BENCHMARKS.md).
 With a size limit (:data:`MAX_CACHE_BYTES`) JAX reads and writes under a file lock
 (``filelock``), and evicts the least recently used entries beyond it. Before it writes an
 entry it reads every entry's access time, and an entry written without a limit (by vibid

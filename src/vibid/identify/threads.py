@@ -11,10 +11,10 @@ results while XLA's pool threads sat idle (BENCHMARKS.md, "Tried on `50a3b71`").
 compiled code runs only on the thread that holds the *turn* (:func:`jax_turn`), and what
 overlaps is the work that holds no JAX at all: the sparse matrices' assembly, the reduced
 bases (ARPACK, SuperLU), the full model's checks. Those functions are marked
-:func:`numpy_only`; inside them a thread lends its turn to the others. Of a refit on the
-titanium strip those take about half the time (the profile's "matrices", "reduced bases"
-and "full-model checks"). XLA's compilation of a program, which runs none, lends it too
-(:func:`compiled`).
+:func:`numpy_only`; inside them a thread lends its turn to the others. Of a refit on a
+real strip those take about half the time (BENCHMARKS.md: the profile's "matrices",
+"reduced bases" and "full-model checks"). XLA's compilation of a program, which runs none,
+lends it too (:func:`compiled`).
 
 Who holds the turn: work started by :func:`in_order` (each item on its worker thread, the
 consuming thread between items), and the pipeline's stages that run the model

@@ -18,8 +18,8 @@ a pole and a zero close together, and a step of |H| across them: |C| goes from 1
 f₀ to 1 − a (roughly) above, which a sensor gain or a loss law mistakes for a misfit
 across the whole band. Unlike ``stand_resonance`` (the table rocking, which the base
 sensor on the clamp line cannot see) the fixture translates, and the plate's own response
-is unchanged. On the titanium strip it is the stand's 665 Hz feature with its step of
-|H| from +6 % below to −7 % above.
+is unchanged. The step is a few per cent: on a real strip, from +6 % below a 665 Hz stand
+feature to −7 % above (BENCHMARKS.md; ``tests/test_effect_fixture_resonance.py``).
 
 Null value ``a_fixture = 0``. The loop places it at the diagnosed extra pole across which
 |H / model| steps most (:meth:`FixtureResonance.placed_at`), also one whose phase is no

@@ -31,8 +31,8 @@ import numpy as np
 from vibid.identify.model.disc import polynomial_through
 from vibid.identify.model.terms import Term
 # sensor_dy_m (m): the catalogue declares it. Its default box is also the reach of the
-# interpolation across the width (:func:`places`): at ±10 mm its error on the titanium
-# strip grew from below 2e-4 of |H| to 5.7e-4.
+# interpolation across the width (:func:`places`): the polynomial's error grows with the
+# offset, and on a real strip's setup it grew from below 2e-4 of |H| to 5.7e-4 at ±10 mm.
 from vibid.parameters import DY
 
 #: Degree of the interpolation across the width.

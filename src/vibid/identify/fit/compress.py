@@ -27,7 +27,7 @@ equivalent short problem, exact up to an interpolation error that is bounded and
   Newton step there must be shorter than ``TOL_STD`` standard deviations, or the bands are
   rebuilt around it and the run goes on.
 
-On the real titanium strip's 11 960 bins this leaves a few hundred nodes.
+On a real strip's FFT AFC of 11 960 bins this leaves a few hundred nodes (BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def project(f_hz: np.ndarray, w: np.ndarray, d: np.ndarray, nodes: np.ndarray,
 class Quadratures:
     """The Gauss nodes, weights and Lagrange matrix of each band ``(i0, i1)`` of one set
     of sorted points and weights, made once: they depend on the data alone, and a loop's
-    refits compress the same data, same weights, dozens of times (on the titanium strip
+    refits compress the same data, same weights, dozens of times (on a real strip's AFC
     they were a third of each compression)."""
 
     def __init__(self, f_hz: np.ndarray, w: np.ndarray, q: int):

@@ -51,7 +51,7 @@ REBUILDS = 2
 @dataclass(frozen=True)
 class Compression:
     """A long AFC's ``full`` problem and the ``short`` one a run ended on: the next run of
-    the same data and weights starts on its nodes (on the titanium AFC, building them
+    the same data and weights starts on its nodes (on a real strip's AFC, building them
     again for every start of a refit was a fifth of the closed loop's time)."""
 
     full: LeastSquaresProblem

@@ -155,8 +155,8 @@ def correlation_along(result, other) -> float:
     A parameter that explains nothing takes from a residual with covariance ``σ² C`` a
     chi2 of ``(jᵀ C j / jᵀ j)`` times a chi-square variable, ``j`` the direction it moves
     the model in: the residual's correlation time where ``j`` is smooth over it (a gain,
-    a step across the band), fewer neighbours where ``j`` is a narrow resonance (the
-    titanium strip's 982 Hz feature, 10 points wide in a residual correlated over 856)."""
+    a step across the band), fewer neighbours where ``j`` is a narrow resonance (on a real
+    strip, a stand feature 10 points wide in a residual correlated over 856)."""
     r = _along_frequency(result, result.model_afc - result.H)
     d = _along_frequency(result, np.asarray(other.model_afc) - np.asarray(result.model_afc))
     parts = ((r.real, d.real),) if result.magnitude else ((r.real, d.real), (r.imag, d.imag))

@@ -30,10 +30,11 @@ MIN_PEAK_SNR = 10.0
 #: ... and stand out of its surroundings: its prominence in ln |H| (how far it rises above
 #: the higher of the lowest points between it and a higher peak on either side) at least
 #: this. A resonance rises by ln sqrt(2) = 0.35 within its half-power band alone; the
-#: bin-to-bin wiggles on the tops of the real strips' FFT AFCs (0.12 Hz bins) rise at most
-#: 0.05 (titanium) and 0.07 (steel, a stand feature at 974 Hz), and every one of them was
-#: a "resonance": 317 of them on the titanium AFC, whose two resonances no model could
-#: then match, so its declared fit ran a peak search (8 s) on noise.
+#: noise's bin-to-bin wiggles on the tops of measured FFT AFCs (0.12 Hz bins) rise far less
+#: (at most 0.05-0.07 on the real strips, the larger on a stand feature: BENCHMARKS.md), and
+#: without this bar every one of them was a "resonance": 317 of them on one real AFC, whose
+#: two resonances no model could then match, so its declared fit ran a peak search (8 s) on
+#: noise.
 MIN_PEAK_PROMINENCE = 0.1
 
 

@@ -94,8 +94,8 @@ def compile_problem(afc, magnitude: bool = False):
       residuals, from which the Fisher information follows in numpy;
     * ``value_and_grad(u, ...)``: chi2 and its gradient in ``u`` (reverse mode: one
       backward pass, where the Jacobian costs one forward pass per padded parameter; a
-      trust-region step needs no more, and on the titanium AFC's compressed problem, 8
-      padded parameters, it took 0.47 ms against 1.46 ms);
+      trust-region step needs no more, and on a real strip's compressed problem, 8
+      padded parameters, it took 0.47 ms against 1.46 ms: BENCHMARKS.md);
     * ``hessian(u, ...)``: the exact Hessian of chi2 in ``u`` (trust-region Newton);
     * ``chi2_batch(U, ...)``: chi2 of a population (global search).
 

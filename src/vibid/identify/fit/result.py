@@ -64,8 +64,9 @@ class Status(enum.Enum):
 #: coordinate off to infinity (no fit of a plate puts ν within 1.5e-6 of −1 or 0.5).
 INTERVAL_END_RTOL = 1e-6
 #: A positive parameter at most this fraction of its prior box's lower edge is at 0: three
-#: decades softer than the softest the box allows is no plate (an all-zero AFC ran the steel
-#: strip's D, box 1-100 N m, to 2.7e-5 N m in its toy model, 3e-12 N m in the plate model).
+#: decades softer than the softest the box allows is no plate (an all-zero AFC ran a strip's
+#: D, box 1-100 N m, to 2.7e-5 N m in a toy model, 3e-12 N m in the plate model:
+#: ``tests/test_fit_status.py``).
 POSITIVE_END_RTOL = 1e-3
 
 

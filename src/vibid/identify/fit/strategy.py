@@ -200,9 +200,9 @@ def resolves_resonances(problem: LeastSquaresProblem, theta) -> bool:
     frequencies) is under half the narrowest half-power band the model at ``theta`` has
     (``β f``, ``β`` its smallest loss factor): every resonance then spans several points,
     and chi2 is no needle that a few points at the resonances make (the robust search's
-    case, an adaptive campaign's 18 steps 30 % apart). An FFT AFC of 0.12 Hz bins (the
-    titanium strip, β 0.009-0.02) resolves them: the robust search there cost 6 s and
-    found nothing the chi2 search had not."""
+    case, an adaptive campaign's 18 steps 30 % apart). An FFT AFC of 0.12 Hz bins (a real
+    strip's, β 0.009-0.02) resolves them: the robust search there cost 6 s and found
+    nothing the chi2 search had not (BENCHMARKS.md)."""
     f = _grid(problem)
     f = f[f > 0]
     if f.size < 3:
@@ -265,10 +265,11 @@ def peak_starts(problem: LeastSquaresProblem, opts: Options) -> list[np.ndarray]
 
 
 #: The peak search's restarts agree (and the rest are skipped) once three end within this
-#: fraction of the best score: they matched the same modes to the same peaks. On the
-#: titanium strip's two peaks they end along the family of (D, nu) the peaks leave open
-#: (nu 0.28-0.36) at scores within 5e-4 of each other; two more restarts cost 3 s, and
-#: the five polishes all ended in the valley the first three reach.
+#: fraction of the best score: they matched the same modes to the same peaks. Peaks fewer
+#: than the parameters leave a family of them open, along which restarts end at nearly the
+#: same score (a real strip's two peaks: nu 0.28-0.36, scores within 5e-4 of each other);
+#: two more restarts cost 3 s, and the five polishes all ended in the valley the first
+#: three reach (BENCHMARKS.md).
 PEAKS_AGREE_RTOL = 1e-3
 
 
@@ -340,8 +341,8 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     (four peaks leave an orthotropic plate's D12 open; with the loss factor held at an
     isotropic fit's, twice the plate's, chi2 would point the wrong way), over the caller's
     restarts, stopping at the first whose polished fit sits on the peaks: the basin is
-    found, and the other restarts would cost a search each (12 s on the CFRP plate) to
-    find it again.
+    found, and the other restarts would cost a search each (12 s on a simulated orthotropic
+    plate) to find it again.
     Returns (GlobalResult of the restarts run, fits), or (None, []) when the model cannot
     give its modes or the AFC shows no peak.
 

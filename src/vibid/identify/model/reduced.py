@@ -397,10 +397,11 @@ def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> Red
 #: Reduced bases are padded to one of these sizes (then to multiples of the last), so that
 #: the models of a loop (rebuilt around new estimates, extended by candidates) share a few
 #: shapes and so a few compilations: 16, 32, 64, 96, 128, 160, then steps of 1.2-1.5. (A
-#: size's eigensolve costs its cube: the CFRP plate's wide basis of 131 padded to 192 cost
-#: 3.6 ms a member in the peak search, 2.3 ms at 160. A strip's basis of 15 unknowns padded
-#: to 16 instead of 32 made a measured strip AFC's exact Hessian 1.8 ms instead of 5.3 ms, the
-#: same to 1e-14; a size 24, and 48, cost the loop more compilations than they saved.)
+#: size's eigensolve costs its cube: a simulated orthotropic plate's wide basis of 131
+#: padded to 192 cost 3.6 ms a member in the peak search, 2.3 ms at 160. A strip's basis of
+#: 15 unknowns padded to 16 instead of 32 made a measured strip AFC's exact Hessian 1.8 ms
+#: instead of 5.3 ms, the same to 1e-14; a size 24, and 48, cost the loop more compilations
+#: than they saved: BENCHMARKS.md.)
 PAD_SIZES = (16, 32, 64, 96, 128, 160, 192, 256, 384, 512)
 
 
