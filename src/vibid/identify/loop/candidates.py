@@ -289,6 +289,11 @@ def _from_feature(name: str, feature, places: dict) -> float | None:
     return float(value) if value is not None and np.isfinite(value) else None
 
 
+#: How far below the declared D's box an orthotropic plate's weak stiffnesses may lie: a
+#: unidirectional carbon laminate has E2 / E1 about 1/15 and G12 / E1 about 1/30.
+ORTHOTROPY_DIVISOR = 30.0
+
+
 @dataclass(frozen=True)
 class MaterialCandidate:
     """The isotropic material replaced by the orthotropic one, started from the isotropic
@@ -321,8 +326,12 @@ class MaterialCandidate:
         return model.with_material(Material("orthotropic", model.material.per_modulus_loss))
 
     def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
+        """The orthotropic stiffnesses' physical box from the declared D's: D11 within it,
+        D22 and D66 down to its low end over :data:`ORTHOTROPY_DIVISOR` (a plate declared
+        isotropic may be a unidirectional laminate across its fibres), D12 signed."""
         lo, hi = box["D"]
-        return {"D11": (lo, hi), "D22": (lo, hi), "D66": (lo / 10, hi / 2),
+        weak = lo / ORTHOTROPY_DIVISOR
+        return {"D11": (lo, hi), "D22": (weak, hi), "D66": (weak, hi / 2),
                 "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
 
     def prior_bounds(self, box: dict, values: dict) -> dict:

@@ -4,8 +4,8 @@ parameter that explains nothing takes from the misfit, the effect is judged on t
 with that parameter held at its current value.
 
 Poisson's ratio of a strip, which its two bending modes barely determine, wanders to a
-face of its box with every effect tried on the titanium strip; the loop rejected the
-fixture's resonance (47 % of the misfit) for that excursion alone.
+face of its box with every effect tried on a real strip (BENCHMARKS.md); judged free,
+an effect that explains a large share of the misfit would be weighed on that excursion.
 """
 
 from __future__ import annotations
@@ -73,14 +73,8 @@ def held_inside(res, space, u0, u, around, local: str) -> "Held | None":
     effect in), else None (the excursion is what explains the residual: the judge rejects
     the refit). The held refit starts from ``u``, the held parameters at their current
     values, and runs twice: the second time on a basis built where the first ended (from
-    the free refit's basis, 0.5 away in nu, the titanium strip's fixture stopped at chi2
-    2.24e7 instead of 1.88e7).
-
-    On the titanium strip in the clamp the steel strip calibrated, the 982 Hz stand
-    resonance's refit took nu from 0.13 to 0.5 for chi2 lower by 4.5e5, where the misfit's
-    error allows 6.5e6 for one parameter: held, the resonance cut chi2_red from 1302 to
-    1139, then the fixture's 665 Hz resonance (its excursion 2.1e6 against 5.7e6) to 605;
-    nu keeps its full std (0.30, scaled by the misfit)."""
+    the free refit's basis, 0.5 away in nu, a real strip's refit stopped at chi2 2.24e7
+    instead of 1.88e7). The held parameter keeps its full std."""
     current = set(space.out_of_bounds(space.theta(u0)))
     strayed = [n for n in space.out_of_bounds(space.theta(u))
                if n in res.parameter_names and n not in current]

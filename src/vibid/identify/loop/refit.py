@@ -18,7 +18,7 @@ current estimate may lie in a wrong basin of it: an orthotropic plate fitted as 
 on the resonance peaks, then on chi2 unless the best's modes already lie on the measured
 peaks or it fits the noise; such a search settles the refit, and only where it does not are
 the local fits run and the better of the two kept (a local refit beside a search that found
-the basin cost the CFRP plate 8 s for a chi2 a million times the search's).
+the basin cost an orthotropic plate 8 s for a chi2 a million times the search's).
 
 Where the polished refit takes a parameter the current fit has inside its prior box
 outside it, and the misfit's own error cannot tell that excursion from what a parameter
@@ -57,8 +57,8 @@ INSIDE_U = 0.9
 #: weighed with its own model error (:func:`weighed`); where it changes it more, each
 #: refit weighs its own: that error, and the share of it the parameters absorb (a
 #: systematic part of their covariance), then decide whether an effect stands away from
-#: its null. On the titanium AFC it changes chi2 by 2.3 % (estimating it again cost each of
-#: 28 refits half a second); on the simulated CFRP plate, once orthotropic, 13-fold (chi2_red
+#: its null. On a real strip's FFT-grid AFC it changes chi2 by 2.3 % (estimating it again
+#: cost each of 28 refits half a second); on a simulated orthotropic plate 13-fold (chi2_red
 #: 27.3 under the data's weights, 2.0 with it), and the clamp, free length and sensor-gain
 #: refits, 1.6 std from their nulls with it, stood 3 std away without it.
 MODEL_ERROR_SHARE = 0.1
@@ -82,7 +82,7 @@ def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
     """``fit``'s result weighed with its own model's error and polished once more (the
     full identification), for the refit the loop adds; ``fit.result`` itself where it
     already weighed its own (:data:`MODEL_ERROR_SHARE`). Its rivals were judged under the
-    current fit's weights, whose model error is the current model's (on the titanium AFC
+    current fit's weights, whose model error is the current model's (on a real strip's AFC
     the weights lie at most 5.2 % above the data's std)."""
     if fit.polish is None:
         return fit.result
@@ -109,7 +109,7 @@ def starts(space, u0, new, current_names, placed=None) -> list[np.ndarray]:
     (a sensor 3 mm off the strip's centre line excites a torsion mode that the centred
     model places by bending nu to -0.17; spread from the bent estimate the refit stopped
     at 1.3 mm, chi2_red 960, from the centred one it found 2.98 mm, chi2_red 0.88; the
-    titanium loop's 253 runs took 51 s instead of 39 s, the same stages). With ``placed``
+    real strip's loop's 253 runs took 51 s instead of 39 s, the same stages). With ``placed``
     (:func:`on_hidden_mode`: the material moved so that a mode the current model hides
     lies on the diagnosed pole), that too, and the spread from it."""
     out = set(space.out_of_bounds(space.theta(u0))) & set(current_names)
@@ -182,7 +182,7 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     weights = None if model_error_weighs_in(res) else problem.sigma
 
     def polished(run, kinds):
-        # a basis built where the run ended (no a-posteriori check first: on the titanium
+        # a basis built where the run ended (no a-posteriori check first: on a real
         # strip one costs four complex sparse LUs, 0.14 s, a basis 0.08 s, and the
         # polish's own end is checked all the same)
         fm = problem.model.rebuilt(run.theta)
@@ -204,7 +204,7 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
     declared node line); None where there is no such pole or no material places it.
 
     The declared model bends its material to place the modes it sees and leaves the
-    hidden one where that puts it (the Ritz strip, its sensor 3 mm off the centre line:
+    hidden one where that puts it (a strip with its sensor 3 mm off the centre line:
     nu -0.17, its torsion at 1046 Hz against the data's 948 Hz); a refit spread from the
     bent material cannot reach the basin where the sensor's offset shows the torsion, and
     the estimate lies inside its prior box, so no centred start is made either."""
@@ -261,7 +261,7 @@ def _on_own_basis(problem, theta0):
     """``u -> problem`` on its model rebuilt at ``u``, one basis per value of the parameters
     that move a stiffness or inertia (found at ``theta0``): a basis is built from those
     alone, so starts that differ only in a gain, a delay or a loss share their model (on
-    the titanium AFC, 163 bases and checks for 236 runs). A start that moves one of them
+    a real strip's AFC, 163 bases and checks for 236 runs). A start that moves one of them
     gets its own basis without the a-posteriori check, which on the beam failed at 95 of
     96 starts and cost what the basis costs (the best run's end is refreshed and checked)."""
     from vibid.identify.model.reduced import moving_parameters
