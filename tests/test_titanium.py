@@ -63,14 +63,21 @@ def test_the_titanium_strip_gets_an_honest_report(tmp_path):
         if name == "budget":
             continue
         assert math.isfinite(q["value"]) and math.isfinite(q["std"]) and q["std"] > 0, name
-    # the declared fit bends nu out of its box (below 0): the loop finds an effect that
-    # brings it back, and says so
+    # the declared fit bends nu out of its box (below 0), far from the data (half its
+    # RMS): every explanation is weighed against stopping, and the report says how sure
+    # the loop is, each stage's shares summing to 1 (the thinned AFC's misfit spans about
+    # 20 bins per independent point: a gain that takes 29 % of it, nu still bent, is less
+    # probable than stopping; the added mass's refit ends at a physical limit)
     assert declared["parameters"]["nu"] < 0
-    assert 0 < report["parameters"]["nu"]["value"] < 0.5
-    assert "added_mass" in [e["name"] for e in report["effects"]]
-    kept = [c for rnd in loop["rounds"] for c in rnd
-            if c["candidate"] == "added_mass" and c["kept"]]
-    assert "back inside the prior box" in kept[0]["note"]
+    assert loop["criterion"]["name"] == "log_evidence"
+    for st in loop["stages"]:
+        shares = [a["probability"] for a in st.get("alternatives", [])]
+        assert not shares or sum(shares) == pytest.approx(1.0)
+    last = loop["stages"][-1]["alternatives"]
+    assert last[0]["added"] is None and last[0]["probability"] > 0.5  # it stopped: why
+    for effect in report["effects"]:  # whatever it added was the most probable then
+        stage = next(i for i, st in enumerate(loop["stages"]) if st["added"] == effect["name"])
+        assert loop["stages"][stage - 1]["alternatives"][0]["added"] == effect["name"]
     # an unexplained residual scales the std by the misfit (Birge) and says so
     if loop["unexplained_residual"]:
         assert "scaled by sqrt(reduced chi2)" in warnings

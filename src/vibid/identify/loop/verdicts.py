@@ -213,6 +213,12 @@ class LoopResult:
                          f"{st.ljung_box_p:.2g}")
             for f in getattr(st.diagnosis, "features", ()):
                 lines.append(f"      residual: {f.note}")
+            if st.alternatives:
+                lines.append("      compared: " + "; ".join(
+                    ("stop here" if a["added"] is None else a["added"])
+                    + (f" at {a['f_hz']:.4g} Hz" if a.get("f_hz") else "")
+                    + f" {a['probability']:.2g}" + (" (estimated)" if a.get("estimated") else "")
+                    for a in st.alternatives[:4]))
         lines.append("  the residual " + ("still holds an effect no candidate explains "
                                           "(unexplained_residual)" if self.unexplained_residual
                                           else "is at the noise level"))
