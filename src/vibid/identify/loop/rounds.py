@@ -29,11 +29,6 @@ from vibid.identify.threads import in_order, numpy_only
 
 log = logging.getLogger(__name__)
 
-#: An effect added in an earlier round is tried without once a new fit leaves it within
-#: this many standard deviations of its null (Wald): only then may the data prefer the
-#: model without it (a compute budget: the evidence decides).
-WITHDRAW_Z = 3.0
-
 STOP = None  # the explanation "the current model, nothing added"
 
 
@@ -516,10 +511,10 @@ def withdraw(inputs: Inputs, stage: Stage, box: dict, prior: dict,
              added: list) -> tuple[Stage, list]:
     """``stage`` less the effects added in earlier rounds that the new one makes
     redundant (an isotropic fit's extra peak taken for a stand resonance, then the
-    orthotropic material that places it): each one the new fit leaves within
-    :data:`WITHDRAW_Z` std of its null is refitted without, and withdrawn where the model
-    without it is the more probable (its evidence, under the new fit's noise model).
-    Returns the stage and a :class:`Score` per withdrawn effect."""
+    orthotropic material that places it; a fixture's step that stood in for a mass the
+    next round adds): each one is refitted without, and withdrawn where the model without
+    it is the more probable (its evidence, under the new fit's noise model). Returns the
+    stage and a :class:`Score` per withdrawn effect."""
     from vibid.identify.model.forward import build_forward_model
 
     gone = []
@@ -528,8 +523,6 @@ def withdraw(inputs: Inputs, stage: Stage, box: dict, prior: dict,
         if term.name == stage.added or term.name not in added or not term.parameters:
             continue
         z = distance_from_null(term, res)
-        if z > WITHDRAW_Z:
-            continue
         model = res.plate_model.without_effect(term)
         start = {n: v for n, v in res.parameters.items() if n in model.names}
         d = inputs.data

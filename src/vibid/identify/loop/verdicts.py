@@ -65,10 +65,9 @@ class Verdict(enum.Enum):
             Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
             Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
             Verdict.WITHDRAWN: (
-                f"withdrawn: added in an earlier round, it lies near its null once "
-                f"{d.get('by', 'the new effect')} is in the model ({d.get('z', math.nan):.2g} "
-                f"std from it), and the model without it is the more probable (log odds "
-                f"{d.get('odds', math.nan):.3g})"),
+                f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
+                f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
+                f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"),
         }[self] + (" (global search)" if d.get("searched") else "") + (
             f"; {d['held']}" if d.get("held") else "")
 
