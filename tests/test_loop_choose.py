@@ -177,7 +177,8 @@ def _round(monkeypatch, gains, fits_noise=()):
     monkeypatch.setenv("VIBID_THREADS", "1")
     calls = []
 
-    def refit(setup, data, res, cand, box, diagnosis, local, search=False, extended=None):
+    def refit(setup, data, res, cand, box, diagnosis, local, search=False, extended=None,
+              policy=None):
         calls.append((cand.name, search))
         return SimpleNamespace(gain=gains[cand.name], result=cand.name, searched=search)
 

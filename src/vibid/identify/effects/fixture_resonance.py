@@ -26,7 +26,7 @@ Null value ``a_fixture = 0``. The loop places it at the diagnosed extra pole acr
 causal factor's, and it is the one candidate credited with removing such a pole
 (``acausal_pole``, :attr:`vibid.identify.loop.diagnosis.Feature.kinds`): the ratio divides by
 the base sensor's motion. Its frequency starts at the pole and stays within the loop's
-span of it (:data:`vibid.identify.loop.candidates.POLE_SPAN`); its quality factor is free
+span of it (:attr:`vibid.identify.loop.policy.Policy.pole_span`); its quality factor is free
 in its box (the step's width sets it, not the pole's sharpness).
 """
 
@@ -42,7 +42,7 @@ from vibid.parameters import A_FIXTURE, F_FIXTURE, Q_FIXTURE
 
 
 #: A fixture resonance steps |H| across its pole: the step is read this factor either side
-#: (the loop's span for a placed resonance, :data:`vibid.identify.loop.candidates.POLE_SPAN`).
+#: (the loop's span for a placed resonance, :attr:`vibid.identify.loop.policy.Policy.pole_span`).
 STEP_SPAN = 1.1
 
 

@@ -541,7 +541,7 @@ def identify(
         with, in place of the data's std and the model's own error (which is then not
         estimated): where the model's error barely changes chi2, the closed loop polishes
         each refit under the current fit's weights and weighs only the refit it adds with
-        its own model error (:data:`vibid.identify.loop.refit.MODEL_ERROR_SHARE`).
+        its own model error (:attr:`vibid.identify.loop.policy.Policy.model_error_share`).
     """
     t0 = time.perf_counter()
     model = model or setup.identification.model

@@ -27,11 +27,6 @@ from vibid.identify.model.terms import PlateModel, clash
 
 #: How many instances of an effect that may occur more than once the loop adds.
 MAX_INSTANCES = DEFAULT.max_instances
-#: A resonance placed on a pole is fitted within this factor of the pole's frequency
-#: (:attr:`Policy.pole_span`) ...
-POLE_SPAN = DEFAULT.pole_span
-#: ... and its quality factor within this factor of the pole's (:attr:`Policy.q_span`).
-Q_SPAN = DEFAULT.q_span
 
 
 @dataclass(frozen=True)
@@ -181,8 +176,8 @@ class EffectCandidate:
 
     def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
         """The prior box of its new parameters (the setup's where it names them); a
-        resonance the diagnosis placed, within :data:`POLE_SPAN` of its pole's frequency
-        and :data:`Q_SPAN` of its Q."""
+        resonance placed on a pole, within :attr:`Policy.pole_span` of its frequency and
+        :attr:`Policy.q_span` of its Q."""
         return self.prior_bounds(box, values) | self._pole_span(values, diagnosis)
 
     def prior_bounds(self, box: dict, values: dict) -> dict:
@@ -289,17 +284,13 @@ def _from_feature(name: str, feature, places: dict) -> float | None:
     return float(value) if value is not None and np.isfinite(value) else None
 
 
-#: How far below the declared D's box an orthotropic plate's weak stiffnesses may lie: a
-#: unidirectional carbon laminate has E2 / E1 about 1/15 and G12 / E1 about 1/30.
-ORTHOTROPY_DIVISOR = 30.0
-
-
 @dataclass(frozen=True)
 class MaterialCandidate:
     """The isotropic material replaced by the orthotropic one, started from the isotropic
     fit (its null: D11 = D22 = D, D12 = ν D, D66 = (1 − ν) D / 2)."""
 
     name: str = "anisotropy"
+    policy: Policy = DEFAULT
     at = None
     label = "anisotropy"
     moves_basin = True
@@ -327,10 +318,10 @@ class MaterialCandidate:
 
     def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
         """The orthotropic stiffnesses' physical box from the declared D's: D11 within it,
-        D22 and D66 down to its low end over :data:`ORTHOTROPY_DIVISOR` (a plate declared
+        D22 and D66 down to its low end over :attr:`Policy.orthotropy_divisor` (a plate declared
         isotropic may be a unidirectional laminate across its fibres), D12 signed."""
         lo, hi = box["D"]
-        weak = lo / ORTHOTROPY_DIVISOR
+        weak = lo / self.policy.orthotropy_divisor
         return {"D11": (lo, hi), "D22": (weak, hi), "D66": (weak, hi / 2),
                 "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
 
@@ -383,4 +374,5 @@ def all_candidates(policy: Policy = DEFAULT) -> tuple:
     """Every candidate the loop knows, and tries unless told which."""
     from vibid.identify.effects import EFFECTS
 
-    return tuple(EffectCandidate(n, policy=policy) for n in EFFECTS) + (MaterialCandidate(),)
+    return (tuple(EffectCandidate(n, policy=policy) for n in EFFECTS)
+            + (MaterialCandidate(policy=policy),))

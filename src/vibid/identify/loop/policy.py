@@ -37,6 +37,19 @@ class Policy:
     #: the round leave more than this share of the misfit above the noise (its basin may
     #: lie far from the current fit's)
     search_share: float = 0.5
+    #: a refit's starts along its new parameters, in the coordinates u of their box
+    #: (u = ±1 its faces) ...
+    starts_u: tuple = (-0.75, -0.25, 0.25, 0.75)
+    #: ... and where it restarts a current parameter found outside its box
+    inside_u: float = 0.9
+    #: where the model's own error changes the current fit's chi2 by less than this share,
+    #: a refit is polished under the current fit's weights and only the one the round adds
+    #: weighs its own (a compute budget: estimating that error costs each refit a solve)
+    model_error_share: float = 0.1
+    #: an orthotropic plate's weak stiffnesses (D22, D66) may lie this many times below the
+    #: declared D's box: a unidirectional carbon laminate has E2 / E1 about 1/15 and
+    #: G12 / E1 about 1/30 (a statement of physics: the new material's prior)
+    orthotropy_divisor: float = 30.0
 
 
 DEFAULT = Policy()

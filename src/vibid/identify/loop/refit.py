@@ -3,7 +3,7 @@
 Local fits from the current estimate, with several starts along the new parameters (a
 parameter the diagnosis placed, a resonance's frequency and Q, is not varied), then the
 full identification (covariance) from the best, under the current fit's weights where the
-model's own error barely changes them (:data:`MODEL_ERROR_SHARE`). The
+model's own error barely changes them (:attr:`~vibid.identify.loop.policy.Policy.model_error_share`). The
 starts are exploratory: each stops once its remaining Newton step is a twentieth of a
 standard deviation (scaled by the misfit), on a long AFC each runs on the compressed
 problem the previous one ended on (its end confirmed on every point), and a start that
@@ -42,27 +42,11 @@ from vibid.identify.fit.noise import fits_noise
 from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.strategy import gives_modes, identify
 from vibid.identify.loop.held import Held, held_inside
+from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem
 from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
-
-#: Starts of a refit along the new parameters, in the coordinates u of their prior box.
-STARTS_U = (-0.75, -0.25, 0.25, 0.75)
-#: Where a refit restarts a current parameter found outside its prior box (u = ±1 are
-#: the box's faces).
-INSIDE_U = 0.9
-#: Where the model's own error changes the current fit's chi2 by less than this share, a
-#: refit is polished under the current fit's weights, and only the one the loop adds is
-#: weighed with its own model error (:func:`weighed`); where it changes it more, each
-#: refit weighs its own: that error, and the share of it the parameters absorb (a
-#: systematic part of their covariance), then decide whether an effect stands away from
-#: its null. On a real strip's FFT-grid AFC it changes chi2 by 2.3 % (estimating it again
-#: cost each of 28 refits half a second); on a simulated orthotropic plate 13-fold (chi2_red
-#: 27.3 under the data's weights, 2.0 with it), and the clamp, free length and sensor-gain
-#: refits, 1.6 std from their nulls with it, stood 3 std away without it.
-MODEL_ERROR_SHARE = 0.1
-
 
 @dataclass(frozen=True)
 class Refit:
@@ -81,7 +65,7 @@ class Refit:
 def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
     """``fit``'s result weighed with its own model's error and polished once more (the
     full identification), for the refit the loop adds; ``fit.result`` itself where it
-    already weighed its own (:data:`MODEL_ERROR_SHARE`). Its rivals were judged under the
+    already weighed its own (:attr:`Policy.model_error_share`). Its rivals were judged under the
     current fit's weights, whose model error is the current model's (on a real strip's AFC
     the weights lie at most 5.2 % above the data's std)."""
     if fit.polish is None:
@@ -100,8 +84,9 @@ def _polish(setup, data, fm, start: dict, box, kinds, local: str, weights=None):
                     weights=weights)
 
 
-def starts(space, u0, new, current_names, placed=None) -> list[np.ndarray]:
-    """The current estimate, and it with the new parameters at :data:`STARTS_U`; where
+def starts(space, u0, new, current_names, placed=None,
+           policy: Policy = DEFAULT) -> list[np.ndarray]:
+    """The current estimate, and it with the new parameters at :attr:`Policy.starts_u`; where
     current parameters lie outside their prior box, also those moved just inside it and to
     its centre (a physical value, far from the bent one), the new parameters at their
     null there, and the new parameters' spread taken from the centred estimate instead of
@@ -117,14 +102,14 @@ def starts(space, u0, new, current_names, placed=None) -> list[np.ndarray]:
     bases = [u0]
     if outside:
         moved, centred = u0.copy(), u0.copy()
-        moved[outside] = np.clip(moved[outside], -INSIDE_U, INSIDE_U)
+        moved[outside] = np.clip(moved[outside], -policy.inside_u, policy.inside_u)
         centred[outside] = 0.0
         bases += [moved, centred]
     if placed is not None:
         bases.append(placed)
     spread = bases[-1]  # the new parameters spread from the centred or placed estimate
     found = [u0]
-    for v in STARTS_U if new else ():
+    for v in policy.starts_u if new else ():
         u = spread.copy()
         u[new] = v
         found.append(u)
@@ -133,7 +118,7 @@ def starts(space, u0, new, current_names, placed=None) -> list[np.ndarray]:
 
 @timed("loop refits")
 def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = False,
-          extended=None) -> Refit:
+          extended=None, policy: Policy = DEFAULT) -> Refit:
     """Refit ``cand``'s extended model from ``res`` (module doc); ``extended``:
     :func:`~vibid.identify.loop.scoring.extended_problem`'s, where the scoring built it."""
     problem, start, ext_box = extended or extended_problem(setup, data, res, cand, box,
@@ -144,18 +129,19 @@ def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = Fal
         result, loss = searched.result, searched.loss
     else:
         result, loss, polish, held = _local(setup, data, res, cand, problem, start, ext_box,
-                                            diagnosis, local)
+                                            diagnosis, local, policy)
         if searched is not None and searched.result.converged and searched.loss < loss:
             result, loss, polish, held = searched.result, searched.loss, None, None
     log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
     return Refit(result, float(res.chi2 - loss), search, polish, held)
 
 
-def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: str):
+def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: str,
+           policy: Policy = DEFAULT):
     """``(result, chi2 under the current weights, polish, held)``: local fits from the
     current estimate (:func:`starts`), the best polished by the full identification, under
     the current weights where the model's own error does not weigh in
-    (:data:`MODEL_ERROR_SHARE`; ``polish``: :attr:`Refit.polish`, None where it weighed
+    (:attr:`Policy.model_error_share`; ``polish``: :attr:`Refit.polish`, None where it weighed
     its own); where the polished refit leaves a parameter's prior box, the refit with it
     held inside if the misfit cannot tell the two apart (``held``:
     :func:`~vibid.identify.loop.held.held_inside`, else None)."""
@@ -172,14 +158,14 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
     # TOL_STD of a standard deviation scaled by the misfit: the best is polished below
     scale = max(1.0, float(res.chi2_reduced))
     runs, near = [], None
-    for u in starts(space, u0, new, res.parameter_names, placed):
+    for u in starts(space, u0, new, res.parameter_names, placed, policy):
         r, near = run_local(local, around(u), u, near, tol=TOL_STD**2 * scale)
         runs.append(r)
     runs.sort(key=lambda r: r.loss if np.isfinite(r.loss) else np.inf)
     inside = best_inside_prior(runs, space, scale)
     best = inside if inside is not None else runs[0]
     kinds = cand.held(res.parameters, diagnosis)
-    weights = None if model_error_weighs_in(res) else problem.sigma
+    weights = None if model_error_weighs_in(res, policy.model_error_share) else problem.sigma
 
     def polished(run, kinds):
         # a basis built where the run ended (no a-posteriori check first: on a real
@@ -250,11 +236,11 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
     return u
 
 
-def model_error_weighs_in(res) -> bool:
-    """Whether the model's own error changes ``res``'s chi2 by :data:`MODEL_ERROR_SHARE`
+def model_error_weighs_in(res, share: float = DEFAULT.model_error_share) -> bool:
+    """Whether the model's own error changes ``res``'s chi2 by ``share``
     or more (its chi2 under the data's weights alone against the one under its weights)."""
     return not (res.chi2_reduced_data_weights
-                <= (1 + MODEL_ERROR_SHARE) * res.chi2_reduced)
+                <= (1 + share) * res.chi2_reduced)
 
 
 def _on_own_basis(problem, theta0):

@@ -367,7 +367,7 @@ def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: d
         try:
             fit = refits.refit(inputs.setup, inputs.data, res, cand, state.box,
                                state.current.diagnosis, inputs.local, search=search,
-                               extended=extended.get(s.name))
+                               extended=extended.get(s.name), policy=policy)
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
         return weigh(cand, fit, res, state, noise)
