@@ -113,9 +113,11 @@ def test_the_most_probable_fitted_explanation_is_chosen_and_listed_first():
               "c": Judgement(Verdict.NOT_REFITTED)}
     out, chosen, shares = rounds.compare(scores, judged, 0.0, Policy())
     assert chosen == "b"  # c's estimate is higher, but only a fit is a model
-    assert [a["added"] for a in shares][:1] == ["b"]
+    assert [a["added"] for a in shares] == ["b", "a", None]  # the fits and stopping
     assert sum(a["probability"] for a in shares) == pytest.approx(1.0)
-    assert {a["added"]: a.get("estimated", False) for a in shares}["c"] is True
+    # priors 1/6 each candidate, 1/2 stopping: b against a by e^2, against stopping by e^12/3
+    assert shares[0]["probability"] == pytest.approx(1 / (1 + math.exp(-2) + 3 * math.exp(-12)))
+    assert {s.name: s.estimated for s in out}["c"] is True
     verdicts = {s.name: s.verdict for s in out}
     assert verdicts == {"a": Verdict.LESS_PROBABLE, "b": Verdict.CHOSEN,
                         "c": Verdict.NOT_REFITTED}

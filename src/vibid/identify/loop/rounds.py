@@ -444,9 +444,10 @@ def compare(scores, judged: dict, log_z_now: float, policy: Policy):
     first).
 
     The model prior: :attr:`Policy.stop_prior` on "the current model is complete", the
-    rest spread evenly over the round's candidates. A candidate that was not refitted
-    enters with its approximate evidence (marked estimated) but cannot be chosen: only a
-    fit is a model. The most probable fitted explanation is chosen."""
+    rest spread evenly over the round's candidates. The probabilities are shares among the
+    fitted explanations and stopping, and the most probable is chosen: only a fit is a
+    model. A candidate that was not refitted keeps its approximate evidence in its score
+    (marked estimated), with no share."""
     names = [s.name for s in scores]
     log_z = {STOP: log_z_now}
     estimated = set()
@@ -461,9 +462,12 @@ def compare(scores, judged: dict, log_z_now: float, policy: Policy):
             log_z[s.name] = -math.inf
     share = (1.0 - policy.stop_prior) / max(len(names), 1)
     prior = {STOP: policy.stop_prior} | {n: share for n in names}
-    prob = probabilities(log_z, prior)
+    prob = probabilities({k: (-math.inf if k in estimated else z) for k, z in log_z.items()},
+                         prior)
     fitted = [k for k in log_z if k is STOP or (k not in estimated and np.isfinite(log_z[k]))]
     chosen = max(fitted, key=lambda k: (prob[k], log_z[k]))
+    for k in estimated:
+        prob[k] = math.nan
     by = "stopping here" if chosen is STOP else chosen
     out = []
     for s in scores:
@@ -474,20 +478,18 @@ def compare(scores, judged: dict, log_z_now: float, policy: Policy):
         elif verdict is Verdict.COMPARED:
             verdict = Verdict.LESS_PROBABLE
         detail = detail + (("probability", prob[s.name]), ("by", by),
-                           ("by_probability", prob[chosen]))
+                           ("by_probability", prob[chosen]), ("log_evidence", log_z[s.name]))
         out.append(replace(s, verdict=verdict, detail=detail, probability=prob[s.name],
                            log_evidence=log_z[s.name], estimated=s.name in estimated,
                            delta_chi2=j.gain if j is not None else math.nan))
     at = {s.name: dict(judged[s.name].detail).get("f_hz", s.at_hz) if s.name in judged
           else s.at_hz for s in scores}
-    order = sorted(log_z, key=lambda k: (k != chosen, -prob[k], -np.nan_to_num(
-        log_z[k], neginf=-1e300)))
+    order = sorted(fitted, key=lambda k: (k != chosen, -prob[k], -log_z[k]))
     shares = tuple(
         {"added": k, "criterion": log_z[k], "probability": prob[k]}
-        | ({"estimated": True} if k in estimated else {})
         | ({"f_hz": at[k]} if k is not STOP and at.get(k) is not None
            and np.isfinite(at[k]) else {})
-        for k in order if np.isfinite(log_z[k]))
+        for k in order)
     return out, chosen, shares
 
 

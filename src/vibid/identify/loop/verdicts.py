@@ -60,8 +60,9 @@ class Verdict(enum.Enum):
             Verdict.NOT_REFITTED: (
                 f"not refitted: {d['fitted_by']}'s refit already fits the residual to the "
                 "noise level" if d.get("fitted_by") else
-                f"not refitted: its evidence estimated from the score test (probability "
-                f"{p:.2g}) is below the refitted ones'"),
+                "not refitted: its evidence estimated from the score test (log evidence "
+                f"{d.get('log_evidence', math.nan):.4g}) ranks below the refits the round "
+                "could afford"),
             Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
             Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
             Verdict.WITHDRAWN: (
