@@ -8,7 +8,7 @@ Each case runs as ``vibid identify --afc afc.csv --setup setup.json --json repor
 a time-out is a recorded failure, its process group killed, never a hang). Every run's
 report and a ``run.json`` (status, seconds, return code, stderr tail, the case's digest)
 are cached under ``benchmarks/population/results/<case>/`` (gitignored): a rerun resumes,
-skipping the cases whose cached run matches the case's digest. The scores
+skipping the cases whose cached run matches the case's digest and vibid's source. The scores
 (:mod:`benchmarks.population.score`) go to ``benchmarks/population.json`` and, as a
 markdown table, to stdout. ``--rescore`` scores the cache without running anything.
 """
@@ -41,18 +41,32 @@ def vibid_command():
     return [found] if found else [sys.executable, "-m", "vibid.cli"]
 
 
+def code_digest() -> str:
+    """A hash of every source file of the vibid that runs the cases (found without
+    importing it): a cached run of other code is no run of this one."""
+    import hashlib
+    import importlib.util
+
+    root = pathlib.Path(importlib.util.find_spec("vibid").origin).parent
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
+
+
 def run_case(name, timeout):
-    """Run one case (or take its cached run); returns its run.json dict."""
+    """Run one case (or take its cached run of the same code); returns its run.json dict."""
     d = C.CASES_DIR / name
     out = RESULTS / name
     out.mkdir(parents=True, exist_ok=True)
     meta_path = out / "run.json"
     digest = C.digest(name)
+    code = code_digest()
     if meta_path.exists():
         meta = json.loads(meta_path.read_text())
         done = meta.get("status") in ("ok", "failed") or (
             meta.get("status") == "timeout" and meta.get("timeout_s", 0) >= timeout)
-        if meta.get("digest") == digest and done:  # a longer time-out reruns a time-out
+        if meta.get("digest") == digest and meta.get("code") == code and done:
             meta["cached"] = True
             return meta
     report = out / "report.json"
@@ -73,7 +87,8 @@ def run_case(name, timeout):
     seconds = time.monotonic() - t0
     tail = (out / "stderr.txt").read_text()[-2000:]
     meta = {"case": name, "status": status, "returncode": rc, "seconds": round(seconds, 2),
-            "timeout_s": timeout, "digest": digest, "command": cmd, "stderr_tail": tail}
+            "timeout_s": timeout, "digest": digest, "code": code, "command": cmd,
+            "stderr_tail": tail}
     meta_path.write_text(json.dumps(meta, indent=1) + "\n")
     return meta
 
