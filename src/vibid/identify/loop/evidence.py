@@ -97,7 +97,7 @@ def prior_space(result, box: dict) -> ParameterSpace:
                                       {q.name: q.kind for q in model.parameters})
 
 
-def _du_dtheta(space: ParameterSpace, theta: np.ndarray) -> np.ndarray:
+def du_dtheta(space: ParameterSpace, theta: np.ndarray) -> np.ndarray:
     """The derivative of each coordinate by its parameter (central differences)."""
     out = np.empty(len(theta))
     for i, t in enumerate(theta):
@@ -120,7 +120,7 @@ def log_evidence(result, box: dict, noise: Noise, chi2: float | None = None,
     C = np.asarray(result.covariance if covariance is None else covariance, float)
     s = noise.scale(chi2)
     space = prior_space(result, box)
-    g = _du_dtheta(space, theta)
+    g = du_dtheta(space, theta)
     free = np.isfinite(g) & np.isfinite(np.diag(C)) & (np.diag(C) > 0)
     Cu = (g[free, None] * C[np.ix_(free, free)] * g[None, free]) * s * noise.tau
     occam = _occam(Cu)

@@ -15,6 +15,7 @@ import numpy as np
 
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.loop.evidence import du_dtheta
 
 
 def extended_problem(setup, data, res, cand, box, diagnosis, like=None):
@@ -75,14 +76,7 @@ def new_information(all_names, theta, J, J_small, new, prior: dict,
     names = [all_names[k] for k in new]
     space = ParameterSpace.from_bounds(names, {n: prior[n] for n in names},
                                        {n: kinds.get(n) for n in names})
-    sub = theta[new]
-    g = np.empty(len(new))
-    for i, t in enumerate(sub):
-        h = 1e-6 * max(abs(t), 1e-12)
-        up, down = sub.copy(), sub.copy()
-        up[i], down[i] = t + h, t - h
-        with np.errstate(all="ignore"):
-            g[i] = (space.to_u(up)[i] - space.to_u(down)[i]) / (2 * h)
+    g = du_dtheta(space, theta[new])
     Jn = J[:, new] / np.where(np.isfinite(g) & (g != 0), g, np.inf)  # d r / d u
     Q, s, _ = np.linalg.svd(J_small / np.maximum(np.linalg.norm(J_small, axis=0), 1e-300),
                             full_matrices=False)
