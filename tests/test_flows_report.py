@@ -223,22 +223,24 @@ def _html(markdown_text):
 
 
 def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not():
-    """The titanium strip's report: a fixture resonance took 47 % of the misfit but bent
-    nu out of its box; the report names it first, its share from the stage's chi2, and
-    says how many points a left-out top took from the fit."""
+    """A real strip's report whose loop left a residual: of the refits it compared and did
+    not choose, the one that took most of the misfit is named first, its share from the
+    stage's chi2; a candidate not refitted, or from a report of the earlier loop's rule
+    verdicts, is none; and the report says how many points a left-out top took from the
+    fit."""
     r = _report("a", 17.97)
     r["loop"]["unexplained_residual"] = True
     r["identification"] = {"dof": 1000}
     tried = {"score": 1e5, "p_value": 0.0, "kept": False}
     r["loop"]["rounds"] = [[
-        tried | {"candidate": "stand_resonance", "delta_chi2": 1.0e5, "verdict": "within_misfit",
-                 "note": "it lowers chi2 by 1e+05, no more than ..."},
+        tried | {"candidate": "stand_resonance", "delta_chi2": 1.0e5, "verdict": "less_probable",
+                 "note": "compared: probability 0.01, against 0.98 for stopping here"},
         tried | {"candidate": "fixture_resonance", "delta_chi2": 4.06e5,
-                 "verdict": "outside_prior",
-                 "note": "its refit explains the residual only with nu 0.5"},
+                 "verdict": "less_probable",
+                 "note": "compared: probability 0.01, against 0.98 for stopping here"},
         tried | {"candidate": "anisotropy", "delta_chi2": None, "verdict": "no_mode_pattern",
                  "note": "not refitted"},
-        # at its null the drop is the other parameters' (or round-off's): no close call
+        # a report written by the earlier loop: its rule verdicts are no close call
         tried | {"candidate": "clamp_compliance", "delta_chi2": 9e5, "verdict": "at_null",
                  "note": "the refit takes it to its null value"},
     ]]
@@ -247,7 +249,7 @@ def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not
     text = report.summary_markdown(r)
     closest = text[text.index("What came closest"):text.index("## Fit quality")]
     assert closest.index("fixture_resonance") < closest.index("stand_resonance")
-    assert "(χ² −4.06e+05, 50 % of the misfit): its refit explains" in closest
+    assert "(χ² −4.06e+05, 50 % of the misfit): compared: probability 0.01" in closest
     assert "anisotropy" not in closest and "clamp_compliance" not in closest
     assert "AFC points used: 2 of 4 (178.1-216.3 Hz left out" in text
     r["loop"]["unexplained_residual"] = False  # a fit to the noise: nothing to name

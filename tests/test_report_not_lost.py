@@ -56,7 +56,8 @@ def test_the_loop_box_holds_the_box_the_loop_gave_a_material_it_switched_to():
     lo, hi = s.identification.bounds["D"]
     box = loop_box(s, loop)
     assert box == dict(s.identification.bounds) | {
-        "D11": (lo, hi), "D22": (lo / 30, hi), "D66": (lo / 30, hi / 2), "D12": (-hi / 2, hi / 2)}
+        "D11": (lo, hi), "D22": (TRUE["D"] / 30, hi), "D66": (TRUE["D"] / 30, hi / 2),
+        "D12": (-hi / 2, hi / 2)}
     assert loop_box(s, None) == dict(s.identification.bounds)
     with pytest.raises(VibidError, match="no bounds given for D11, D12, D22, D66"):
         model_spread(loop, "orthotropic", s.specimen.thickness_m,

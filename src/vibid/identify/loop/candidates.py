@@ -318,10 +318,12 @@ class MaterialCandidate:
 
     def bounds(self, box: dict, values: dict, diagnosis=None) -> dict:
         """The orthotropic stiffnesses' physical box from the declared D's: D11 within it,
-        D22 and D66 down to its low end over :attr:`Policy.orthotropy_divisor` (a plate declared
-        isotropic may be a unidirectional laminate across its fibres), D12 signed."""
+        D22 and D66 from the isotropic fit's D (its stiffness along the plate, ``values``;
+        else the box's low end) over :attr:`Policy.orthotropy_divisor` (a plate declared
+        isotropic may be a unidirectional laminate across its fibres, E2 / E1 about 1/15,
+        no softer), D12 signed."""
         lo, hi = box["D"]
-        weak = lo / self.policy.orthotropy_divisor
+        weak = values.get("D", lo) / self.policy.orthotropy_divisor
         return {"D11": (lo, hi), "D22": (weak, hi), "D66": (weak, hi / 2),
                 "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
 

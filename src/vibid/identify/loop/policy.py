@@ -47,8 +47,8 @@ class Policy:
     #: weighs its own (a compute budget: estimating that error costs each refit a solve)
     model_error_share: float = 0.1
     #: an orthotropic plate's weak stiffnesses (D22, D66) may lie this many times below the
-    #: declared D's box: a unidirectional carbon laminate has E2 / E1 about 1/15 and
-    #: G12 / E1 about 1/30 (a statement of physics: the new material's prior)
+    #: stiffness the isotropic fit found: a unidirectional carbon laminate has E2 / E1 about
+    #: 1/15 and G12 / E1 about 1/30 (a statement of physics: the new material's prior)
     orthotropy_divisor: float = 30.0
 
 

@@ -339,8 +339,9 @@ def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: d
     no local slope); every one while the current estimate lies outside its prior box (the
     score at a bent estimate says little: the bent parameter already mimics the effect).
     A new material is refitted after the effects, searched globally over its box where
-    their refits leave more than :attr:`Policy.search_share` of the misfit (its basin may
-    lie far from the current fit's), and not where an effect's refit already fits the
+    their refits leave more than :attr:`Policy.search_share` of the misfit or the current
+    estimate lies outside its box (its basin may lie far from the current fit's, and a
+    bent estimate's basin is suspect), and not where an effect's refit already fits the
     noise (a search costs what the whole round does)."""
     res = state.current.result
     policy = inputs.policy
@@ -372,23 +373,22 @@ def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: d
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
         return weigh(cand, fit, res, state, noise)
 
-    basin = next((s for s in ranked if cands[s.name].moves_basin), None)
-    later = None if outside else basin  # after the rest
+    later = next((s for s in ranked if cands[s.name].moves_basin), None)  # after the rest
     first = [s for s in ranked if s is not later]
-    searched_first = bool(outside) and bool(first) and cands[first[0].name].moves_basin
     fits_noise = False
     with contextlib.closing(in_order(  # the next refits start early (vibid.identify.threads)
-            lambda k: attempt(first[k], searched_first and k == 0), range(len(first)))) as runs:
+            lambda k: attempt(first[k], False), range(len(first)))) as runs:
         for s, j in zip(first, runs):
             judged[s.name] = j
             fits_noise = fits_noise or (j.verdict is Verdict.COMPARED
                                         and Stage.of(s.name, j.fit.result).fits_noise)
     if fits_noise and later is not None:
         judged[later.name] = Judgement(Verdict.NOT_REFITTED, (("fitted_by", "an effect"),))
-    elif later is not None:
+    elif later is not None:  # a bent estimate's own basin is suspect: searched
         explained = max((j.gain for j in judged.values() if j.verdict is Verdict.COMPARED),
                         default=0.0)
-        judged[later.name] = attempt(later, explained < policy.search_share * excess)
+        judged[later.name] = attempt(later, bool(outside)
+                                     or explained < policy.search_share * excess)
     return judged
 
 
