@@ -127,8 +127,9 @@ def _odds_text(report: dict) -> list[str]:
     stages = report["loop"].get("stages") or []
     if not any(st.get("alternatives") for st in stages):
         return []
-    crit = report["loop"].get("criterion") or {}
-    lines = ["", f"How sure the loop is ({crit.get('meaning', 'its criterion')}):", ""]
+    crit = (report["loop"].get("criterion") or {}).get("name", "its criterion")
+    lines = ["", f"How sure the loop is: each explanation's probability at each stage, by "
+             f"`{crit}` (`loop.criterion` says what it means), the chosen first:", ""]
     for st in stages:
         alts = st.get("alternatives")
         if not alts:
