@@ -25,8 +25,6 @@ from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel, clash
 
-#: How many instances of an effect that may occur more than once the loop adds.
-MAX_INSTANCES = DEFAULT.max_instances
 
 
 @dataclass(frozen=True)

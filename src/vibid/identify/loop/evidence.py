@@ -98,26 +98,18 @@ def prior_space(result, box: dict) -> ParameterSpace:
 
 
 def du_dtheta(space: ParameterSpace, theta: np.ndarray) -> np.ndarray:
-    """The derivative of each coordinate by its parameter (central differences)."""
-    out = np.empty(len(theta))
-    for i, t in enumerate(theta):
-        h = 1e-6 * max(abs(t), 1e-12)
-        up, down = theta.copy(), theta.copy()
-        up[i], down[i] = t + h, t - h
-        with np.errstate(all="ignore"):
-            out[i] = (space.to_u(up)[i] - space.to_u(down)[i]) / (2 * h)
-    return out
+    """The derivative of each coordinate by its parameter: the inverse of the space's own
+    ``dtheta_du`` (0 where a coordinate lies at infinity, a null on a log box's edge)."""
+    with np.errstate(all="ignore"):
+        return 1.0 / space.dtheta_du(space.to_u(np.asarray(theta, float)))
 
 
-def log_evidence(result, box: dict, noise: Noise, chi2: float | None = None,
-                 covariance=None) -> Evidence:
+def log_evidence(result, box: dict, noise: Noise, chi2: float | None = None) -> Evidence:
     """``result``'s log evidence under ``noise`` (module doc); ``chi2``: its chi2 under the
-    round's weights where they differ from its own; ``covariance``: in place of its own
-    (a held parameter's variance is its current value's, so it costs what it costs the
-    model without the new effect)."""
+    round's weights where they differ from its own."""
     chi2 = float(result.chi2 if chi2 is None else chi2)
     theta = np.asarray(result.values, float)
-    C = np.asarray(result.covariance if covariance is None else covariance, float)
+    C = np.asarray(result.covariance, float)
     s = noise.scale(chi2)
     space = prior_space(result, box)
     g = du_dtheta(space, theta)

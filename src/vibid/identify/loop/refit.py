@@ -1,24 +1,24 @@
 """Refit a candidate's extended model from the current fit.
 
 Local fits from the current estimate, with several starts along the new parameters (a
-parameter the diagnosis placed, a resonance's frequency and Q, is not varied), then the
-full identification (covariance) from the best, under the current fit's weights where the
-model's own error barely changes them (:attr:`~vibid.identify.loop.policy.Policy.model_error_share`). The
-starts are exploratory: each stops once its remaining Newton step is a twentieth of a
-standard deviation (scaled by the misfit), on a long AFC each runs on the compressed
-problem the previous one ended on (its end confirmed on every point), and a start that
-moves a stiffness gets its own basis. Where the current estimate lies outside its prior box
-(the declared model bent a parameter to mimic what it lacks) the starts also move those
-parameters just inside the box and to its centre; where the diagnosis reads a pole as a
-mode the model hides and the candidate can show it (a sensor off its node line), they also
-start from the material moved to place that mode on the pole. With ``search`` (a new
-material: the loop's rounds decide), the extended model is first searched globally over its
-box (the
-current estimate may lie in a wrong basin of it: an orthotropic plate fitted as isotropic):
-on the resonance peaks, then on chi2 unless the best's modes already lie on the measured
-peaks or it fits the noise; such a search settles the refit, and only where it does not are
-the local fits run and the better of the two kept (a local refit beside a search that found
-the basin cost an orthotropic plate 8 s for a chi2 a million times the search's).
+parameter the diagnosis placed, a resonance's frequency and Q, is not varied), then the full
+identification (covariance) from the best, under the current fit's weights where the model's
+own error barely changes them
+(:attr:`~vibid.identify.loop.policy.Policy.model_error_share`). The starts are exploratory:
+each stops once its remaining Newton step is a twentieth of a standard deviation (scaled by
+the misfit), on a long AFC each runs on the compressed problem the previous one ended on
+(its end confirmed on every point), and a start that moves a stiffness gets its own basis.
+Where the current estimate lies outside its prior box (the declared model bent a parameter
+to mimic what it lacks) the starts also move those parameters just inside the box and to its
+centre; where the diagnosis reads a pole as a mode the model hides and the candidate can
+show it (a sensor off its node line), they also start from the material moved to place that
+mode on the pole. With ``search`` (a new material: the loop's rounds decide), the extended
+model is first searched globally over its box (the current estimate may lie in a wrong basin
+of it: an orthotropic plate fitted as isotropic): on the resonance peaks, then on chi2
+unless the best's modes already lie on the measured peaks or it fits the noise; such a
+search settles the refit, and only where it does not are the local fits run and the better
+of the two kept (a local refit beside a search that found the basin cost an orthotropic
+plate 8 s for a chi2 a million times the search's).
 
 Where the polished refit takes a parameter the current fit has inside its prior box
 outside it, and the misfit's own error cannot tell that excursion from what a parameter

@@ -16,11 +16,11 @@ from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.result import IdentificationResult
-from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import Place, all_candidates, distance_from_null
-from vibid.identify.loop.evidence import Noise, approximate, log_evidence, probabilities
+from vibid.identify.loop.evidence import (Noise, approximate, log_evidence, prior_space,
+                                          probabilities)
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
@@ -135,7 +135,7 @@ def play_round(inputs: Inputs, state: State, proposals) -> tuple[State, bool]:
     cand = by_name[chosen]
     values = current.result.parameters
     box = state.box | cand.bounds(state.box, values, current.diagnosis)
-    prior = state.prior | cand.prior_bounds(state.prior, values)
+    prior = with_prior(state.prior, cand, values)
     fit = judged[chosen].fit
     own = refits.weighed(inputs.setup, inputs.data, fit, inputs.local)  # its own weights
     stage, gone = withdraw(inputs, Stage.of(chosen, own), box, prior,
@@ -164,6 +164,12 @@ def finish(state: State, seconds: float) -> LoopResult:
         for s in (state.rounds[-1] if state.rounds else ()) if s.kept and s.collinearity > 0.9]
     return LoopResult(tuple(stages), state.rounds, unexplained, tuple(warnings), seconds,
                       state.alternatives)
+
+
+def with_prior(prior: dict, cand, values: dict) -> dict:
+    """The physical prior box ``prior`` of the current model's parameters with ``cand``'s
+    new ones (the evidence's prior of the model extended by it)."""
+    return prior | cand.prior_bounds(prior, values)
 
 
 # -- propose ---------------------------------------------------------------------------------
@@ -266,38 +272,26 @@ def score_all(inputs: Inputs, state: State, proposals, noise: Noise, log_z_now: 
     for c in proposals:  # a candidate's places in turn, on one forward model
         groups.setdefault(c.name, []).append(c)
 
-    def places(group):
+    def at_its_places(group):
         out, like = [], None
         for c in group:
             s, e = scored(inputs, current, c, state, noise, log_z_now, like)
             like = like or e
-            out.append((s, e))
+            out.append((c, s, e))
         return out
 
-    done = [x for group in in_order(places, list(groups.values())) for x in group]
-    proposals = [c for group in groups.values() for c in group]
-    best: dict = {}
-    for cand, (s, e) in zip(proposals, done):
-        other = best.get(cand.name)
-        if other is None or _better(s, other[1]):
-            places = other[3] if other else ()
-            best[cand.name] = (cand, s, e, places + ((cand, s),))
-        else:
-            best[cand.name] = other[:3] + (other[3] + ((cand, s),),)
-    scores = []
-    for cand, s, _, tried in best.values():
+    scores, extended, cands = [], {}, {}
+    for tried in in_order(at_its_places, list(groups.values())):
+        cand, s, e = max(tried, key=lambda t: np.nan_to_num(t[1].log_evidence, nan=-np.inf))
         if len(tried) > 1:
             s = replace(s, detail=s.detail + (("places", ", ".join(
-                f"{c.at.f_hz:.4g} Hz ({t.score:.3g})" for c, t in tried
+                f"{c.at.f_hz:.4g} Hz ({t.score:.3g})" for c, t, _ in tried
                 if np.isfinite(t.score))),))
         scores.append(s)
-    return (scores, {n: v[2] for n, v in best.items() if v[2] is not None},
-            {n: v[0] for n, v in best.items()})
-
-
-def _better(s: Score, other: Score) -> bool:
-    return np.nan_to_num(s.log_evidence, nan=-np.inf) > np.nan_to_num(other.log_evidence,
-                                                                        nan=-np.inf)
+        cands[cand.name] = cand
+        if e is not None:
+            extended[cand.name] = e
+    return scores, extended, cands
 
 
 @timed("loop scoring")
@@ -313,8 +307,8 @@ def scored(inputs: Inputs, current: Stage, cand, state: State, noise: Noise,
     at = {} if cand.at is None else {"at_hz": cand.at.f_hz}
     try:
         extended = extended_problem(*args)
-        prior = state.prior | cand.prior_bounds(state.prior, current.result.parameters)
-        lm, dof, cos, info = score(extended, current.result, cand, prior)
+        lm, dof, cos, info = score(extended, current.result, cand,
+                                   with_prior(state.prior, cand, current.result.parameters))
     except Exception as exc:  # noqa: BLE001
         return Score(cand.name, math.nan, 0, math.nan, math.nan, verdict=Verdict.NOT_SCORED,
                      detail=(("error", str(exc)),), **at), extended
@@ -431,8 +425,8 @@ def weigh(cand, fit: refits.Refit, res, state: State, noise: Noise) -> Judgement
     placed = cand.resonances_hz(r.parameters, res.parameters)
     if placed:
         detail += (("f_hz", placed[0]),)
-    prior = state.prior | cand.prior_bounds(state.prior, res.parameters)
-    ev = log_evidence(r, prior, noise, chi2=float(res.chi2 - fit.gain))
+    ev = log_evidence(r, with_prior(state.prior, cand, res.parameters), noise,
+                      chi2=float(res.chi2 - fit.gain))
     return Judgement(Verdict.COMPARED, detail + ev.parts, fit, evidence=ev.log_z)
 
 
@@ -495,10 +489,7 @@ def compare(scores, judged: dict, log_z_now: float, policy: Policy):
 
 def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
     """Names of ``result``'s parameters outside (or on a face of) their prior box."""
-    bounds = result.plate_model.default_bounds(box)
-    space = ParameterSpace.from_bounds(result.parameter_names, bounds,
-                                       {q.name: q.kind for q in result.plate_model.parameters})
-    return space.out_of_bounds(result.values)
+    return prior_space(result, box).out_of_bounds(result.values)
 
 
 def _values(result, names, box) -> str:
@@ -527,32 +518,35 @@ def withdraw(inputs: Inputs, stage: Stage, box: dict, prior: dict,
         z = distance_from_null(term, res)
         model = res.plate_model.without_effect(term)
         start = {n: v for n, v in res.parameters.items() if n in model.names}
-        d = inputs.data
+        d, bounds = inputs.data, model.default_bounds(box)
         fm = build_forward_model(inputs.setup, d.frequency_hz[d.used], model=model,
-                                 theta0=start, bounds=model.default_bounds(box))
+                                 theta0=start, bounds=bounds)
         try:
             smaller = identify(inputs.setup, d.frequency_hz, d.H, d.std, used=d.used,
                                model=model.model, forward_model=fm, method="local",
-                               start=start, bounds=model.default_bounds(box),
-                               local=inputs.local, magnitude=d.magnitude)
+                               start=start, bounds=bounds, local=inputs.local,
+                               magnitude=d.magnitude)
         except Exception as exc:  # noqa: BLE001 - the larger model stays
             log.info("loop: %s could not be refitted without %s: %s", stage.added,
                      term.name, exc)
             continue
         noise = Noise.of(res, d.n_residuals)
-        with_it = log_evidence(res, prior, noise, chi2=res.chi2_reduced_reported * res.dof)
-        without = log_evidence(smaller, prior, noise,
-                               chi2=smaller.chi2_reduced_reported * smaller.dof)
-        if not (smaller.converged and without.log_z >= with_it.log_z):
+        chi2_with, chi2_without = _data_chi2(res), _data_chi2(smaller)
+        odds = (log_evidence(smaller, prior, noise, chi2=chi2_without).log_z
+                - log_evidence(res, prior, noise, chi2=chi2_with).log_z)
+        if not (smaller.converged and odds >= 0):
             continue
         stage = Stage.of(stage.added, smaller)
         gone.append(Score(term.name, math.nan, len(term.parameters), math.nan, math.nan,
-                          delta_chi2=-float(smaller.chi2_reduced_reported * smaller.dof
-                                            - res.chi2_reduced_reported * res.dof),
-                          verdict=Verdict.WITHDRAWN, log_evidence=without.log_z - with_it.log_z,
-                          detail=(("by", stage.added), ("z", z),
-                                  ("odds", without.log_z - with_it.log_z))))
+                          delta_chi2=-float(chi2_without - chi2_with),
+                          verdict=Verdict.WITHDRAWN, log_evidence=odds,
+                          detail=(("by", stage.added), ("z", z), ("odds", odds))))
     return stage, gone
+
+
+def _data_chi2(result) -> float:
+    """``result``'s chi2 under the data's weights as the report gives it."""
+    return float(result.chi2_reduced_reported * result.dof)
 
 
 def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:

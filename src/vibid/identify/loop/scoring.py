@@ -57,48 +57,51 @@ def score(extended, res, cand, prior: dict) -> tuple[float, int, float, np.ndarr
         # the current one by d; score along that secant, one dof
         r0 = res.weighted_residuals
         d = r - r0
-        lm = max(projected(np.column_stack([J, d]), r0) - projected(J, r0), 0.0)
-        return float(lm), 1, collinearity(J, d[:, None]), np.zeros((0, 0))
-    lm = max(projected(J, r) - projected(J_small, r), 0.0)
+        Q = span(J)
+        lm = max(projected(span(np.column_stack([J, d])), r0) - projected(Q, r0), 0.0)
+        return float(lm), 1, collinearity(Q, d[:, None]), np.zeros((0, 0))
+    Q_small = span(J_small)  # the current parameters' directions, once
+    lm = max(projected(span(J), r) - projected(Q_small, r), 0.0)
     model = cand.extend(res.plate_model)
     kinds = {q.name: q.kind for q in model.parameters}
-    info = new_information(problem.space.names, theta, J, J_small, new,
+    info = new_information(problem.space.names, theta, J[:, new], Q_small, new,
                            model.default_bounds(prior), kinds)
     return (float(lm), len(names) - len(res.parameter_names),
-            collinearity(J_small, J[:, new]), info)
+            collinearity(Q_small, J[:, new]), info)
 
 
-def new_information(all_names, theta, J, J_small, new, prior: dict,
+def new_information(all_names, theta, J_new, Q_small, new, prior: dict,
                     kinds: dict) -> np.ndarray:
     """The new parameters' Fisher information given the current ones (the Schur
-    complement of JᵀJ), in the coordinates in which their prior is uniform over ``prior``
-    (each one's fit coordinate over its physical box, box -> [-1, 1])."""
+    complement of JᵀJ: ``J_new``'s part that the current parameters' directions
+    ``Q_small``, :func:`span`, cannot mimic), in the coordinates in which their prior is
+    uniform over ``prior`` (each one's fit coordinate over its physical box, box ->
+    [-1, 1])."""
     names = [all_names[k] for k in new]
     space = ParameterSpace.from_bounds(names, {n: prior[n] for n in names},
                                        {n: kinds.get(n) for n in names})
     g = du_dtheta(space, theta[new])
-    Jn = J[:, new] / np.where(np.isfinite(g) & (g != 0), g, np.inf)  # d r / d u
-    Q, s, _ = np.linalg.svd(J_small / np.maximum(np.linalg.norm(J_small, axis=0), 1e-300),
-                            full_matrices=False)
-    Q = Q[:, s > 1e-10 * s.max()]
-    R = Jn - Q @ (Q.T @ Jn)  # what the current parameters cannot mimic
+    Jn = J_new / np.where(np.isfinite(g) & (g != 0), g, np.inf)  # d r / d u
+    R = Jn - Q_small @ (Q_small.T @ Jn)
     return R.T @ R
 
 
-def projected(J, r) -> float:
-    """``rᵀ P r``, P the projector onto the columns of J (scale-invariant, rank-safe)."""
+def span(J) -> np.ndarray:
+    """An orthonormal basis of the columns of J (scale-invariant, rank-safe)."""
     scale = np.linalg.norm(J, axis=0)
-    Jn = J / np.where(scale > 0, scale, 1.0)
-    Q, s, _ = np.linalg.svd(Jn, full_matrices=False)
-    Q = Q[:, s > 1e-10 * s.max()]
+    Q, s, _ = np.linalg.svd(J / np.where(scale > 0, scale, 1.0), full_matrices=False)
+    return Q[:, s > 1e-10 * s.max()]
+
+
+def projected(Q, r) -> float:
+    """``rᵀ P r``, P the projector onto the span ``Q`` (:func:`span`)."""
     return float(np.sum((Q.T @ r) ** 2))
 
 
-def collinearity(J_old, J_new) -> float:
-    """How much of the extension the current parameters can mimic: the cosine between a
-    new direction and the span of the current ones (the smallest over the new directions:
-    the data see the extension through its least mimicked direction)."""
-    Q, s, _ = np.linalg.svd(J_old / np.linalg.norm(J_old, axis=0), full_matrices=False)
-    Q = Q[:, s > 1e-10 * s.max()]
-    cos = [np.linalg.norm(Q.T @ v) / np.linalg.norm(v) for v in J_new.T if np.linalg.norm(v) > 0]
+def collinearity(Q_old, J_new) -> float:
+    """How much of the extension the current parameters (their span ``Q_old``) can mimic:
+    the cosine between a new direction and that span (the smallest over the new
+    directions: the data see the extension through its least mimicked direction)."""
+    cos = [np.linalg.norm(Q_old.T @ v) / np.linalg.norm(v) for v in J_new.T
+           if np.linalg.norm(v) > 0]
     return float(min(cos)) if cos else float("nan")

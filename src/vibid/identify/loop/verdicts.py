@@ -19,7 +19,8 @@ class Verdict(enum.Enum):
 
     CHOSEN = "chosen"
     LESS_PROBABLE = "less_probable"
-    COMPARED = "compared"  # refitted and weighed; :func:`~vibid.identify.loop.rounds.compare` decides
+    #: refitted and weighed (:func:`~vibid.identify.loop.rounds.compare` then decides)
+    COMPARED = "compared"
     NOT_SCORED = "not_scored"
     TOO_FEW_POINTS = "too_few_points"
     NO_MODE_PATTERN = "no_mode_pattern"
@@ -29,16 +30,11 @@ class Verdict(enum.Enum):
     WITHDRAWN = "withdrawn"
 
     @property
-    def passes(self) -> bool:
-        """Whether the refit is a model the round compared by its evidence."""
-        return self in (Verdict.CHOSEN, Verdict.LESS_PROBABLE, Verdict.COMPARED)
-
-    @property
     def compared(self) -> bool:
         """Whether the refit is a model the round compared (converged, its evidence
         weighed), chosen or not: the budget's spread is over these
         (:func:`vibid.identify.budget.model_spread`)."""
-        return self.passes
+        return self in (Verdict.CHOSEN, Verdict.LESS_PROBABLE, Verdict.COMPARED)
 
     def sentence(self, **d) -> str:
         """The report's note; ``d`` holds the numbers it quotes."""
