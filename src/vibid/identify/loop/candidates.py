@@ -35,8 +35,6 @@ class Place:
     f_hz: float
     q: float
     source: str = "pole"
-    significance: float = 1.0
-    kinds: tuple = ("extra_pole",)
 
 
 class Candidate(Protocol):
@@ -135,8 +133,7 @@ class EffectCandidate:
         for f in ([own] if own is not None else []) + list(getattr(diagnosis, "features", ())):
             if np.isfinite(f.f_hz) and f.f_hz > 0 and f.kind != "trend":
                 q = f.q if np.isfinite(f.q) and f.q > 0 else self.policy.trial_q
-                places.append(Place(float(f.f_hz), float(q), f.kind, float(f.significance),
-                                    tuple(f.kinds)))
+                places.append(Place(float(f.f_hz), float(q), f.kind))
         places += list(peaks)
         span = math.log(self.policy.pole_span)
         kept = []

@@ -199,8 +199,7 @@ def residual_peaks(result, policy: Policy) -> tuple[Place, ...]:
         return ()
     inner = np.flatnonzero((r[1:-1] >= r[:-2]) & (r[1:-1] >= r[2:])) + 1
     top = inner[np.argsort(-r[inner])][:policy.band_trials]
-    return tuple(Place(float(f[i]), policy.trial_q, "residual_peak", float(r[i]))
-                 for i in top)
+    return tuple(Place(float(f[i]), policy.trial_q, "residual_peak") for i in top)
 
 
 # -- diagnose -------------------------------------------------------------------------------
