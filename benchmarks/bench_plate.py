@@ -44,8 +44,12 @@ def timeit(fn, *args, repeat=50):
 
 
 def frequencies(mats, n=6):
-    lam = complex_eigenvalues(mats, (THETA[0], THETA[1] * THETA[0], 0, THETA[0], 0,
-                                     (1 - THETA[1]) * THETA[0] / 2), (THETA[2],) * 6, n)
+    lam = complex_eigenvalues(
+        mats,
+        (THETA[0], THETA[1] * THETA[0], 0, THETA[0], 0, (1 - THETA[1]) * THETA[0] / 2),
+        (THETA[2],) * 6,
+        n,
+    )
     return frequencies_and_decays(lam)[0]
 
 
@@ -64,17 +68,23 @@ def main():
         mats = assemble_plate(geom, d)
         ta = time.perf_counter() - t0
         err = np.abs(frequencies(mats) / ref - 1).max()
-        print(f"{acc:8s} {d.label:40s} {mats.n_dof:6d} dof  max rel error {err:.1e}  assembly {ta:.2f} s")
+        print(
+            f"{acc:8s} {d.label:40s} {mats.n_dof:6d} dof  max rel error {err:.1e}  assembly {ta:.2f} s"
+        )
     for d in (Discretisation("argyris-global", 40, 8), Discretisation("morley", 120, 24)):
         mats = assemble_plate(geom, d)
-        print(f"{'(ref)':8s} {d.label:40s} {mats.n_dof:6d} dof  max rel error "
-              f"{np.abs(frequencies(mats) / ref - 1).max():.1e}")
+        print(
+            f"{'(ref)':8s} {d.label:40s} {mats.n_dof:6d} dof  max rel error "
+            f"{np.abs(frequencies(mats) / ref - 1).max():.1e}"
+        )
 
     print("\n== full model (default discretisation), 200 frequencies")
     model = build_forward_model(setup, freqs, theta0=dict(zip(("D", "nu", "beta"), THETA)))
     t0 = time.perf_counter()
     Hf = model.afc_full(THETA)
-    print(f"full AFC: {time.perf_counter() - t0:.2f} s ({model.mats.n_dof} dof, sparse LU per frequency)")
+    print(
+        f"full AFC: {time.perf_counter() - t0:.2f} s ({model.mats.n_dof} dof, sparse LU per frequency)"
+    )
 
     data = jnp.asarray(Hf * (1 + 1e-3))
     for kind in ("local", "wide"):
@@ -92,19 +102,25 @@ def main():
         fh = jax.jit(jax.hessian(loss))
         fboth = jax.jit(lambda t: (loss(t), jax.hessian(loss)(t)))
         th = jnp.asarray(THETA)
-        print(f"\n== reduced model, {kind} basis: size {m.basis.size} ({m.basis.n_modes} modes), "
-              f"built in {tb:.2f} s")
+        print(
+            f"\n== reduced model, {kind} basis: size {m.basis.size} ({m.basis.n_modes} modes), "
+            f"built in {tb:.2f} s"
+        )
         print(f"max |H_red - H_full| / max |H_full| = {err:.1e}")
-        print(f"loss {timeit(fl, th) * 1e3:.2f} ms, Jacobian {timeit(fj, th) * 1e3:.2f} ms, "
-              f"exact Hessian {timeit(fh, th) * 1e3:.2f} ms, loss + Hessian (one jit) "
-              f"{timeit(fboth, th) * 1e3:.2f} ms")
+        print(
+            f"loss {timeit(fl, th) * 1e3:.2f} ms, Jacobian {timeit(fj, th) * 1e3:.2f} ms, "
+            f"exact Hessian {timeit(fh, th) * 1e3:.2f} ms, loss + Hessian (one jit) "
+            f"{timeit(fboth, th) * 1e3:.2f} ms"
+        )
         pop = jnp.asarray(THETA * (1 + 0.1 * np.random.default_rng(0).standard_normal((64, 3))))
         print(f"afc_batch of 64: {timeit(m.afc_batch, pop, repeat=5) * 1e3:.1f} ms")
 
     t0 = time.perf_counter()
     me = model.model_error(THETA)
-    print(f"\nmodel_error: {time.perf_counter() - t0:.2f} s (first call builds the finer level); "
-          f"max {me.max() / np.abs(Hf).max():.1e} of max |H|")
+    print(
+        f"\nmodel_error: {time.perf_counter() - t0:.2f} s (first call builds the finer level); "
+        f"max {me.max() / np.abs(Hf).max():.1e} of max |H|"
+    )
 
 
 if __name__ == "__main__":

@@ -39,26 +39,49 @@ def main() -> None:
     held = closed.stages[-1].held
     with jax_turn():
         parts = engineering_budget(setup, final, closed)["budget"]["E_Pa"]
-        print(f"budget: E's length part {parts['length_m'] / 1e9:.3g} GPa "
-              f"(held in the shift: {', '.join(held) or 'nothing'})")
+        print(
+            f"budget: E's length part {parts['length_m'] / 1e9:.3g} GPa "
+            f"(held in the shift: {', '.join(held) or 'nothing'})"
+        )
         E0 = constants("isotropic", final.parameters, h)["E_Pa"]
         model, f, used = final.plate_model, final.frequency_hz, final.used
         box = model.default_bounds(dict(setup.identification.bounds))
         for sign in (+1, -1):
             moved = with_declared(setup, "length_m", setup.specimen.length_m + sign * sigma)
-            fm = build_forward_model(moved, f[used], model=model, theta0=final.parameters,
-                                     bounds=box)
-            for label, kinds in (("free", None), ("held", {
-                    n: ("logit", final.parameters[n] - 1e-7, final.parameters[n] + 1e-7)
-                    for n in held})):
-                r = identify(moved, f, final.H, final.H_std, used=used, model=model.model,
-                             forward_model=fm, method="local", start=final.parameters,
-                             bounds=box, weights=final.weights, kinds=kinds)
+            fm = build_forward_model(
+                moved, f[used], model=model, theta0=final.parameters, bounds=box
+            )
+            for label, kinds in (
+                ("free", None),
+                (
+                    "held",
+                    {
+                        n: ("logit", final.parameters[n] - 1e-7, final.parameters[n] + 1e-7)
+                        for n in held
+                    },
+                ),
+            ):
+                r = identify(
+                    moved,
+                    f,
+                    final.H,
+                    final.H_std,
+                    used=used,
+                    model=model.model,
+                    forward_model=fm,
+                    method="local",
+                    start=final.parameters,
+                    bounds=box,
+                    weights=final.weights,
+                    kinds=kinds,
+                )
                 c = constants("isotropic", r.parameters, h)
-                print(f"refit at L {'+' if sign > 0 else '-'} {sigma * 1e3:.2f} mm, "
-                      f"{', '.join(held) or 'nothing'} {label}: E moves "
-                      f"{(c['E_Pa'] - E0) / 1e9:+.3g} GPa, nu {c['nu']:.3g}, "
-                      f"chi2_red {r.chi2_reduced:.4g}")
+                print(
+                    f"refit at L {'+' if sign > 0 else '-'} {sigma * 1e3:.2f} mm, "
+                    f"{', '.join(held) or 'nothing'} {label}: E moves "
+                    f"{(c['E_Pa'] - E0) / 1e9:+.3g} GPa, nu {c['nu']:.3g}, "
+                    f"chi2_red {r.chi2_reduced:.4g}"
+                )
 
 
 if __name__ == "__main__":

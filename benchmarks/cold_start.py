@@ -43,8 +43,14 @@ print(json.dumps({{"build": build, "first_calls": first, "run": run, "max_rel_er
 def child(cache: str) -> dict:
     env = dict(os.environ, VIBID_JAX_CACHE=cache)
     code = CHILD.format(bench=os.path.dirname(os.path.abspath(__file__)))
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                         check=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -52,15 +58,20 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=2, help="rounds of the three ways")
     args = ap.parse_args(argv)
-    print(f"{'way':>18} | {'first calls s':>13} {'run s':>6} {'total s':>7} | "
-          f"{'build s':>7} {'max rel err':>11}")
+    print(
+        f"{'way':>18} | {'first calls s':>13} {'run s':>6} {'total s':>7} | "
+        f"{'build s':>7} {'max rel err':>11}"
+    )
     for _ in range(args.repeat):
         with tempfile.TemporaryDirectory() as cache:
             for way, c in (("cache off", "off"), ("cache empty", cache), ("cache filled", cache)):
                 r = child(c)
-                print(f"{way:>18} | {r['first_calls']:13.2f} {r['run']:6.2f} "
-                      f"{r['first_calls'] + r['run']:7.2f} | {r['build']:7.1f} "
-                      f"{r['max_rel_err']:11.1e}", flush=True)
+                print(
+                    f"{way:>18} | {r['first_calls']:13.2f} {r['run']:6.2f} "
+                    f"{r['first_calls'] + r['run']:7.2f} | {r['build']:7.1f} "
+                    f"{r['max_rel_err']:11.1e}",
+                    flush=True,
+                )
     return 0
 
 

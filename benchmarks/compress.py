@@ -31,8 +31,10 @@ def main() -> int:
     compressed(problem, u0)  # compile
     t = time.perf_counter()
     short = compressed(problem, u0)
-    print(f"{problem.n_points} points -> {short.n_points} nodes (padded) in "
-          f"{time.perf_counter() - t:.3f} s")
+    print(
+        f"{problem.n_points} points -> {short.n_points} nodes (padded) in "
+        f"{time.perf_counter() - t:.3f} s"
+    )
     local._METHODS["newton"](problem, u0, 2), local.LOCAL_METHODS["newton"](problem, u0, 2)
     t = time.perf_counter()
     full = local._METHODS["newton"](problem, u0)
@@ -42,8 +44,10 @@ def main() -> int:
     t_small = time.perf_counter() - t
     J = problem.jacobian_theta(full.theta)
     std = np.sqrt(np.diag(np.linalg.inv(J.T @ J)))
-    print(f"Newton: every point {t_full:.2f} s, compressed {t_small:.2f} s; "
-          f"shift / std {np.round((small.theta - full.theta) / std, 4)}")
+    print(
+        f"Newton: every point {t_full:.2f} s, compressed {t_small:.2f} s; "
+        f"shift / std {np.round((small.theta - full.theta) / std, 4)}"
+    )
     t = time.perf_counter()
     c_small = local.polish_by_continuation(problem, u0)[0]
     t_small = time.perf_counter() - t
@@ -55,8 +59,10 @@ def main() -> int:
         t_full = time.perf_counter() - t
     finally:
         local.compressed = plain
-    print(f"continuation: every point {t_full:.2f} s, compressed {t_small:.2f} s; "
-          f"shift / std {np.round((c_small.theta - c_full.theta) / std, 4)}")
+    print(
+        f"continuation: every point {t_full:.2f} s, compressed {t_small:.2f} s; "
+        f"shift / std {np.round((c_small.theta - c_full.theta) / std, 4)}"
+    )
     return 0
 
 

@@ -29,16 +29,27 @@ SHARED = os.path.join(HERE, "..", "..", "shared", "data", "real-titanium")
 def agree(a, b) -> bool:
     """Whether two diagnoses say the same to the loop: the same kinds, each feature of one
     with a feature of the same kind within 1 % in frequency in the other."""
+
     def covered(x, y):
-        return all(any(f.kind == g.kind and (f.kind == "trend" or abs(np.log(f.f_hz / g.f_hz))
-                                              < 0.01) for g in y.features) for f in x.features)
-    return (sorted(f.kind for f in a.features) == sorted(f.kind for f in b.features)
-            and covered(a, b) and covered(b, a))
+        return all(
+            any(
+                f.kind == g.kind and (f.kind == "trend" or abs(np.log(f.f_hz / g.f_hz)) < 0.01)
+                for g in y.features
+            )
+            for f in x.features
+        )
+
+    return (
+        sorted(f.kind for f in a.features) == sorted(f.kind for f in b.features)
+        and covered(a, b)
+        and covered(b, a)
+    )
 
 
 def words(d) -> str:
-    return "; ".join(x.kind if x.kind == "trend" else f"{x.kind} {x.f_hz:.1f} Hz Q {x.q:.3g}"
-                     for x in d.features)
+    return "; ".join(
+        x.kind if x.kind == "trend" else f"{x.kind} {x.f_hz:.1f} Hz Q {x.q:.3g}" for x in d.features
+    )
 
 
 def main() -> int:
@@ -50,16 +61,24 @@ def main() -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     shared_setup = os.path.join(SHARED, "setup.json")
-    p.add_argument("--setup", default=shared_setup if os.path.exists(shared_setup) else
-                   os.path.join(HERE, "..", "tests", "data", "titanium_setup.json"))
+    p.add_argument(
+        "--setup",
+        default=shared_setup
+        if os.path.exists(shared_setup)
+        else os.path.join(HERE, "..", "tests", "data", "titanium_setup.json"),
+    )
     p.add_argument("--draws", type=int, default=4)
     args = p.parse_args()
     afc = os.path.join(SHARED, "afc.csv")
     tmp = tempfile.mkdtemp()
     if not os.path.exists(afc):
         afc = os.path.join(tmp, "afc.csv")
-        with gzip.open(os.path.join(HERE, "..", "tests", "data", "titanium_afc.csv.gz"),
-                       "rt") as src, open(afc, "w") as dst:
+        with (
+            gzip.open(
+                os.path.join(HERE, "..", "tests", "data", "titanium_afc.csv.gz"), "rt"
+            ) as src,
+            open(afc, "w") as dst,
+        ):
             dst.write(src.read())
     calls, original = [], diagnosis.diagnose
 
@@ -68,13 +87,25 @@ def main() -> int:
         return original(*a, **k)
 
     diagnosis.diagnose = kept
-    cli(["identify", "--afc", afc, "--setup", args.setup, "--json",
-         os.path.join(tmp, "report.json"), "--no-progress"])
+    cli(
+        [
+            "identify",
+            "--afc",
+            afc,
+            "--setup",
+            args.setup,
+            "--json",
+            os.path.join(tmp, "report.json"),
+            "--no-progress",
+        ]
+    )
     diagnosis.diagnose = original
     rng = np.random.default_rng(0)
     changed_calls = 0
-    print(f"\n{len(calls)} diagnoses, each again {args.draws} times with the model's AFC "
-          f"perturbed by 1e-9 (relative):")
+    print(
+        f"\n{len(calls)} diagnoses, each again {args.draws} times with the model's AFC "
+        f"perturbed by 1e-9 (relative):"
+    )
     for i, ((f, Hm, H0, sd), k) in enumerate(calls):
         d0 = original(f, Hm, H0, sd, **k)
         changed = 0

@@ -39,16 +39,19 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 
 TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
-GRIDS = {"loop, 60 steps to 1500 Hz": np.linspace(25.0, 1500.0, 60),
-         "cli, 40 steps to 900 Hz": 22.5 * np.arange(1, 41)}
+GRIDS = {
+    "loop, 60 steps to 1500 Hz": np.linspace(25.0, 1500.0, 60),
+    "cli, 40 steps to 900 Hz": 22.5 * np.arange(1, 41),
+}
 
 
 def _frequencies(geometry, param, theta, disc, n=6):
     from vibid.identify.model.assembly import model_matrices
     from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
 
-    return frequencies_and_decays(model_eigenvalues(model_matrices(geometry, disc, ()), param,
-                                                    theta, n))[0]
+    return frequencies_and_decays(
+        model_eigenvalues(model_matrices(geometry, disc, ()), param, theta, n)
+    )[0]
 
 
 def convergence(geometry, param, theta) -> dict:
@@ -65,8 +68,10 @@ def convergence(geometry, param, theta) -> dict:
         family.append(finer_discretisation(family[-1]))
     family.append(Discretisation("argyris", 90, 18, 8))
     out = {d.label: _frequencies(geometry, param, theta, d).tolist() for d in family}
-    a, b = (_frequencies(geometry, param, theta, Discretisation("argyris-global", n, n // 5))
-            for n in (40, 80))
+    a, b = (
+        _frequencies(geometry, param, theta, Discretisation("argyris-global", n, n // 5))
+        for n in (40, 80)
+    )
     out["scikit-fem argyris 40x8"] = a.tolist()
     out["scikit-fem argyris 80x16"] = b.tolist()
     out["scikit-fem argyris, h^2 Richardson"] = ((4 * b - a) / 3).tolist()
@@ -74,8 +79,12 @@ def convergence(geometry, param, theta) -> dict:
     print("\n1. natural frequencies, Hz (relative to argyris 90x18 +8 corner levels)")
     for label, f in out.items():
         rel = np.array(f) / best - 1
-        print(f"  {label:>38}: " + " ".join(f"{x:.10g}" for x in f[:4])
-              + "   rel " + " ".join(f"{x:+.1e}" for x in rel))
+        print(
+            f"  {label:>38}: "
+            + " ".join(f"{x:.10g}" for x in f[:4])
+            + "   rel "
+            + " ".join(f"{x:+.1e}" for x in rel)
+        )
     return out
 
 
@@ -86,16 +95,20 @@ def cost(setup, F, theta) -> dict:
     fm = build_forward_model(setup, F, theta0=TRUTH)
     fm.afc(theta)
     out = {}
-    for name, d in (("finer", finer_discretisation(fm.discretisation)),
-                    ("coarser", coarser_discretisation(fm.discretisation))):
+    for name, d in (
+        ("finer", finer_discretisation(fm.discretisation)),
+        ("coarser", coarser_discretisation(fm.discretisation)),
+    ):
         t = time.perf_counter()
         fm._level_afc(d, theta)
         out[name + "_s"] = time.perf_counter() - t
     t = time.perf_counter()
     fm.discretisation_error(theta)
     out["estimate_after_levels_cached_s"] = time.perf_counter() - t
-    print(f"\n2. the error estimate's meshes: finer {out['finer_s']:.2f} s (before), coarser "
-          f"{out['coarser_s']:.2f} s (added)")
+    print(
+        f"\n2. the error estimate's meshes: finer {out['finer_s']:.2f} s (before), coarser "
+        f"{out['coarser_s']:.2f} s (added)"
+    )
     return out
 
 
@@ -116,11 +129,18 @@ def fits(F, H, sd, setup, label) -> list:
                 r = identify(setup, F, H, sd, method="local", start=TRUTH, magnitude=mag)
                 bias = dict(zip(r.parameter_names, r.model_error_bias))
                 for n, v, s in zip(r.parameter_names, r.values, r.std):
-                    rows.append({"data": label, "estimate": estimate,
-                                 "fit": "|H|" if mag else "complex", "parameter": n,
-                                 "value": float(v), "std": float(s),
-                                 "discretisation": float(abs(bias[n])),
-                                 "z": float((v - TRUTH[n]) / s)})
+                    rows.append(
+                        {
+                            "data": label,
+                            "estimate": estimate,
+                            "fit": "|H|" if mag else "complex",
+                            "parameter": n,
+                            "value": float(v),
+                            "std": float(s),
+                            "discretisation": float(abs(bias[n])),
+                            "z": float((v - TRUTH[n]) / s),
+                        }
+                    )
         finally:
             forward.ForwardModel.model_error_parts = new_parts
     return rows
@@ -128,7 +148,6 @@ def fits(F, H, sd, setup, label) -> list:
 
 def plate() -> dict:
     from plate_helpers import plate_setup
-
     from vibid.identify import build_forward_model
     from vibid.identify.model.forward import finer_discretisation
 
@@ -146,15 +165,21 @@ def plate() -> dict:
     def rel(x):
         return float(np.linalg.norm(x / np.abs(H)))
 
-    out = {"meshes": list(err.meshes), "reference": ref.label,
-           "order": err.extrapolation.order, "factor": err.extrapolation.factor,
-           "reference_over_finer_step": rel(truth) / rel(err.finer),
-           "extrapolated_off": rel(err.d - truth) / rel(truth),
-           "finer_step_off": rel(err.finer - truth) / rel(truth)}
-    print(f"\n4. plate 150 x 100 mm to 600 Hz ({err.meshes[1]}): order {out['order']:.2f}, "
-          f"factor {out['factor']:.3f}; {ref.label} is {out['reference_over_finer_step']:.3f} "
-          f"finer steps off; the estimate {out['extrapolated_off']:.1%} off it, the finer "
-          f"step alone {out['finer_step_off']:.1%}")
+    out = {
+        "meshes": list(err.meshes),
+        "reference": ref.label,
+        "order": err.extrapolation.order,
+        "factor": err.extrapolation.factor,
+        "reference_over_finer_step": rel(truth) / rel(err.finer),
+        "extrapolated_off": rel(err.d - truth) / rel(truth),
+        "finer_step_off": rel(err.finer - truth) / rel(truth),
+    }
+    print(
+        f"\n4. plate 150 x 100 mm to 600 Hz ({err.meshes[1]}): order {out['order']:.2f}, "
+        f"factor {out['factor']:.3f}; {ref.label} is {out['reference_over_finer_step']:.3f} "
+        f"finer steps off; the estimate {out['extrapolated_off']:.1%} off it, the finer "
+        f"step alone {out['finer_step_off']:.1%}"
+    )
     return out
 
 
@@ -166,7 +191,6 @@ def main() -> int:
     parser.add_argument("--json")
     args = parser.parse_args()
     from loop_data import strip_on
-
     from vibid.identify.model.assembly import Geometry, model_matrices
     from vibid.identify.model.forward import discretisation, plate_model
     from vibid.identify.model.full import model_afc_full
@@ -176,24 +200,40 @@ def main() -> int:
     setup0 = strip_on(next(iter(GRIDS.values())))
     geometry = Geometry.from_setup(setup0)
     param = plate_model("isotropic").for_geometry(geometry)
-    report = {"cost": cost(setup0, next(iter(GRIDS.values())), theta),
-              "frequencies_hz": convergence(geometry, param, theta), "fits": []}
+    report = {
+        "cost": cost(setup0, next(iter(GRIDS.values())), theta),
+        "frequencies_hz": convergence(geometry, param, theta),
+        "fits": [],
+    }
     fine = discretisation(geometry, "fine")
     for grid, F in GRIDS.items():
         setup = strip_on(F)
         H_fine = model_afc_full(model_matrices(geometry, fine, ()), param, theta, F)
-        a, b = (model_afc_full(model_matrices(geometry, Discretisation("argyris-global", n, n // 5),
-                                              ()), param, theta, F) for n in (40, 80))
+        a, b = (
+            model_afc_full(
+                model_matrices(geometry, Discretisation("argyris-global", n, n // 5), ()),
+                param,
+                theta,
+                F,
+            )
+            for n in (40, 80)
+        )
         sd = 3e-5 * np.abs(H_fine) + 1e-5
-        for label, H in ((f"{grid}: {fine.label} (converged)", H_fine),
-                         (f"{grid}: scikit-fem argyris h^2 Richardson", (4 * b - a) / 3)):
+        for label, H in (
+            (f"{grid}: {fine.label} (converged)", H_fine),
+            (f"{grid}: scikit-fem argyris h^2 Richardson", (4 * b - a) / 3),
+        ):
             report["fits"] += fits(F, H, sd, setup, label)
-    print("\n3. noise-free fits from the truth, std 3e-5 |H| + 1e-5: value +- std "
-          "(discretisation part) z")
+    print(
+        "\n3. noise-free fits from the truth, std 3e-5 |H| + 1e-5: value +- std "
+        "(discretisation part) z"
+    )
     for r in report["fits"]:
         if r["parameter"] in ("D", "nu"):
-            print(f"  {r['data']:>62} | {r['estimate']:>12} | {r['fit']:>7} | {r['parameter']:>2} "
-                  f"{r['value']:.8g} +- {r['std']:.2g} ({r['discretisation']:.2g}) z {r['z']:+.2f}")
+            print(
+                f"  {r['data']:>62} | {r['estimate']:>12} | {r['fit']:>7} | {r['parameter']:>2} "
+                f"{r['value']:.8g} +- {r['std']:.2g} ({r['discretisation']:.2g}) z {r['z']:+.2f}"
+            )
     report["plate"] = plate()
     if args.json:
         with open(args.json, "w") as fh:

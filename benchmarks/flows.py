@@ -36,9 +36,17 @@ def make_sessions(folder: str, n: int) -> list[str]:
     freqs = (30.0,) + tuple(45.0 * k for k in range(1, 21))
     s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, frequencies_hz=freqs))
     truth = {"D": 17.97, "nu": 0.286, "beta": 0.003}
-    return [simulate_session(os.path.join(folder, f"session-{k}.h5"), s, truth, seed=k,
-                             conditions=StandConditions(record_s=0.05), accuracy="default")
-            for k in range(1, n + 1)]
+    return [
+        simulate_session(
+            os.path.join(folder, f"session-{k}.h5"),
+            s,
+            truth,
+            seed=k,
+            conditions=StandConditions(record_s=0.05),
+            accuracy="default",
+        )
+        for k in range(1, n + 1)
+    ]
 
 
 def main() -> None:
@@ -82,18 +90,29 @@ def main() -> None:
             row("replay_flow, one session", time.perf_counter() - t, **OPTIONS)
 
             t = time.perf_counter()
-            threads = batch_replay_flow(paths, report_dir=os.path.join(folder, "threads"),
-                                        task_runner="threads", **OPTIONS)
-            row("batch_replay_flow, threads", time.perf_counter() - t, n=len(paths),
-                errors=sum(bool(e) for e in threads.errors))
+            threads = batch_replay_flow(
+                paths, report_dir=os.path.join(folder, "threads"), task_runner="threads", **OPTIONS
+            )
+            row(
+                "batch_replay_flow, threads",
+                time.perf_counter() - t,
+                n=len(paths),
+                errors=sum(bool(e) for e in threads.errors),
+            )
 
             t = time.perf_counter()
-            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                              dashboard_address=":0") as cluster:
-                dask = batch_replay_flow(paths, report_dir=os.path.join(folder, "dask"),
-                                         task_runner=cluster, **OPTIONS)
-            row("batch_replay_flow, LocalCluster 2 worker processes", time.perf_counter() - t,
-                n=len(paths), errors=sum(bool(e) for e in dask.errors))
+            with LocalCluster(
+                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+            ) as cluster:
+                dask = batch_replay_flow(
+                    paths, report_dir=os.path.join(folder, "dask"), task_runner=cluster, **OPTIONS
+                )
+            row(
+                "batch_replay_flow, LocalCluster 2 worker processes",
+                time.perf_counter() - t,
+                n=len(paths),
+                errors=sum(bool(e) for e in dask.errors),
+            )
     finally:
         server.stop()
 

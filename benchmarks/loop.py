@@ -76,18 +76,29 @@ from vibid.identify.runtime import configure  # noqa: E402
 # analyse() configure (64-bit JAX, the compilation cache, one BLAS thread), as the CLI does.
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from loop_cases import (CASES, MATERIAL, TRUTH, Case, expand, get_case,  # noqa: E402,F401
-                        prepare, signal_stage, table2_data)
+from loop_cases import (  # noqa: E402,F401
+    CASES,
+    MATERIAL,
+    TRUTH,
+    Case,
+    expand,
+    get_case,
+    prepare,
+    signal_stage,
+    table2_data,
+)
 
 
 # -- one case's timed stages --------------------------------------------------------------------
 def _combined(*profiles) -> dict:
     """Wall seconds, compilations and compile seconds of consecutive stages together."""
     ps = [p for p in profiles if p is not None]
-    return {"wall_s": sum(p.wall_seconds for p in ps),
-            "compilations": sum(p.compilations for p in ps),
-            "compile_cache_hits": sum(p.cache_hits for p in ps),
-            "compile_s": sum(p.compile_seconds for p in ps)}
+    return {
+        "wall_s": sum(p.wall_seconds for p in ps),
+        "compilations": sum(p.compilations for p in ps),
+        "compile_cache_hits": sum(p.cache_hits for p in ps),
+        "compile_s": sum(p.compile_seconds for p in ps),
+    }
 
 
 def _engineering(res, setup) -> dict:
@@ -95,8 +106,14 @@ def _engineering(res, setup) -> dict:
 
     model = getattr(getattr(res, "plate_model", None), "model", None) or res.model
     sp = setup.specimen
-    block = engineering_constants(model, res.parameter_names, res.values, res.covariance,
-                                  sp.thickness_m, sp.thickness_std_m or 0.0)
+    block = engineering_constants(
+        model,
+        res.parameter_names,
+        res.values,
+        res.covariance,
+        sp.thickness_m,
+        sp.thickness_std_m or 0.0,
+    )
     return {k: v["value"] for k, v in block.items()}
 
 
@@ -119,51 +136,76 @@ def analyse(case: Case, source: dict, seed: int) -> dict:
             setup, afc = signal_stage(case, source)
     used = fit_points(afc)[0]  # as `vibid identify`: a top that slips is left out
     with recording() as ident:
-        declared = identify(setup, afc.frequency_hz, afc.H, afc.std, used=used, seed=seed,
-                            forward_model=fm)
+        declared = identify(
+            setup, afc.frequency_hz, afc.H, afc.std, used=used, seed=seed, forward_model=fm
+        )
     with recording() as lp:
-        loop = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=used,
-                          declared=declared, seed=seed)
+        loop = close_loop(
+            setup, afc.frequency_hz, afc.H, afc.std, used=used, declared=declared, seed=seed
+        )
     final = loop.final
     truth = case.truth_material
 
     def err(res):
         # relative; absolute for a truth of 0 (the beam's nu)
-        return {n: res.parameters[n] / v - 1 if v else res.parameters[n]
-                for n, v in truth.items() if n in res.parameters}
+        return {
+            n: res.parameters[n] / v - 1 if v else res.parameters[n]
+            for n, v in truth.items()
+            if n in res.parameters
+        }
 
     def z(res):
-        return {n: (res.parameters[n] - v) / res.parameter_std[n] if res.parameter_std[n]
-                else float("nan") for n, v in truth.items() if n in res.parameters}
+        return {
+            n: (res.parameters[n] - v) / res.parameter_std[n]
+            if res.parameter_std[n]
+            else float("nan")
+            for n, v in truth.items()
+            if n in res.parameters
+        }
 
     decl = _combined(sig, ident)
     found = list(loop.effects)
     return {
-        "case": case.name, "kind": case.kind, "effects_in_data": case.effects_in_data,
+        "case": case.name,
+        "kind": case.kind,
+        "effects_in_data": case.effects_in_data,
         "expected": None if case.expected is None else list(case.expected),
         "found": found,
         "ok": True if case.expected is None else sorted(found) == sorted(case.expected),
         "unexplained_residual": bool(loop.unexplained_residual),
-        "rel_err_before": err(declared), "rel_err_after": err(final), "z_after": z(final),
+        "rel_err_before": err(declared),
+        "rel_err_after": err(final),
+        "z_after": z(final),
         "chi2_red_before": float(declared.chi2_reduced_reported),
         "chi2_red_after": float(final.chi2_reduced_reported),
         "seconds_signal": sig.wall_seconds if sig else 0.0,
         "seconds_identify": ident.wall_seconds,
-        "seconds_declared": decl["wall_s"], "seconds_loop": lp.wall_seconds,
-        "compilations_declared": decl["compilations"], "compile_s_declared": decl["compile_s"],
-        "compilations_loop": lp.compilations, "compile_s_loop": lp.compile_seconds,
+        "seconds_declared": decl["wall_s"],
+        "seconds_loop": lp.wall_seconds,
+        "compilations_declared": decl["compilations"],
+        "compile_s_declared": decl["compile_s"],
+        "compilations_loop": lp.compilations,
+        "compile_s_loop": lp.compile_seconds,
         "seconds_data": data.wall_seconds if data else None,
-        "profile": {"signal": sig.as_dict() if sig else None, "identify": ident.as_dict(),
-                    "loop": lp.as_dict(), "data": data.as_dict() if data else None},
-        "profile_tables": {k: p.table() for k, p in
-                           (("signal", sig), ("identify", ident), ("loop", lp), ("data", data))
-                           if p is not None},
+        "profile": {
+            "signal": sig.as_dict() if sig else None,
+            "identify": ident.as_dict(),
+            "loop": lp.as_dict(),
+            "data": data.as_dict() if data else None,
+        },
+        "profile_tables": {
+            k: p.table()
+            for k, p in (("signal", sig), ("identify", ident), ("loop", lp), ("data", data))
+            if p is not None
+        },
         "n_points": int(np.asarray(afc.frequency_hz).size),
         "truth": case.truth,
-        "params_before": declared.parameters, "params_after": final.parameters,
+        "params_before": declared.parameters,
+        "params_after": final.parameters,
         "engineering_before": _engineering(declared, setup),
         "engineering_after": _engineering(final, setup),
-        "declared_message": declared.message, "loop_warnings": list(loop.warnings),
+        "declared_message": declared.message,
+        "loop_warnings": list(loop.warnings),
     }
 
 
@@ -176,8 +218,9 @@ def run_case(name: str, steps: int, seed: int) -> dict:
 
 
 # -- a case in a fresh process (--cold, --warm) -------------------------------------------------
-def run_in_process(case: Case, source: dict, seed: int, cache_dir: str, workdir: str,
-                   label: str) -> dict:
+def run_in_process(
+    case: Case, source: dict, seed: int, cache_dir: str, workdir: str, label: str
+) -> dict:
     """:func:`analyse` in a fresh Python process whose JAX compilation cache is
     ``cache_dir``; its row, plus the process's wall seconds."""
     out = os.path.join(workdir, f"{case.name}-{label}.json")
@@ -187,8 +230,13 @@ def run_in_process(case: Case, source: dict, seed: int, cache_dir: str, workdir:
     spec = json.dumps({"case": case.name, "source": source, "seed": seed, "out": out})
     t0 = time.perf_counter()
     with open(log, "w") as fh:
-        rc = subprocess.call([sys.executable, os.path.abspath(__file__), "--child", spec],
-                             env=env, stdin=subprocess.DEVNULL, stdout=fh, stderr=fh)
+        rc = subprocess.call(
+            [sys.executable, os.path.abspath(__file__), "--child", spec],
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=fh,
+            stderr=fh,
+        )
     wall = time.perf_counter() - t0
     if rc != 0 or not os.path.exists(out):
         with open(log) as fh:
@@ -228,13 +276,16 @@ def print_row(row: dict, columns: tuple[str, ...], profile: bool) -> None:
     first = "D" if "D" in a else "D11"
     runs = row.get("runs", {})
     extra = "".join("  " + _fmt_run(runs.get(c)) for c in columns)
-    print(f"{name:<16} {','.join(row['found']) or '-':<36} {'yes' if row['ok'] else 'NO ':<3} "
-          f"{b.get('D', np.nan):12.2e} {a.get(first, np.nan):9.2e} "
-          f"{b.get('nu', np.nan):10.2e} {a.get('nu', a.get('D22', np.nan)):9.2e}  "
-          f"{row['chi2_red_before']:12.4g} {row['chi2_red_after']:6.3g} "
-          f"{row['seconds_declared']:10.1f} {row['seconds_loop']:7.1f} "
-          f"{row['seconds_signal']:8.1f} {row['compilations_declared']:9d} "
-          f"{row['compilations_loop']:9d}{extra}", flush=True)
+    print(
+        f"{name:<16} {','.join(row['found']) or '-':<36} {'yes' if row['ok'] else 'NO ':<3} "
+        f"{b.get('D', np.nan):12.2e} {a.get(first, np.nan):9.2e} "
+        f"{b.get('nu', np.nan):10.2e} {a.get('nu', a.get('D22', np.nan)):9.2e}  "
+        f"{row['chi2_red_before']:12.4g} {row['chi2_red_after']:6.3g} "
+        f"{row['seconds_declared']:10.1f} {row['seconds_loop']:7.1f} "
+        f"{row['seconds_signal']:8.1f} {row['compilations_declared']:9d} "
+        f"{row['compilations_loop']:9d}{extra}",
+        flush=True,
+    )
     if row["kind"] in ("real", "plate"):
         before, after = row["engineering_before"], row["engineering_after"]
         print(f"{'':<16} engineering, declared: {_eng(before)}; final: {_eng(after)}")
@@ -247,23 +298,35 @@ def print_row(row: dict, columns: tuple[str, ...], profile: bool) -> None:
 
 
 def _eng(block: dict) -> str:
-    return ", ".join(f"{k[:-3]} {v / 1e9:.3g} GPa" if k.endswith("_Pa") else f"{k} {v:.3g}"
-                     for k, v in block.items())
+    return ", ".join(
+        f"{k[:-3]} {v / 1e9:.3g} GPa" if k.endswith("_Pa") else f"{k} {v:.3g}"
+        for k, v in block.items()
+    )
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", help="write the rows here")
-    ap.add_argument("--cases", default="all",
-                    help="comma-separated case names or groups (strip, table2, all)")
+    ap.add_argument(
+        "--cases", default="all", help="comma-separated case names or groups (strip, table2, all)"
+    )
     ap.add_argument("--steps", type=int, default=200, help="steps of the strip cases' sessions")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--cold", action="store_true",
-                    help="each case in a fresh process with an empty JAX compilation cache")
-    ap.add_argument("--warm", action="store_true",
-                    help="each case again in a fresh process with the cache the cold run filled")
-    ap.add_argument("--busy", action="store_true",
-                    help="run one CPU-bound process beside the benchmark (killed at the end)")
+    ap.add_argument(
+        "--cold",
+        action="store_true",
+        help="each case in a fresh process with an empty JAX compilation cache",
+    )
+    ap.add_argument(
+        "--warm",
+        action="store_true",
+        help="each case again in a fresh process with the cache the cold run filled",
+    )
+    ap.add_argument(
+        "--busy",
+        action="store_true",
+        help="run one CPU-bound process beside the benchmark (killed at the end)",
+    )
     ap.add_argument("--profile", action="store_true", help="print each stage's profile table")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -283,41 +346,59 @@ def main(argv=None) -> int:
 def run(args, names) -> int:
     columns = tuple(c for c in ("cold", "warm") if getattr(args, c))
     rows = []
-    print(f"{'case':<16} {'found':<36} ok  {'D err before':>12} {'after':>9} {'nu before':>10} "
-          f"{'after':>9}  chi2r before  after   s declared  s loop  s signal  comp decl  comp loop"
-          + "".join(f"  {c + ' s':>8} {'comp/disk':>9}" for c in columns), flush=True)
+    print(
+        f"{'case':<16} {'found':<36} ok  {'D err before':>12} {'after':>9} {'nu before':>10} "
+        f"{'after':>9}  chi2r before  after   s declared  s loop  s signal  comp decl  comp loop"
+        + "".join(f"  {c + ' s':>8} {'comp/disk':>9}" for c in columns),
+        flush=True,
+    )
     with tempfile.TemporaryDirectory(prefix="vibid-loop-") as work:
         for name in names:
             case, source = get_case(name), {}
             try:
-                source = prepare(case, work, args.steps, args.seed,
-                                 say=lambda s: print(f"  ({s})", flush=True))
+                source = prepare(
+                    case, work, args.steps, args.seed, say=lambda s: print(f"  ({s})", flush=True)
+                )
                 if not columns:
                     row = analyse(case, source, args.seed)
                 else:
                     cache = tempfile.mkdtemp(prefix="vibid-jax-cold-")
                     try:
-                        runs = {"cold": run_in_process(case, source, args.seed, cache, work,
-                                                       "cold")}
+                        runs = {
+                            "cold": run_in_process(case, source, args.seed, cache, work, "cold")
+                        }
                         if args.warm:
-                            runs["warm"] = run_in_process(case, source, args.seed, cache, work,
-                                                          "warm")
+                            runs["warm"] = run_in_process(
+                                case, source, args.seed, cache, work, "warm"
+                            )
                     finally:
                         shutil.rmtree(cache, ignore_errors=True)
                     row = dict(runs[columns[0]]) | {"runs": runs}
             except Exception as exc:  # one failed case does not end the benchmark
-                row = {"case": name, "kind": case.kind, "ok": False,
-                       "error": f"{type(exc).__name__}: {exc}"}
+                row = {
+                    "case": name,
+                    "kind": case.kind,
+                    "ok": False,
+                    "error": f"{type(exc).__name__}: {exc}",
+                }
             if "session" in source:
                 _remove(source["session"])
             rows.append(row)
             print_row(row, columns, args.profile)
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump({"steps": args.steps, "seed": args.seed, "busy": args.busy,
-                       "mode": "+".join(columns) or "in-process",
-                       "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
-                       "rows": rows}, fh, indent=1)
+            json.dump(
+                {
+                    "steps": args.steps,
+                    "seed": args.seed,
+                    "busy": args.busy,
+                    "mode": "+".join(columns) or "in-process",
+                    "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
+                    "rows": rows,
+                },
+                fh,
+                indent=1,
+            )
     return 0 if all(r["ok"] for r in rows) else 1
 
 

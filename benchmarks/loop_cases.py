@@ -42,8 +42,10 @@ CASES = {
     "clamp": ({"k_theta_N_per_rad": 1.6e4}, ("clamp_compliance",)),
     "mass": ({"mass_kg": 3e-4}, ("added_mass",)),
     "alpha": ({"alpha": 0.3}, ("frequency_dependent_loss",)),
-    "delay+clamp": ({"tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4},
-                    ("channel_delay", "clamp_compliance")),
+    "delay+clamp": (
+        {"tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4},
+        ("channel_delay", "clamp_compliance"),
+    ),
     # an orthotropic strip, D11 / D22 = 10, declared isotropic
     "anisotropy": ({"D11": 17.97, "D12": 0.54, "D22": 1.797, "D66": 1.2}, ("anisotropy",)),
 }
@@ -64,12 +66,17 @@ def orthotropic_moduli(E1_Pa, E2_Pa, nu12, G12_Pa, thickness_m) -> dict:
     :mod:`vibid.identify.engineering`'s conversion)."""
     nu21 = nu12 * E2_Pa / E1_Pa
     q = thickness_m**3 / (12.0 * (1.0 - nu12 * nu21))
-    return {"D11": E1_Pa * q, "D12": nu12 * E2_Pa * q, "D22": E2_Pa * q,
-            "D66": G12_Pa * thickness_m**3 / 12.0}
+    return {
+        "D11": E1_Pa * q,
+        "D12": nu12 * E2_Pa * q,
+        "D22": E2_Pa * q,
+        "D66": G12_Pa * thickness_m**3 / 12.0,
+    }
 
 
 PLATE_TRUTH = orthotropic_moduli(**PLATE_ENGINEERING, thickness_m=PLATE_THICKNESS_M) | {
-    "beta": PLATE_BETA}
+    "beta": PLATE_BETA
+}
 
 
 def plate_setup():
@@ -81,16 +88,25 @@ def plate_setup():
     from vibid.setup_model import example_setup
 
     s = example_setup()
-    specimen = dataclasses.replace(s.specimen, name="CFRP plate 150x100x2", length_m=0.150,
-                                   width_m=0.100, thickness_m=PLATE_THICKNESS_M,
-                                   density_kg_m3=1550.0)
+    specimen = dataclasses.replace(
+        s.specimen,
+        name="CFRP plate 150x100x2",
+        length_m=0.150,
+        width_m=0.100,
+        thickness_m=PLATE_THICKNESS_M,
+        density_kg_m3=1550.0,
+    )
     response = dataclasses.replace(s.sensors.response, x_m=0.140, y_m=0.080)
     freqs = tuple(np.linspace(PLATE_F_MAX_HZ / PLATE_STEPS, PLATE_F_MAX_HZ, PLATE_STEPS))
     return dataclasses.replace(
-        s, specimen=specimen, sensors=dataclasses.replace(s.sensors, response=response),
+        s,
+        specimen=specimen,
+        sensors=dataclasses.replace(s.sensors, response=response),
         excitation=dataclasses.replace(s.excitation, frequencies_hz=freqs),
-        identification=dataclasses.replace(s.identification, bounds={
-            "D": (1.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}))
+        identification=dataclasses.replace(
+            s.identification, bounds={"D": (1.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
+        ),
+    )
 
 
 def strip_setup(steps: int):
@@ -99,13 +115,15 @@ def strip_setup(steps: int):
 
     s = example_setup()
     freqs = tuple(np.linspace(1500.0 / steps, 1500.0, steps))
-    return dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                                 frequencies_hz=freqs))
+    return dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=freqs)
+    )
 
 
 # -- the real strips: AFCs measured on the seed paper's stand ----------------------------------
 TITANIUM_DIR = os.environ.get("VIBID_TITANIUM_DIR") or os.path.normpath(
-    os.path.join(_HERE, "..", "..", "shared", "data", "real-titanium"))
+    os.path.join(_HERE, "..", "..", "shared", "data", "real-titanium")
+)
 #: the steel strip of the same stand (examples/real-steel/README.md)
 STEEL_DIR = os.path.normpath(os.path.join(_HERE, "..", "examples", "real-steel"))
 #: a real AFC's case name -> the folder of its afc.csv and setup.json
@@ -135,8 +153,11 @@ BEAM_CASES = {
     "beam-stand": (STAND, ("stand_resonance",), None),
     # the clamp softens every mode, which a beam's nu mimics: the declared box of nu is the
     # lab's knowledge of its material (near 0, as the beam's)
-    "beam-stand+clamp": (STAND | {"k_theta_N_per_rad": 1.6e4},
-                         ("stand_resonance", "clamp_compliance"), (-0.05, 0.05)),
+    "beam-stand+clamp": (
+        STAND | {"k_theta_N_per_rad": 1.6e4},
+        ("stand_resonance", "clamp_compliance"),
+        (-0.05, 0.05),
+    ),
     "beam-delay": ({"tau_s": 2e-5}, ("channel_delay",), None),
     "beam-gain": ({"gain": 1.02}, ("sensor_gain",), None),
     "beam-mass": ({"mass_kg": 3e-4}, ("added_mass",), None),
@@ -170,8 +191,12 @@ def beam_data(name: str):
     effects, _, nu_box = BEAM_CASES[name]
     setup = bs.setup()
     if nu_box is not None:
-        setup = dataclasses.replace(setup, identification=dataclasses.replace(
-            setup.identification, bounds=dict(setup.identification.bounds) | {"nu": nu_box}))
+        setup = dataclasses.replace(
+            setup,
+            identification=dataclasses.replace(
+                setup.identification, bounds=dict(setup.identification.bounds) | {"nu": nu_box}
+            ),
+        )
     H, sd = bs.data(effects, seed=1)
     return setup, SimpleNamespace(frequency_hz=bs.F, H=H, std=sd, used=None)
 
@@ -206,8 +231,11 @@ class Case:
 
 def _strip_case(name: str) -> Case:
     effects, expected = CASES[name]
-    truth = ({k: v for k, v in TRUTH.items() if k not in ("D", "nu")} if "D11" in effects
-             else dict(TRUTH)) | effects
+    truth = (
+        {k: v for k, v in TRUTH.items() if k not in ("D", "nu")}
+        if "D11" in effects
+        else dict(TRUTH)
+    ) | effects
     return Case(name, "strip", tuple(expected), truth, dict(effects))
 
 
@@ -217,9 +245,13 @@ def get_case(name: str) -> Case:
         return _strip_case(name)
     if name in BEAM_CASES:
         effects, expected, _ = BEAM_CASES[name]
-        return Case(name, "beam", None if expected is None else tuple(expected),
-                    {"D": 17.97, "nu": 0.0, "beta": 0.003}
-                    | effects, dict(effects))
+        return Case(
+            name,
+            "beam",
+            None if expected is None else tuple(expected),
+            {"D": 17.97, "nu": 0.0, "beta": 0.003} | effects,
+            dict(effects),
+        )
     if name in RITZ_CASES:  # the offset's sign is not the data's to tell: no truth for it
         return Case(name, "beam", ("sensor_position",), {"D": 17.97, "nu": 0.0, "beta": 0.003})
     if name == "plate":
@@ -235,19 +267,29 @@ def get_case(name: str) -> Case:
             if name == table2_name(noise, fmax):
                 # paper_table.py's default seed (0) for the identification and its noise
                 return Case(name, "table2", (), dict(TRUE), seed=0, row=(noise, float(fmax)))
-    raise KeyError(f"unknown case {name!r}; expected one of {', '.join(all_names())} "
-                   "(or a group: all, strip, table2)")
+    raise KeyError(
+        f"unknown case {name!r}; expected one of {', '.join(all_names())} "
+        "(or a group: all, strip, table2)"
+    )
 
 
 def all_names() -> list[str]:
-    return (list(CASES) + list(BEAM_CASES) + list(RITZ_CASES) + ["plate", *REAL_DIRS]
-            + [table2_name(*r) for r in table2_rows()])
+    return (
+        list(CASES)
+        + list(BEAM_CASES)
+        + list(RITZ_CASES)
+        + ["plate", *REAL_DIRS]
+        + [table2_name(*r) for r in table2_rows()]
+    )
 
 
 #: Names that stand for several cases on the command line.
-GROUPS = {"strip": lambda: list(CASES), "beam": lambda: [*BEAM_CASES, *RITZ_CASES],
-          "table2": lambda: [table2_name(*r) for r in table2_rows()],
-          "all": all_names}
+GROUPS = {
+    "strip": lambda: list(CASES),
+    "beam": lambda: [*BEAM_CASES, *RITZ_CASES],
+    "table2": lambda: [table2_name(*r) for r in table2_rows()],
+    "all": all_names,
+}
 
 
 def expand(spec: str) -> list[str]:
@@ -281,8 +323,10 @@ def prepare(case: Case, workdir: str, steps: int, seed: int, say=print) -> dict:
     if case.kind == "beam":
         return {"beam": case.name}
     if case.kind == "real":
-        return {"afc": os.path.join(REAL_DIRS[case.name], "afc.csv"),
-                "setup": os.path.join(REAL_DIRS[case.name], "setup.json")}
+        return {
+            "afc": os.path.join(REAL_DIRS[case.name], "afc.csv"),
+            "setup": os.path.join(REAL_DIRS[case.name], "setup.json"),
+        }
     return {"noise": case.row[0], "f_max_hz": case.row[1]}
 
 
@@ -294,14 +338,17 @@ def plate_description(setup=None, n: int = 8) -> str:
     f, _ = natural_frequencies(setup, PLATE_TRUTH, n=n)
     below = int(np.sum(f < PLATE_F_MAX_HZ))
     e = PLATE_ENGINEERING
-    return (f"plate: {setup.specimen.name}, rho {setup.specimen.density_kg_m3:g} kg/m3, "
-            f"sensor at ({setup.sensors.response.x_m * 1e3:g}, "
-            f"{setup.sensors.response.y_m * 1e3:g}) mm; truth E1 {e['E1_Pa'] / 1e9:g} GPa, "
-            f"E2 {e['E2_Pa'] / 1e9:g} GPa, nu12 {e['nu12']:g}, G12 {e['G12_Pa'] / 1e9:g} GPa -> "
-            + ", ".join(f"{k} {v:.4g}" for k, v in PLATE_TRUTH.items())
-            + f" (D11/D22 {PLATE_TRUTH['D11'] / PLATE_TRUTH['D22']:.2f}); first {n} natural "
-            f"frequencies " + " ".join(f"{x:.1f}" for x in f)
-            + f" Hz: {below} below {PLATE_F_MAX_HZ:g} Hz")
+    return (
+        f"plate: {setup.specimen.name}, rho {setup.specimen.density_kg_m3:g} kg/m3, "
+        f"sensor at ({setup.sensors.response.x_m * 1e3:g}, "
+        f"{setup.sensors.response.y_m * 1e3:g}) mm; truth E1 {e['E1_Pa'] / 1e9:g} GPa, "
+        f"E2 {e['E2_Pa'] / 1e9:g} GPa, nu12 {e['nu12']:g}, G12 {e['G12_Pa'] / 1e9:g} GPa -> "
+        + ", ".join(f"{k} {v:.4g}" for k, v in PLATE_TRUTH.items())
+        + f" (D11/D22 {PLATE_TRUTH['D11'] / PLATE_TRUTH['D22']:.2f}); first {n} natural "
+        f"frequencies "
+        + " ".join(f"{x:.1f}" for x in f)
+        + f" Hz: {below} below {PLATE_F_MAX_HZ:g} Hz"
+    )
 
 
 #: Forward models of the Table 2 rows, by f_max, shared by a run's noise levels as in
@@ -314,7 +361,8 @@ def table2_data(case: Case):
     its setup and 201 frequencies from 0, the full model's AFC at the truth, its noise."""
     from types import SimpleNamespace
 
-    from paper_table import TRUE, make_model, noisy, strip_setup as table_setup
+    from paper_table import TRUE, make_model, noisy
+    from paper_table import strip_setup as table_setup
 
     level, fmax = case.row
     setup = table_setup(fmax)

@@ -14,8 +14,6 @@ import os
 import sys
 import time
 
-import numpy as np
-
 from vibid.identify.runtime import configure
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -29,33 +27,41 @@ def _pair(label, run):
         t = time.perf_counter()
         out[mag] = (run(mag), time.perf_counter() - t)
     (c, tc), (m, tm) = out[False], out[True]
-    print(f"{label}: complex {tc:.2f} s, |H| alone {tm:.2f} s (ratio {tm / tc:.2f}); "
-          f"chi2/dof {c.chi2_reduced_reported:.4g} -> {m.chi2_reduced_reported:.4g}")
+    print(
+        f"{label}: complex {tc:.2f} s, |H| alone {tm:.2f} s (ratio {tm / tc:.2f}); "
+        f"chi2/dof {c.chi2_reduced_reported:.4g} -> {m.chi2_reduced_reported:.4g}"
+    )
     for n in m.parameter_names:
         i = m.parameter_names.index(n)
-        print(f"  {n:>5}: complex {c.values[i]:.6g} ± {c.std[i]:.2g}, |H| {m.values[i]:.6g} ± "
-              f"{m.std[i]:.2g}, std ratio {m.magnitude_only_std_ratio[n]:.3g}")
+        print(
+            f"  {n:>5}: complex {c.values[i]:.6g} ± {c.std[i]:.2g}, |H| {m.values[i]:.6g} ± "
+            f"{m.std[i]:.2g}, std ratio {m.magnitude_only_std_ratio[n]:.3g}"
+        )
 
 
 def main() -> int:
     configure()
     from loop_data import F, data, strip_on
     from test_identify_compress import titanium_problem
-
     from vibid.identify.fit import identify
 
     H, sd = data({"tau_s": 2e-5}, 7)
-    _pair("strip, 60 steps, undeclared delay (global search)",
-          lambda mag: identify(strip_on(), F, H, sd, restarts=1, seed=0, magnitude=mag))
+    _pair(
+        "strip, 60 steps, undeclared delay (global search)",
+        lambda mag: identify(strip_on(), F, H, sd, restarts=1, seed=0, magnitude=mag),
+    )
     problem, u0 = titanium_problem()
     d = problem.data
     start = dict(zip(problem.space.names, problem.space.theta(u0)))
     from vibid.cli.modes import load_setup
 
     setup = load_setup(os.path.join(HERE, "..", "tests", "data", "titanium_setup.json"))
-    _pair(f"titanium, {d.n_used} bins (local polish)",
-          lambda mag: identify(setup, d.frequency_hz, d.H, d.std, method="local", start=start,
-                               magnitude=mag))
+    _pair(
+        f"titanium, {d.n_used} bins (local polish)",
+        lambda mag: identify(
+            setup, d.frequency_hz, d.H, d.std, method="local", start=start, magnitude=mag
+        ),
+    )
     return 0
 
 

@@ -34,8 +34,9 @@ def doubling_from_16(K, M, lu, n_min, n_max, f_top):
     opinv = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
     k = min(max(n_min, 16), n_max, K.shape[0] - 2)
     while True:
-        lam, Phi = spla.eigsh(K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM",
-                              v0=arpack_start(K.shape[0]))
+        lam, Phi = spla.eigsh(
+            K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM", v0=arpack_start(K.shape[0])
+        )
         order = np.argsort(lam)
         freqs = np.sqrt(np.abs(lam[order])) / (2 * np.pi)
         if freqs[-1] >= f_top or k >= n_max or k >= K.shape[0] - 2:
@@ -72,24 +73,31 @@ def main(argv=None) -> int:
     from vibid.identify.model import reduced
     from vibid.pipeline import read_setup
 
-    titanium = read_setup(os.path.join(HERE, "..", "examples", "real-steel",
-                                       "titanium_setup.json"))
+    titanium = read_setup(os.path.join(HERE, "..", "examples", "real-steel", "titanium_setup.json"))
     strip = pencil(titanium, np.linspace(150, 1500, 50))
-    cases = [("titanium strip, to a loop's local-basis cut-off",
-              *strip, 7415.0),
-             ("titanium strip, to the declared fit's wide-basis cut-off", *strip, 9209.0),
-             ("150 x 100 x 2 mm steel plate", *pencil(plate_setup(0.15, 0.10, 0.002),
-                                                      np.linspace(50, 3200, 20),
-                                                      {"D": 50.0, "nu": 0.3, "beta": 0.01}),
-              9000.0)]
+    cases = [
+        ("titanium strip, to a loop's local-basis cut-off", *strip, 7415.0),
+        ("titanium strip, to the declared fit's wide-basis cut-off", *strip, 9209.0),
+        (
+            "150 x 100 x 2 mm steel plate",
+            *pencil(
+                plate_setup(0.15, 0.10, 0.002),
+                np.linspace(50, 3200, 20),
+                {"D": 50.0, "nu": 0.3, "beta": 0.01},
+            ),
+            9000.0,
+        ),
+    ]
     real_eigsh = spla.eigsh
     with busy_cpu(args.busy):
         for name, K, M, f_top in cases:
             lu = reduced.spd_lu(K)
             print(f"{name}: {K.shape[0]} unknowns, modes to {f_top:.0f} Hz")
             results = {}
-            for label, run in (("16, doubling (before)", doubling_from_16),
-                               ("8, then by the count (now)", None)):
+            for label, run in (
+                ("16, doubling (before)", doubling_from_16),
+                ("8, then by the count (now)", None),
+            ):
                 solves = []
 
                 def counting(*a, **kw):
@@ -109,11 +117,14 @@ def main(argv=None) -> int:
                 finally:
                     reduced.spla.eigsh = real_eigsh
                 results[label] = f
-                print(f"  {label:28s} solves {solves}  {1e3 * dt:7.1f} ms a call, "
-                      f"{f.size} modes kept")
+                print(
+                    f"  {label:28s} solves {solves}  {1e3 * dt:7.1f} ms a call, {f.size} modes kept"
+                )
             a, b = results.values()
-            print(f"  kept frequencies: {'the same count' if a.size == b.size else 'DIFFER'}, "
-                  f"largest relative difference {np.max(np.abs(a / b - 1)):.1e}")
+            print(
+                f"  kept frequencies: {'the same count' if a.size == b.size else 'DIFFER'}, "
+                f"largest relative difference {np.max(np.abs(a / b - 1)):.1e}"
+            )
     return 0
 
 

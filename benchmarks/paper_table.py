@@ -62,7 +62,9 @@ PAPER = {
 def strip_setup(f_max_hz: float, n: int = 201):
     s = example_setup()
     freqs = tuple(np.linspace(0.0, f_max_hz, n)[1:])  # the session format wants f > 0
-    return dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, frequencies_hz=freqs))
+    return dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=freqs)
+    )
 
 
 def make_model(setup, freqs, toy: bool):
@@ -104,8 +106,10 @@ def rel(values: dict) -> dict:
 
 #: The --busy load: spins in pure Python, and exits by itself once its parent is gone
 #: (checked every few ms), so not even a killed benchmark leaves it behind.
-BUSY_CODE = ("import os\np = os.getppid()\nwhile os.getppid() == p:\n"
-             "    for _ in range(100000):\n        pass\n")
+BUSY_CODE = (
+    "import os\np = os.getppid()\nwhile os.getppid() == p:\n"
+    "    for _ in range(100000):\n        pass\n"
+)
 
 
 @contextlib.contextmanager
@@ -135,9 +139,14 @@ def main(argv=None) -> int:
     ap.add_argument("--rows", default="200,600,1000,1500", help="f_max values, Hz")
     ap.add_argument("--noise", default="0,0.01,0.03", help="noise levels")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--toy", action="store_true", help="use the tests' Ritz model instead of the FE model")
-    ap.add_argument("--busy", action="store_true",
-                    help="run one CPU-bound process beside the benchmark (killed at the end)")
+    ap.add_argument(
+        "--toy", action="store_true", help="use the tests' Ritz model instead of the FE model"
+    )
+    ap.add_argument(
+        "--busy",
+        action="store_true",
+        help="run one CPU-bound process beside the benchmark (killed at the end)",
+    )
     args = ap.parse_args(argv)
     with busy_cpu(args.busy):
         return run(args)
@@ -148,8 +157,12 @@ def run(args) -> int:
     from vibid.identify.fit.trust_region import trust_region
 
     theta_true = np.array([TRUE[k] for k in ("D", "nu", "beta")])
-    out = {"model": "ritz-toy" if args.toy else "fe", "busy": args.busy,
-           "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"), "rows": []}
+    out = {
+        "model": "ritz-toy" if args.toy else "fe",
+        "busy": args.busy,
+        "openblas_num_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
+        "rows": [],
+    }
 
     # the local run from the paper's start, noiseless 0-600 Hz
     problem, u0 = paper_start_problem(args.toy)
@@ -164,13 +177,17 @@ def run(args) -> int:
     out["local_seconds_with_compile"] = cold
     out["local_rel_err"] = rel(space.as_dict(r.theta))
     out["local_iterations"] = r.n_iterations
-    print(f"local run from the paper's start (0-600 Hz, noiseless): {r.message}, "
-          f"{r.n_iterations} iterations, {warm:.2f} s ({cold:.2f} s with compilation); "
-          "rel. errors " + ", ".join(f"{k} {v:.1e}" for k, v in out["local_rel_err"].items()))
+    print(
+        f"local run from the paper's start (0-600 Hz, noiseless): {r.message}, "
+        f"{r.n_iterations} iterations, {warm:.2f} s ({cold:.2f} s with compilation); "
+        "rel. errors " + ", ".join(f"{k} {v:.1e}" for k, v in out["local_rel_err"].items())
+    )
 
-    head = (f"{'noise':>5} {'f_max':>5} | {'global D':>9} {'nu':>9} {'beta':>9} | "
-            f"{'local D':>9} {'nu':>9} {'beta':>9} | {'paper D':>9} {'nu':>9} {'beta':>9} | "
-            f"{'std D':>8} {'nu':>8} {'beta':>8} | {'chi2r':>6} {'s':>5}")
+    head = (
+        f"{'noise':>5} {'f_max':>5} | {'global D':>9} {'nu':>9} {'beta':>9} | "
+        f"{'local D':>9} {'nu':>9} {'beta':>9} | {'paper D':>9} {'nu':>9} {'beta':>9} | "
+        f"{'std D':>8} {'nu':>8} {'beta':>8} | {'chi2r':>6} {'s':>5}"
+    )
     print(head)
     for fmax in [float(x) for x in args.rows.split(",")]:
         setup = strip_setup(fmax)
@@ -189,19 +206,34 @@ def run(args) -> int:
             e = rel(res.parameters)
             sdev = {k: res.parameter_std[k] / abs(TRUE[k]) for k in TRUE}
             pg, pl = PAPER.get((level, int(fmax)), ((np.nan,) * 3, (np.nan,) * 3))
-            print(f"{level:5.2f} {fmax:5.0f} | " + " ".join(f"{g[k]:9.1e}" for k in TRUE) + " | "
-                  + " ".join(f"{e[k]:9.1e}" for k in TRUE) + " | "
-                  + " ".join(f"{v:9.1e}" for v in pl) + " | "
-                  + " ".join(f"{sdev[k]:8.1e}" for k in TRUE)
-                  + f" | {res.chi2_reduced:6.3g} {secs:5.1f}", flush=True)
+            print(
+                f"{level:5.2f} {fmax:5.0f} | "
+                + " ".join(f"{g[k]:9.1e}" for k in TRUE)
+                + " | "
+                + " ".join(f"{e[k]:9.1e}" for k in TRUE)
+                + " | "
+                + " ".join(f"{v:9.1e}" for v in pl)
+                + " | "
+                + " ".join(f"{sdev[k]:8.1e}" for k in TRUE)
+                + f" | {res.chi2_reduced:6.3g} {secs:5.1f}",
+                flush=True,
+            )
             for w in res.warnings:
                 print(f"      warning: {w}")
-            out["rows"].append({
-                "noise": level, "f_max_hz": fmax, "rel_err": e, "rel_std": sdev,
-                "rel_err_global": g, "paper_rel_err": dict(zip(TRUE, pl)),
-                "chi2_reduced": res.chi2_reduced, "status": res.status.value,
-                "warnings": list(res.warnings), "seconds": secs,
-            })
+            out["rows"].append(
+                {
+                    "noise": level,
+                    "f_max_hz": fmax,
+                    "rel_err": e,
+                    "rel_std": sdev,
+                    "rel_err_global": g,
+                    "paper_rel_err": dict(zip(TRUE, pl)),
+                    "chi2_reduced": res.chi2_reduced,
+                    "status": res.status.value,
+                    "warnings": list(res.warnings),
+                    "seconds": secs,
+                }
+            )
     write_json(args.json, out)
     return 0
 

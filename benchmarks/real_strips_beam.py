@@ -48,8 +48,9 @@ def e_from(k, f_hz, L, h, rho, x_s, m):
 
 def free_length_for(k, f_hz, E, L, h, rho, x_s, m):
     """The extra free length (m) that puts mode ``k`` at ``f_hz`` with modulus ``E``."""
-    return brentq(lambda dL: modes_hz(E, L + dL, h, rho, x_s + dL, m)[k] - f_hz, -0.02, 0.02,
-                  xtol=1e-7)
+    return brentq(
+        lambda dL: modes_hz(E, L + dL, h, rho, x_s + dL, m)[k] - f_hz, -0.02, 0.02, xtol=1e-7
+    )
 
 
 def main():
@@ -60,8 +61,10 @@ def main():
             print(f"{name:9s} {m * 1e3:4.1f} g   {e[0]:6.1f} GPa  {e[1]:6.1f} GPa")
     print("\nthe free length each resonance needs for the authors' nominal E (declared sensor):")
     for name, (L, h, rho, x_s, peaks, E) in STRIPS.items():
-        dl = [free_length_for(k, f, E, L, h, rho, x_s, SENSOR_KG[1]) * 1e3
-              for k, f in enumerate(peaks)]
+        dl = [
+            free_length_for(k, f, E, L, h, rho, x_s, SENSOR_KG[1]) * 1e3
+            for k, f in enumerate(peaks)
+        ]
         print(f"{name:9s} E {E / 1e9:g} GPa: f1 needs {dl[0]:+.2f} mm, f2 {dl[1]:+.2f} mm")
 
 

@@ -20,7 +20,6 @@ import os
 import sys
 import time
 
-
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -40,9 +39,11 @@ def main(argv=None) -> int:
     names = ("D", "nu", "beta")
     theta_true = np.array([TRUE[k] for k in names])
     out = {"seeds": args.seeds, "rows": []}
-    print(f"{'noise':>5} {'f_max':>5} | {'rms err D':>9} {'nu':>8} {'beta':>8} | "
-          f"{'med std D':>9} {'nu':>8} {'beta':>8} | {'within 1 std D/nu/beta':>22} | "
-          f"{'within 2 std':>12} | {'s/fit':>5}")
+    print(
+        f"{'noise':>5} {'f_max':>5} | {'rms err D':>9} {'nu':>8} {'beta':>8} | "
+        f"{'med std D':>9} {'nu':>8} {'beta':>8} | {'within 1 std D/nu/beta':>22} | "
+        f"{'within 2 std':>12} | {'s/fit':>5}"
+    )
     for fmax in [float(x) for x in args.rows.split(",")]:
         setup = strip_setup(fmax)
         f = np.linspace(0, fmax, 201)
@@ -53,8 +54,15 @@ def main(argv=None) -> int:
             for k in range(args.seeds):
                 Hn, sd = noisy(H, level, seed=10_000 * (k + 1) + int(fmax) + int(1000 * level))
                 t = time.perf_counter()
-                res = identify(setup, f, Hn, np.full(f.size, sd), forward_model=fm, seed=k,
-                               restarts=args.restarts)
+                res = identify(
+                    setup,
+                    f,
+                    Hn,
+                    np.full(f.size, sd),
+                    forward_model=fm,
+                    seed=k,
+                    restarts=args.restarts,
+                )
                 secs.append(time.perf_counter() - t)
                 err.append([(res.parameters[n] - TRUE[n]) / TRUE[n] for n in names])
                 std.append([res.parameter_std[n] / TRUE[n] for n in names])
@@ -63,21 +71,31 @@ def main(argv=None) -> int:
             rms = np.sqrt(np.mean(err**2, axis=0))
             med = np.median(std, axis=0)
             in1, in2 = np.mean(z <= 1, axis=0), np.mean(z <= 2, axis=0)
-            print(f"{level:5.2f} {fmax:5.0f} | " + " ".join(f"{v:9.1e}"[-9 if i == 0 else -8:]
-                                                            for i, v in enumerate(rms))
-                  + " | " + " ".join(f"{v:9.1e}"[-9 if i == 0 else -8:] for i, v in enumerate(med))
-                  + " | " + f"{'/'.join(f'{100 * v:.0f}' for v in in1):>20} %"
-                  + " | " + f"{'/'.join(f'{100 * v:.0f}' for v in in2):>10} %"
-                  + f" | {np.mean(secs):5.1f}", flush=True)
-            out["rows"].append({
-                "noise": level, "f_max_hz": fmax,
-                "rel_err": err.tolist(), "rel_std": std.tolist(),
-                "rms_rel_err": dict(zip(names, rms.tolist())),
-                "median_rel_std": dict(zip(names, med.tolist())),
-                "within_1_std": dict(zip(names, in1.tolist())),
-                "within_2_std": dict(zip(names, in2.tolist())),
-                "seconds_per_fit": float(np.mean(secs)),
-            })
+            print(
+                f"{level:5.2f} {fmax:5.0f} | "
+                + " ".join(f"{v:9.1e}"[-9 if i == 0 else -8 :] for i, v in enumerate(rms))
+                + " | "
+                + " ".join(f"{v:9.1e}"[-9 if i == 0 else -8 :] for i, v in enumerate(med))
+                + " | "
+                + f"{'/'.join(f'{100 * v:.0f}' for v in in1):>20} %"
+                + " | "
+                + f"{'/'.join(f'{100 * v:.0f}' for v in in2):>10} %"
+                + f" | {np.mean(secs):5.1f}",
+                flush=True,
+            )
+            out["rows"].append(
+                {
+                    "noise": level,
+                    "f_max_hz": fmax,
+                    "rel_err": err.tolist(),
+                    "rel_std": std.tolist(),
+                    "rms_rel_err": dict(zip(names, rms.tolist())),
+                    "median_rel_std": dict(zip(names, med.tolist())),
+                    "within_1_std": dict(zip(names, in1.tolist())),
+                    "within_2_std": dict(zip(names, in2.tolist())),
+                    "seconds_per_fit": float(np.mean(secs)),
+                }
+            )
     write_json(args.json, out)
     return 0
 

@@ -47,10 +47,16 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--campaigns", type=int, default=8, help="adaptive campaigns (default 8)")
-    p.add_argument("--faults", type=int, default=1, help="faults of each kind per campaign (default 1)")
+    p.add_argument(
+        "--faults", type=int, default=1, help="faults of each kind per campaign (default 1)"
+    )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--noise", type=float, default=None,
-                   help="each channel's noise relative to the base (default 0.03 adaptive, 4e-4 uniform)")
+    p.add_argument(
+        "--noise",
+        type=float,
+        default=None,
+        help="each channel's noise relative to the base (default 0.03 adaptive, 4e-4 uniform)",
+    )
     p.add_argument("--target", nargs="+", default=["D=0.0003%", "nu=0.003%"])
     p.add_argument("--max-stand-time", type=float, default=600.0)
     p.add_argument("--batch", type=int, default=8)
@@ -73,7 +79,10 @@ def main(argv=None) -> int:
     results, t0 = [], time.perf_counter()
     for c in range(1 if args.uniform else args.campaigns):
         doc = json.loads(json.dumps(base))
-        params = {k: float(v * (1 + 0.1 * rng.uniform(-1, 1))) for k, v in doc["simulated"]["params"].items()}
+        params = {
+            k: float(v * (1 + 0.1 * rng.uniform(-1, 1)))
+            for k, v in doc["simulated"]["params"].items()
+        }
         doc["simulated"].update(effects={}, noise=noise, seed=args.seed + c, params=params)
         from vibid.acquisition.stand_config import StandConfig
 
@@ -81,24 +90,42 @@ def main(argv=None) -> int:
         adaptive = None
         if args.uniform:
             freqs = tuple(float(f) for f in np.linspace(18.75, 1500.0, args.steps))
-            setup = dataclasses.replace(setup, excitation=dataclasses.replace(setup.excitation,
-                                                                              frequencies_hz=freqs))
+            setup = dataclasses.replace(
+                setup, excitation=dataclasses.replace(setup.excitation, frequencies_hz=freqs)
+            )
             plan = fault_plan(args.steps, {k: args.faults for k in kinds}, seed=args.seed)
         else:
             from vibid.planner.adaptive import AdaptiveOptions
             from vibid.planner.prior import parse_targets
 
-            adaptive = AdaptiveOptions(parse_targets(args.target, ("D", "nu", "beta")), (18.75, 1500.0),
-                                       args.max_stand_time, args.batch, seed=args.seed + c)
+            adaptive = AdaptiveOptions(
+                parse_targets(args.target, ("D", "nu", "beta")),
+                (18.75, 1500.0),
+                args.max_stand_time,
+                args.batch,
+                seed=args.seed + c,
+            )
             plan = fault_plan(24, {k: args.faults for k in kinds}, seed=args.seed + c)
-        print(f"\n== campaign {c + 1}: {'uniform' if args.uniform else 'adaptive'}, "
-              + ", ".join(f"{k} {v:.5g}" for k, v in params.items())
-              + f", noise {noise:g}; faults at steps " + ", ".join(f"{f.kind}@{f.index}" for f in plan),
-              flush=True)
+        print(
+            f"\n== campaign {c + 1}: {'uniform' if args.uniform else 'adaptive'}, "
+            + ", ".join(f"{k} {v:.5g}" for k, v in params.items())
+            + f", noise {noise:g}; faults at steps "
+            + ", ".join(f"{f.kind}@{f.index}" for f in plan),
+            flush=True,
+        )
         with tempfile.TemporaryDirectory(prefix="vibid-soak-") as folder:
             try:
-                result = soak(setup, config, Path(folder) / "soak.h5", plan, seed=args.seed + c,
-                              reference=True, restarts=args.restarts, log=log, adaptive=adaptive)
+                result = soak(
+                    setup,
+                    config,
+                    Path(folder) / "soak.h5",
+                    plan,
+                    seed=args.seed + c,
+                    reference=True,
+                    restarts=args.restarts,
+                    log=log,
+                    adaptive=adaptive,
+                )
             except SoakError as exc:
                 print(f"soak failed: {exc}", file=sys.stderr)
                 return 1
@@ -106,26 +133,46 @@ def main(argv=None) -> int:
         results.append((plan, result))
     faults = sum(len(p) for p, _ in results)
     survived = sum(r.survived for _, r in results)
-    worst = max(max(i.error_std().values()) for _, r in results
-                for i in (r.identification, r.reference) if i is not None)
-    print(f"\nin all: {len(results)} campaign(s), {sum(r.n_steps for _, r in results)} steps, "
-          f"faults survived {survived} of {faults}, duplicates "
-          f"{sum(r.duplicates for _, r in results)}, orphaned processes removed "
-          f"{sum(r.orphans for _, r in results)}, stand time "
-          f"{sum(r.stand_time_s or 0 for _, r in results):.0f} s (without faults "
-          f"{sum(r.reference_stand_time_s or 0 for _, r in results):.0f} s), unexplained "
-          f"{sum(r.identification.unexplained for _, r in results)} soaked / "
-          f"{sum(r.reference.unexplained for _, r in results)} without faults, worst |error|/std "
-          f"{worst:.2f}; {time.perf_counter() - t0:.0f} s")
+    worst = max(
+        max(i.error_std().values())
+        for _, r in results
+        for i in (r.identification, r.reference)
+        if i is not None
+    )
+    print(
+        f"\nin all: {len(results)} campaign(s), {sum(r.n_steps for _, r in results)} steps, "
+        f"faults survived {survived} of {faults}, duplicates "
+        f"{sum(r.duplicates for _, r in results)}, orphaned processes removed "
+        f"{sum(r.orphans for _, r in results)}, stand time "
+        f"{sum(r.stand_time_s or 0 for _, r in results):.0f} s (without faults "
+        f"{sum(r.reference_stand_time_s or 0 for _, r in results):.0f} s), unexplained "
+        f"{sum(r.identification.unexplained for _, r in results)} soaked / "
+        f"{sum(r.reference.unexplained for _, r in results)} without faults, worst |error|/std "
+        f"{worst:.2f}; {time.perf_counter() - t0:.0f} s"
+    )
     if args.json:
-        out = [{"faults": [dataclasses.asdict(o) for o in r.outcomes], "survived": r.survived,
-                "n_steps": r.n_steps, "duplicates": r.duplicates, "runs": r.runs,
-                "orphans": r.orphans, "stand_time_s": r.stand_time_s,
+        out = [
+            {
+                "faults": [dataclasses.asdict(o) for o in r.outcomes],
+                "survived": r.survived,
+                "n_steps": r.n_steps,
+                "duplicates": r.duplicates,
+                "runs": r.runs,
+                "orphans": r.orphans,
+                "stand_time_s": r.stand_time_s,
                 "reference_stand_time_s": r.reference_stand_time_s,
-                **{label: {"chi2_dof": i.chi2_dof, "unexplained": i.unexplained,
-                           "effects": list(i.effects), "error_std": i.error_std()}
-                   for label, i in (("soaked", r.identification), ("reference", r.reference))}}
-               for _, r in results]
+                **{
+                    label: {
+                        "chi2_dof": i.chi2_dof,
+                        "unexplained": i.unexplained,
+                        "effects": list(i.effects),
+                        "error_std": i.error_std(),
+                    }
+                    for label, i in (("soaked", r.identification), ("reference", r.reference))
+                },
+            }
+            for _, r in results
+        ]
         Path(args.json).write_text(json.dumps(out, indent=1, default=str) + "\n")
     return 0 if survived == faults else 1
 

@@ -82,7 +82,10 @@ def warm_specimen(name: str, setup) -> float:
     virtual = lookup_stand(name)
     t = time.perf_counter()
     # the driver sends 12 significant digits; the instrument plays them on its own clock
-    played = [virtual.instrument.played_at(float(format(f, ".12g"))) for f in setup.excitation.frequencies_hz]
+    played = [
+        virtual.instrument.played_at(float(format(f, ".12g")))
+        for f in setup.excitation.frequencies_hz
+    ]
     virtual.specimen.h(played)
     virtual.specimen.h(virtual.specimen.modes[0])
     return time.perf_counter() - t
@@ -111,20 +114,36 @@ def run(setup, config, *, realtime: bool, name: str, warm: bool = False) -> dict
         # what the stand had to spend: per step, the time from its frequency change to the
         # start of its (last) record, control moves and re-records included, plus that record
         with read_session(path) as s:
-            busy_s = sum(float(s.step_attributes(i)["vibid_settle_s"]) + s.step(i).n_samples / s.step(i).sample_rate_hz
-                         for i in range(len(s)))
-    return {"steps": result.n_steps, "run_status": result.run_status, "open_stand_s": open_s,
-            "campaign_wall_s": wall_s, "settle_s": clock.slept_s, "record_s": daq.recorded_s,
-            "records": daq.records, "settle_and_record_s": busy_s,
-            "overhead": wall_s / busy_s - 1.0 if realtime else None,
-            "acquire_wall_s": daq.wall_s, "runner_s": wall_s - daq.wall_s - (clock.slept_s if realtime else 0.0),
-            "file_bytes": size, "warm_specimen_s": warm_s}
+            busy_s = sum(
+                float(s.step_attributes(i)["vibid_settle_s"])
+                + s.step(i).n_samples / s.step(i).sample_rate_hz
+                for i in range(len(s))
+            )
+    return {
+        "steps": result.n_steps,
+        "run_status": result.run_status,
+        "open_stand_s": open_s,
+        "campaign_wall_s": wall_s,
+        "settle_s": clock.slept_s,
+        "record_s": daq.recorded_s,
+        "records": daq.records,
+        "settle_and_record_s": busy_s,
+        "overhead": wall_s / busy_s - 1.0 if realtime else None,
+        "acquire_wall_s": daq.wall_s,
+        "runner_s": wall_s - daq.wall_s - (clock.slept_s if realtime else 0.0),
+        "file_bytes": size,
+        "warm_specimen_s": warm_s,
+    }
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--realtime-steps", type=int, default=40, help="steps of the real-time run (0: skip)")
-    ap.add_argument("--unpaced-steps", type=int, default=200, help="steps of the unpaced run (0: skip)")
+    ap.add_argument(
+        "--realtime-steps", type=int, default=40, help="steps of the real-time run (0: skip)"
+    )
+    ap.add_argument(
+        "--unpaced-steps", type=int, default=200, help="steps of the unpaced run (0: skip)"
+    )
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)
     from vibid.acquisition.stand_config import StandConfig
@@ -139,18 +158,22 @@ def main(argv=None) -> int:
         freqs = tuple(float(f) for f in np.linspace(200.0, 1500.0, args.realtime_steps))
         setup = replace(base, excitation=Excitation(freqs, base.excitation.settle_s))
         r = out["realtime"] = run(setup, config, realtime=True, name="bench-realtime", warm=True)
-        print(f"real time, {r['steps']} steps ({r['records']} records): wall {r['campaign_wall_s']:.2f} s, "
-              f"settle and record {r['settle_and_record_s']:.2f} s; overhead {100 * r['overhead']:.2f} % "
-              f"(in acquisitions beyond their record time {r['acquire_wall_s'] - r['record_s']:.2f} s)")
+        print(
+            f"real time, {r['steps']} steps ({r['records']} records): wall {r['campaign_wall_s']:.2f} s, "
+            f"settle and record {r['settle_and_record_s']:.2f} s; overhead {100 * r['overhead']:.2f} % "
+            f"(in acquisitions beyond their record time {r['acquire_wall_s'] - r['record_s']:.2f} s)"
+        )
     if args.unpaced_steps:
         freqs = tuple(float(f) for f in np.linspace(7.5, 1500.0, args.unpaced_steps))
         setup = replace(base, excitation=Excitation(freqs, base.excitation.settle_s))
         r = out["unpaced"] = run(setup, config, realtime=False, name="bench-unpaced")
-        print(f"unpaced, {r['steps']} steps ({r['records']} records): campaign {r['campaign_wall_s']:.2f} s "
-              f"({1000 * r['campaign_wall_s'] / r['steps']:.1f} ms a step; {r['settle_s'] + r['record_s']:.0f} s "
-              f"of virtual settle and record): in the mock's acquisitions {r['acquire_wall_s']:.2f} s, "
-              f"the runner's own (fit, file, SCPI) {r['runner_s']:.2f} s; opening the stand "
-              f"{r['open_stand_s']:.2f} s; file {r['file_bytes'] / 1e6:.1f} MB")
+        print(
+            f"unpaced, {r['steps']} steps ({r['records']} records): campaign {r['campaign_wall_s']:.2f} s "
+            f"({1000 * r['campaign_wall_s'] / r['steps']:.1f} ms a step; {r['settle_s'] + r['record_s']:.0f} s "
+            f"of virtual settle and record): in the mock's acquisitions {r['acquire_wall_s']:.2f} s, "
+            f"the runner's own (fit, file, SCPI) {r['runner_s']:.2f} s; opening the stand "
+            f"{r['open_stand_s']:.2f} s; file {r['file_bytes'] / 1e6:.1f} MB"
+        )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)

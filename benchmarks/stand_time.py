@@ -40,24 +40,60 @@ def _run(args, **kw):
 def _campaign(setup, stand, out, adaptive=None):
     t = time.perf_counter()
     if adaptive is None:
-        _run(["campaign", setup, "--stand", "simulated", "--stand-config", stand, "--out",
-              out + ".h5", "--record-only"], stdout=subprocess.DEVNULL)
+        _run(
+            [
+                "campaign",
+                setup,
+                "--stand",
+                "simulated",
+                "--stand-config",
+                stand,
+                "--out",
+                out + ".h5",
+                "--record-only",
+            ],
+            stdout=subprocess.DEVNULL,
+        )
     else:
-        _run(["campaign", setup, "--stand", "simulated", "--stand-config", stand, "--out",
-              out + ".h5", "--report", out + "-report", "--adaptive", "--target", *adaptive,
-              "--no-loop"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        _run(
+            [
+                "campaign",
+                setup,
+                "--stand",
+                "simulated",
+                "--stand-config",
+                stand,
+                "--out",
+                out + ".h5",
+                "--report",
+                out + "-report",
+                "--adaptive",
+                "--target",
+                *adaptive,
+                "--no-loop",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
     campaign_s = time.perf_counter() - t
-    _run(["identify", out + ".h5", "--no-loop", "--no-progress", "--json", out + ".json"],
-         stdout=subprocess.DEVNULL)
+    _run(
+        ["identify", out + ".h5", "--no-loop", "--no-progress", "--json", out + ".json"],
+        stdout=subprocess.DEVNULL,
+    )
     report = json.load(open(out + ".json"))
     ident = report["identification"]
     with h5py.File(out + ".h5") as f:
         stand_s, steps = float(f.attrs["stand_time_s"]), len(f["steps"])
     names = ident["parameter_names"]
-    return {"steps": steps, "stand_s": stand_s, "names": names,
-            "std": np.array([report["parameters"][n]["std"] for n in names]),
-            "value": [report["parameters"][n]["value"] for n in names],
-            "chi2": ident.get("chi2_reduced_data_weights"), "wall_s": campaign_s}
+    return {
+        "steps": steps,
+        "stand_s": stand_s,
+        "names": names,
+        "std": np.array([report["parameters"][n]["std"] for n in names]),
+        "value": [report["parameters"][n]["value"] for n in names],
+        "chi2": ident.get("chi2_reduced_data_weights"),
+        "wall_s": campaign_s,
+    }
 
 
 def main():
@@ -74,27 +110,49 @@ def main():
     json.dump(setup, open(paths["setup"], "w"))
     json.dump(stand, open(paths["stand"], "w"))
 
-    rows = {"uniform 120 steps": _campaign(paths["setup"], paths["stand"], os.path.join(d, "uniform-run"))}
+    rows = {
+        "uniform 120 steps": _campaign(
+            paths["setup"], paths["stand"], os.path.join(d, "uniform-run")
+        )
+    }
     u = rows["uniform 120 steps"]
     targets = [f"{n}={s:.6g}" for n, s in zip(u["names"], u["std"])]
     t = time.perf_counter()
-    _run(["plan", paths["setup"], "--target", *targets, "--prior", *PRIOR, "--stand-config",
-          paths["stand"], "--out", paths["planned"]])
+    _run(
+        [
+            "plan",
+            paths["setup"],
+            "--target",
+            *targets,
+            "--prior",
+            *PRIOR,
+            "--stand-config",
+            paths["stand"],
+            "--out",
+            paths["planned"],
+        ]
+    )
     plan_s = time.perf_counter() - t
     rows["planned"] = _campaign(paths["planned"], paths["stand"], os.path.join(d, "planned-run"))
-    rows["adaptive"] = _campaign(paths["setup"], paths["stand"], os.path.join(d, "adaptive-run"),
-                                 adaptive=targets)
+    rows["adaptive"] = _campaign(
+        paths["setup"], paths["stand"], os.path.join(d, "adaptive-run"), adaptive=targets
+    )
 
     print(f"\ntargets (the uniform sweep's std): {' '.join(targets)}; planning took {plan_s:.1f} s")
-    print(f"{'':20}{'steps':>6}{'stand time':>12}" + "".join(f"{'std ' + n:>12}{'|err|/std':>10}" for n in u["names"])
-          + f"{'chi2/dof':>10}{'campaign':>10}")
+    print(
+        f"{'':20}{'steps':>6}{'stand time':>12}"
+        + "".join(f"{'std ' + n:>12}{'|err|/std':>10}" for n in u["names"])
+        + f"{'chi2/dof':>10}{'campaign':>10}"
+    )
     for label, r in rows.items():
         cells = ""
         for j, n in enumerate(r["names"]):
             err = abs(r["value"][j] - TRUTH[n]) / r["std"][j]
             cells += f"{r['std'][j]:>12.3g}{err:>10.2f}"
-        print(f"{label:20}{r['steps']:>6}{r['stand_s']:>10.1f} s{cells}"
-              f"{r['chi2'] or float('nan'):>10.3g}{r['wall_s']:>8.1f} s")
+        print(
+            f"{label:20}{r['steps']:>6}{r['stand_s']:>10.1f} s{cells}"
+            f"{r['chi2'] or float('nan'):>10.3g}{r['wall_s']:>8.1f} s"
+        )
     for label in ("planned", "adaptive"):
         ratio = rows[label]["stand_s"] / u["stand_s"]
         worst = max(rows[label]["std"] / u["std"])

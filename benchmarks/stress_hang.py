@@ -74,30 +74,67 @@ def _setup(folder: Path, steps: int) -> Path:
     return path
 
 
-def one_run(i: int, folder: Path, setup: Path, threads: str, stall_s: float,
-            limit_s: float, candidates: str) -> dict:
+def one_run(
+    i: int, folder: Path, setup: Path, threads: str, stall_s: float, limit_s: float, candidates: str
+) -> dict:
     effects = CASES[i % len(CASES)]
     session = folder / f"s{i:03d}.h5"
     env = dict(os.environ, VIBID_THREADS=threads)
-    subprocess.run([sys.executable, "-m", "vibid", "simulate", str(setup), "--out",
-                    str(session), "--effect", *effects, "--seed", str(i)], check=True,
-                   capture_output=True, env=env, timeout=limit_s)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "vibid",
+            "simulate",
+            str(setup),
+            "--out",
+            str(session),
+            "--effect",
+            *effects,
+            "--seed",
+            str(i),
+        ],
+        check=True,
+        capture_output=True,
+        env=env,
+        timeout=limit_s,
+    )
     counts = folder / f"s{i:03d}.loop.json"
     report = folder / f"s{i:03d}-report"
-    cmd = [sys.executable, "-c", CHILD, str(counts), "--stall-timeout", str(stall_s),
-           "identify", str(session), "--json", str(folder / f"s{i:03d}.json"),
-           "--report", str(report), "--candidates", candidates]
+    cmd = [
+        sys.executable,
+        "-c",
+        CHILD,
+        str(counts),
+        "--stall-timeout",
+        str(stall_s),
+        "identify",
+        str(session),
+        "--json",
+        str(folder / f"s{i:03d}.json"),
+        "--report",
+        str(report),
+        "--candidates",
+        candidates,
+    ]
     t0 = time.monotonic()
     try:
-        done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=limit_s,
-                              check=False)
+        done = subprocess.run(
+            cmd, capture_output=True, text=True, env=env, timeout=limit_s, check=False
+        )
         rc, err = done.returncode, done.stderr
     except subprocess.TimeoutExpired:
         rc, err = "timeout", ""
     wall = time.monotonic() - t0
     hung = rc == "timeout" or "no progress for" in err
-    row = {"run": i, "threads": threads, "effects": [e.split(":")[0] for e in effects],
-           "rc": rc, "hung": hung, "wall_s": round(wall, 1)}
+    row = {
+        "run": i,
+        "threads": threads,
+        "effects": [e.split(":")[0] for e in effects],
+        "rc": rc,
+        "hung": hung,
+        "wall_s": round(wall, 1),
+    }
     if counts.exists():
         row.update(json.loads(counts.read_text()))
     if rc not in (0, "timeout") and not hung:
@@ -108,12 +145,18 @@ def one_run(i: int, folder: Path, setup: Path, threads: str, stall_s: float,
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=20, help="at least this many runs")
-    ap.add_argument("--rounds", type=int, default=200,
-                    help="and on until the loops have played this many rounds")
+    ap.add_argument(
+        "--rounds",
+        type=int,
+        default=200,
+        help="and on until the loops have played this many rounds",
+    )
     ap.add_argument("--steps", type=int, default=20, help="steps of each session")
-    ap.add_argument("--candidates", default=CANDIDATES,
-                    help="the loop's candidates (default: the effects of the sessions and "
-                    "the sensor's gain)")
+    ap.add_argument(
+        "--candidates",
+        default=CANDIDATES,
+        help="the loop's candidates (default: the effects of the sessions and the sensor's gain)",
+    )
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--stall-timeout", type=float, default=300.0)
     ap.add_argument("--limit", type=float, default=1800.0, help="seconds a run may take")
@@ -129,8 +172,15 @@ def main(argv=None) -> int:
     try:
         i = 0
         while i < args.runs or sum(r.get("rounds", 0) for r in rows) < args.rounds:
-            row = one_run(i, args.out, setup, "1" if i % 2 else "2", args.stall_timeout,
-                          args.limit, args.candidates)
+            row = one_run(
+                i,
+                args.out,
+                setup,
+                "1" if i % 2 else "2",
+                args.stall_timeout,
+                args.limit,
+                args.candidates,
+            )
             i += 1
             rows.append(row)
             print(json.dumps(row), flush=True)
@@ -141,12 +191,16 @@ def main(argv=None) -> int:
         if busy is not None:
             busy.join(5)
     walls = [r["wall_s"] for r in rows]
-    summary = {"runs": len(rows), "rounds": sum(r.get("rounds", 0) for r in rows),
-               "refits": sum(r.get("refits", 0) for r in rows),
-               "hangs": sum(r["hung"] for r in rows),
-               "failed": sum(1 for r in rows if r["rc"] not in (0,) and not r["hung"]),
-               "median_s": statistics.median(walls), "longest_s": max(walls),
-               "busy_process": busy is not None}
+    summary = {
+        "runs": len(rows),
+        "rounds": sum(r.get("rounds", 0) for r in rows),
+        "refits": sum(r.get("refits", 0) for r in rows),
+        "hangs": sum(r["hung"] for r in rows),
+        "failed": sum(1 for r in rows if r["rc"] not in (0,) and not r["hung"]),
+        "median_s": statistics.median(walls),
+        "longest_s": max(walls),
+        "busy_process": busy is not None,
+    }
     print(json.dumps(summary))
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
     return 0 if summary["hangs"] == 0 else 1

@@ -28,12 +28,17 @@ def main() -> int:
         f, re, im, _ = np.loadtxt(fh, delimiter=",", skiprows=1, unpack=True)
     band = (f > BAND_HZ[0]) & (f < BAND_HZ[1])
     f, H = f[band], (re + 1j * im)[band]
-    print(f"{f.size} bins {BAND_HZ[0]:g}-{BAND_HZ[1]:g} Hz; point-to-point scatter "
-          f"{100 * relative_scatter(H):.2f} % of |H| (per part)")
+    print(
+        f"{f.size} bins {BAND_HZ[0]:g}-{BAND_HZ[1]:g} Hz; point-to-point scatter "
+        f"{100 * relative_scatter(H):.2f} % of |H| (per part)"
+    )
     for n in (1, 2, 3):
         rms, poles = rational_fit(f, H, n)
-        print(f"{n} pole pair(s): relative RMS {100 * rms:.1f} % (" +
-              ", ".join(f"{fp:.2f} Hz Q {q:.0f}" for fp, q in poles) + ")")
+        print(
+            f"{n} pole pair(s): relative RMS {100 * rms:.1f} % ("
+            + ", ".join(f"{fp:.2f} Hz Q {q:.0f}" for fp, q in poles)
+            + ")"
+        )
     return 0
 
 

@@ -21,13 +21,34 @@ import time
 import numpy as np
 
 #: Starts (titanium, a 664 Hz stand resonance) and bounds of every parameter.
-START = {"D": 277.0, "nu": 0.33, "beta": 0.004, "alpha": -0.5, "gain": 0.9, "dL_m": 0.0,
-         "k_theta_N_per_rad": 3e4, "beta_clamp": 0.05, "f_hz": 664.0, "q": 30.0,
-         "theta_rad_per_m": 0.3, "mass_kg": 1e-4}
-LIMITS = {"D": (50, 1000), "nu": (0.0, 0.49), "beta": (1e-4, 0.1), "alpha": (-1.5, 1.0),
-          "gain": (0.7, 1.3), "dL_m": (-5e-3, 5e-3), "k_theta_N_per_rad": (1e3, 1e8),
-          "beta_clamp": (1e-4, 0.5), "f_hz": (600, 720), "q": (5, 200),
-          "theta_rad_per_m": (-5, 5), "mass_kg": (1e-6, 5e-3)}
+START = {
+    "D": 277.0,
+    "nu": 0.33,
+    "beta": 0.004,
+    "alpha": -0.5,
+    "gain": 0.9,
+    "dL_m": 0.0,
+    "k_theta_N_per_rad": 3e4,
+    "beta_clamp": 0.05,
+    "f_hz": 664.0,
+    "q": 30.0,
+    "theta_rad_per_m": 0.3,
+    "mass_kg": 1e-4,
+}
+LIMITS = {
+    "D": (50, 1000),
+    "nu": (0.0, 0.49),
+    "beta": (1e-4, 0.1),
+    "alpha": (-1.5, 1.0),
+    "gain": (0.7, 1.3),
+    "dL_m": (-5e-3, 5e-3),
+    "k_theta_N_per_rad": (1e3, 1e8),
+    "beta_clamp": (1e-4, 0.5),
+    "f_hz": (600, 720),
+    "q": (5, 200),
+    "theta_rad_per_m": (-5, 5),
+    "mass_kg": (1e-6, 5e-3),
+}
 LOGS = ("D", "beta", "gain", "k_theta_N_per_rad", "beta_clamp", "f_hz", "q", "mass_kg")
 #: (effects, parameters held at their start)
 MODELS = [
@@ -39,8 +60,7 @@ MODELS = [
     (("sensor_gain", "frequency_dependent_loss", "free_length"), ("nu",)),
     (("sensor_gain", "clamp_compliance", "clamp_loss"), ("nu",)),
     (("sensor_gain", "clamp_compliance", "clamp_loss", "added_mass", "stand_resonance"), ()),
-    (("sensor_gain", "clamp_compliance", "clamp_loss", "added_mass", "stand_resonance"),
-     ("nu",)),
+    (("sensor_gain", "clamp_compliance", "clamp_loss", "added_mass", "stand_resonance"), ("nu",)),
 ]
 
 
@@ -55,9 +75,9 @@ def main() -> None:
     import jax.numpy as jnp
     from scipy.optimize import least_squares
 
+    from titanium_subset import titanium_subset
     from vibid.identify.fit.noise import autocorrelation_time
     from vibid.identify.model.forward import build_forward_model, plate_model
-    from titanium_subset import titanium_subset
 
     setup, f_all, f, H, s = titanium_subset(args.data)
     h = setup.specimen.thickness_m
@@ -72,8 +92,9 @@ def main() -> None:
         model = plate_model("isotropic", effects=effects)
         names = model.names
         start = {n: START[base(n)] for n in names}
-        box = model.default_bounds(dict(setup.identification.bounds)
-                                   | {"alpha": (-1.5, 1.0), "gain": (0.7, 1.3)})
+        box = model.default_bounds(
+            dict(setup.identification.bounds) | {"alpha": (-1.5, 1.0), "gain": (0.7, 1.3)}
+        )
         fm = build_forward_model(setup, f, model=model, theta0=start, bounds=box)
         free = [n for n in names if n not in held]
         th0 = np.array([start[n] for n in names])
@@ -89,27 +110,37 @@ def main() -> None:
         x = np.clip([to_x(n, start[n]) for n in free], lo + 1e-9, hi - 1e-9)
         t0 = time.perf_counter()
         for _ in range(2):  # fit, then again on a basis rebuilt at the end point
+
             def res(x, fm=fm):
                 r = (fm.afc(theta(x)) - H) / s
                 return jnp.concatenate([r.real, r.imag])
 
             R, J = jax.jit(res), jax.jit(jax.jacfwd(res))
-            out = least_squares(lambda x: np.asarray(R(x)), x, jac=lambda x: np.asarray(J(x)),
-                                method="trf", bounds=(lo, hi), x_scale="jac", max_nfev=300)
+            out = least_squares(
+                lambda x: np.asarray(R(x)),
+                x,
+                jac=lambda x: np.asarray(J(x)),
+                method="trf",
+                bounds=(lo, hi),
+                x_scale="jac",
+                max_nfev=300,
+            )
             x, th = out.x, np.asarray(theta(out.x))
             fm = fm.refresh(th)
         Hm = np.asarray(fm.afc(th))
         r = np.asarray(out.fun)
         chi = float(r @ r) / (r.size - len(free))
-        tau = np.mean([autocorrelation_time(part) for part in (r[: r.size // 2],
-                                                               r[r.size // 2:])])
+        tau = np.mean([autocorrelation_time(part) for part in (r[: r.size // 2], r[r.size // 2 :])])
         rel = np.sqrt(np.sum(abs(Hm - H) ** 2) / np.sum(abs(H) ** 2))
         p = dict(zip(names, th))
         E = p["D"] * 12 * (1 - p["nu"] ** 2) / h**3
         vals = ", ".join(f"{n} {v:.4g}" for n, v in p.items() if n not in ("D", "nu"))
-        print(f"| {' + '.join(effects)}{' (nu held)' if held else ''} | {chi:.4g} | {rel:.3f} "
-              f"| {tau:.0f} | {E / 1e9:.1f} | {p['nu']:.3f} | {vals} | "
-              f"{time.perf_counter() - t0:.0f} |", flush=True)
+        print(
+            f"| {' + '.join(effects)}{' (nu held)' if held else ''} | {chi:.4g} | {rel:.3f} "
+            f"| {tau:.0f} | {E / 1e9:.1f} | {p['nu']:.3f} | {vals} | "
+            f"{time.perf_counter() - t0:.0f} |",
+            flush=True,
+        )
 
     print(f"{f.size} points of {f_all.size}")
     print("| model | chi2_red | rel. RMS | tau | E (GPa) | nu | the others | s |")

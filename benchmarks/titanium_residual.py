@@ -44,8 +44,10 @@ def stage_afc(setup, f, parameters: dict) -> np.ndarray:
 
 def shares(f, r2) -> str:
     total = r2.sum()
-    return " ".join(f"{a}-{b}: {100 * r2[(f >= a) & (f < b)].sum() / total:.1f} %"
-                    for a, b in zip(EDGES_HZ[:-1], EDGES_HZ[1:]))
+    return " ".join(
+        f"{a}-{b}: {100 * r2[(f >= a) & (f < b)].sum() / total:.1f} %"
+        for a, b in zip(EDGES_HZ[:-1], EDGES_HZ[1:])
+    )
 
 
 def factor_fit(f, H, Hm, s):
@@ -61,8 +63,13 @@ def factor_fit(f, H, Hm, s):
         d = (Hm * R(p) - H) / s
         return np.concatenate([d.real, d.imag])
 
-    best = min((least_squares(res, [1, 0.04, 661, q0, 0.0], x_scale=[0.01, 0.01, 1, 10, 0.1])
-                for q0 in (20, 50, 150)), key=lambda o: o.cost)
+    best = min(
+        (
+            least_squares(res, [1, 0.04, 661, q0, 0.0], x_scale=[0.01, 0.01, 1, 10, 0.1])
+            for q0 in (20, 50, 150)
+        ),
+        key=lambda o: o.cost,
+    )
     before = res([1, 0, 661, 50, 0])
     return best.x, float(before @ before), 2 * best.cost
 
@@ -87,15 +94,15 @@ def mode_fit(f, H, spread: bool):
         return np.concatenate([d.real, d.imag])
 
     runs = []
-    for sigma in ((0.003, 0.01, 0.02) if spread else (None,)):
+    for sigma in (0.003, 0.01, 0.02) if spread else (None,):
         for beta in (0.002, 0.01):
             p0 = [0.0, -np.abs(H).max() * beta, fc, beta, 0, 0, 0, 0]
-            runs.append(least_squares(res, p0 + ([sigma] if spread else []), x_scale="jac",
-                                      max_nfev=2000))
+            runs.append(
+                least_squares(res, p0 + ([sigma] if spread else []), x_scale="jac", max_nfev=2000)
+            )
     best = min(runs, key=lambda o: o.cost)
     r, p = best.fun, best.x
-    return (float(np.sqrt(r @ r / (r.size / 2))), p[2], 1 / abs(p[3]),
-            abs(p[8]) if spread else 0.0)
+    return (float(np.sqrt(r @ r / (r.size / 2))), p[2], 1 / abs(p[3]), abs(p[8]) if spread else 0.0)
 
 
 def main() -> None:
@@ -117,27 +124,37 @@ def main() -> None:
     for stage in stages:
         Hm = stage_afc(setup, f, stage["parameters"])
         r2 = (np.abs(Hm - H) / s) ** 2
-        print(f"{'+ ' + stage['added'] if stage['added'] else 'declared model'}: chi2_red "
-              f"{r2.sum() / (2 * f.size):.4g} (the report's {stage['chi2_reduced']:.4g})\n"
-              f"  share of chi2 per band (Hz): {shares(f, r2)}")
+        print(
+            f"{'+ ' + stage['added'] if stage['added'] else 'declared model'}: chi2_red "
+            f"{r2.sum() / (2 * f.size):.4g} (the report's {stage['chi2_reduced']:.4g})\n"
+            f"  share of chi2 per band (Hz): {shares(f, r2)}"
+        )
     p, before, after = factor_fit(f, H, Hm, s)
-    print(f"a resonance multiplying H, on the last stage: chi2 {before:.4g} -> {after:.4g} "
-          f"({100 * (1 - after / before):.1f} % of it); f0 {p[2]:.1f} Hz, Q {p[3]:.0f}, "
-          f"a {p[1]:.4f}, phase {np.degrees(p[4]):.0f} deg, c {p[0]:.4f}")
+    print(
+        f"a resonance multiplying H, on the last stage: chi2 {before:.4g} -> {after:.4g} "
+        f"({100 * (1 - after / before):.1f} % of it); f0 {p[2]:.1f} Hz, Q {p[3]:.0f}, "
+        f"a {p[1]:.4f}, phase {np.degrees(p[4]):.0f} deg, c {p[0]:.4f}"
+    )
     band = (f > 150) & (f < 260)
     for spread in (False, True):
         rms, f1, q, sigma = mode_fit(f[band], H[band], spread)
-        print(f"first resonance, one mode{' spread' if spread else ''}: relative RMS "
-              f"{100 * rms:.2f} % (f1 {f1:.2f} Hz, Q {q:.0f}"
-              + (f", sigma {100 * sigma:.2f} % of f1)" if spread else ")"))
+        print(
+            f"first resonance, one mode{' spread' if spread else ''}: relative RMS "
+            f"{100 * rms:.2f} % (f1 {f1:.2f} Hz, Q {q:.0f}"
+            + (f", sigma {100 * sigma:.2f} % of f1)" if spread else ")")
+        )
     for fc in (170, 180, 185, 190):
         i = int(np.argmin(np.abs(f - fc)))
-        print(f"  at {f[i]:.1f} Hz the data lag by {-np.degrees(np.angle(H[i])):.1f} deg, "
-              f"the last stage's model by {-np.degrees(np.angle(Hm[i])):.1f} deg")
+        print(
+            f"  at {f[i]:.1f} Hz the data lag by {-np.degrees(np.angle(H[i])):.1f} deg, "
+            f"the last stage's model by {-np.degrees(np.angle(Hm[i])):.1f} deg"
+        )
     print("the 664 Hz feature, data / model, against a minimum-phase factor of its magnitude:")
     for lo, magnitude, phase, minimum in minimum_phase_check(f, H, Hm):
-        print(f"  {lo:.0f}-{lo + 8:.0f} Hz: |R| {magnitude:.2f}, phase {phase:+.1f} deg, "
-              f"minimum phase {minimum:+.1f} deg")
+        print(
+            f"  {lo:.0f}-{lo + 8:.0f} Hz: |R| {magnitude:.2f}, phase {phase:+.1f} deg, "
+            f"minimum phase {minimum:+.1f} deg"
+        )
 
 
 def minimum_phase_check(f, H, Hm, band=(520.0, 820.0)):
@@ -152,12 +169,18 @@ def minimum_phase_check(f, H, Hm, band=(520.0, 820.0)):
     ln_mag = ln_mag - np.interp(fw, fw[[0, -1]], ln_mag[[0, -1]])
     phase = phase - np.interp(fw, fw[[0, -1]], phase[[0, -1]])
     pad = np.zeros(4000)
-    minimum = -np.imag(hilbert(np.concatenate([pad, ln_mag, pad])))[pad.size:-pad.size]
+    minimum = -np.imag(hilbert(np.concatenate([pad, ln_mag, pad])))[pad.size : -pad.size]
     rows = []
     for lo in range(600, 720, 8):
         m = (fw >= lo) & (fw < lo + 8)
-        rows.append((lo, np.exp(ln_mag[m]).mean(), np.degrees(phase[m]).mean(),
-                     np.degrees(minimum[m]).mean()))
+        rows.append(
+            (
+                lo,
+                np.exp(ln_mag[m]).mean(),
+                np.degrees(phase[m]).mean(),
+                np.degrees(minimum[m]).mean(),
+            )
+        )
     return rows
 
 

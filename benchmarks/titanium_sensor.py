@@ -31,21 +31,29 @@ def main() -> None:
     import jax.numpy as jnp
     from scipy.optimize import least_squares
 
-    from vibid.identify.model.forward import build_forward_model, plate_model
     from titanium_subset import titanium_subset
+    from vibid.identify.model.forward import build_forward_model, plate_model
 
     setup, f_all, f, H, s = titanium_subset(args.data)
-    start = {"D": 220.0, "nu": 0.33, "beta": 0.004, "alpha": -0.9, "gain": 0.9,
-             "sensor_dy_m": -2e-3}
+    start = {
+        "D": 220.0,
+        "nu": 0.33,
+        "beta": 0.004,
+        "alpha": -0.9,
+        "gain": 0.9,
+        "sensor_dy_m": -2e-3,
+    }
     logs = ("D", "beta", "gain")
 
     def fit(effects, fixed=()):
         model = plate_model("isotropic", effects=effects)
         names = model.names
-        box = model.default_bounds(dict(setup.identification.bounds)
-                                   | {"alpha": (-1.5, 1.0), "gain": (0.7, 1.3)})
-        fm = build_forward_model(setup, f, model=model, theta0={n: start[n] for n in names},
-                                 bounds=box)
+        box = model.default_bounds(
+            dict(setup.identification.bounds) | {"alpha": (-1.5, 1.0), "gain": (0.7, 1.3)}
+        )
+        fm = build_forward_model(
+            setup, f, model=model, theta0={n: start[n] for n in names}, bounds=box
+        )
         free = [n for n in names if n not in fixed]
         th0 = np.array([start[n] for n in names])
 
@@ -62,16 +70,24 @@ def main() -> None:
         R, J = jax.jit(res), jax.jit(jax.jacfwd(res))
         x0 = np.array([np.log(start[n]) if n in logs else start[n] for n in free])
         t0 = time.perf_counter()
-        out = least_squares(lambda x: np.asarray(R(x)), x0, jac=lambda x: np.asarray(J(x)),
-                            method="lm", max_nfev=300)
+        out = least_squares(
+            lambda x: np.asarray(R(x)),
+            x0,
+            jac=lambda x: np.asarray(J(x)),
+            method="lm",
+            max_nfev=300,
+        )
         th = np.asarray(theta(out.x))
         Hm = np.asarray(fm.afc(th))
         chi = np.sum(out.fun**2) / (out.fun.size - len(free))
         rel = np.sqrt(np.sum(abs(Hm - H) ** 2) / np.sum(abs(H) ** 2))
         vals = ", ".join(f"{n} {v:.4g}" for n, v in zip(names, th))
         held = f" (held: {', '.join(fixed)})" if fixed else ""
-        print(f"{' + '.join(effects)}{held}: chi2_red {chi:.4g}, rel. RMS {rel:.3f}; {vals} "
-              f"[{time.perf_counter() - t0:.0f} s]", flush=True)
+        print(
+            f"{' + '.join(effects)}{held}: chi2_red {chi:.4g}, rel. RMS {rel:.3f}; {vals} "
+            f"[{time.perf_counter() - t0:.0f} s]",
+            flush=True,
+        )
 
     print(f"{f.size} points of {f_all.size}")
     fit(("sensor_gain", "frequency_dependent_loss"))

@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from functools import lru_cache
 import sys
+from functools import lru_cache
 
 import numpy as np
 from scipy.linalg import eigh
@@ -85,8 +85,18 @@ def element(le: float, EI: float, kGA: float, rhoA: float, rhoI: float):
     return K, M
 
 
-def frequencies(E, nu, kappa, ne=40, sensor=True, rotary=True, sensor_rotary="plate",
-                shear=True, shear_scale=1.0, n_modes=2):
+def frequencies(
+    E,
+    nu,
+    kappa,
+    ne=40,
+    sensor=True,
+    rotary=True,
+    sensor_rotary="plate",
+    shear=True,
+    shear_scale=1.0,
+    n_modes=2,
+):
     """First bending frequencies (Hz) of the clamped-free strip; ne = elements over L."""
     EI = E * H**3 / (12 * (1 - nu**2)) * B
     G = E / (2 * (1 + nu))
@@ -95,7 +105,9 @@ def frequencies(E, nu, kappa, ne=40, sensor=True, rotary=True, sensor_rotary="pl
     if sensor:  # a node at the sensor
         n1 = max(1, round(ne * X_SENSOR / L))
         n2 = max(1, ne - n1)
-        nodes = np.concatenate([np.linspace(0, X_SENSOR, n1 + 1), np.linspace(X_SENSOR, L, n2 + 1)[1:]])
+        nodes = np.concatenate(
+            [np.linspace(0, X_SENSOR, n1 + 1), np.linspace(X_SENSOR, L, n2 + 1)[1:]]
+        )
     else:
         nodes = np.linspace(0, L, ne + 1)
     nn = len(nodes)
@@ -139,8 +151,11 @@ def huang_frequencies(E, nu, kappa, shear=True, n_modes=2):
         root = np.sqrt((r2 - s2) ** 2 + 4 / b**2)
         a = np.sqrt((-(r2 + s2) + root) / 2)
         c = np.sqrt(((r2 + s2) + root) / 2)
-        return (2 / np.cosh(b * a) + (b**2 * (r2 - s2) ** 2 + 2) * np.cos(b * c)
-                - b * (r2 + s2) / np.sqrt(1 - b**2 * r2 * s2) * np.tanh(b * a) * np.sin(b * c))
+        return (
+            2 / np.cosh(b * a)
+            + (b**2 * (r2 - s2) ** 2 + 2) * np.cos(b * c)
+            - b * (r2 + s2) / np.sqrt(1 - b**2 * r2 * s2) * np.tanh(b * a) * np.sin(b * c)
+        )
 
     roots, grid = [], np.linspace(0.5, 60.0, 6000)
     vals = [g(b) for b in grid]
@@ -159,32 +174,47 @@ def main(argv=None) -> int:
     ap.add_argument("--nu", default="0.31,0.33,0.36", help="Poisson ratios")
     ap.add_argument("--kappa", type=float, default=5 / 6, help="shear coefficient")
     ap.add_argument("--ne", type=int, default=160, help="elements over L for the table")
-    ap.add_argument("--sensor-rotary", choices=("plate", "none"), default="plate",
-                    help="sensor rotary inertia m h^2/12 (as vibid's plate model) or none")
+    ap.add_argument(
+        "--sensor-rotary",
+        choices=("plate", "none"),
+        default="plate",
+        help="sensor rotary inertia m h^2/12 (as vibid's plate model) or none",
+    )
     ap.add_argument("--json", help="write the numbers here")
     args = ap.parse_args(argv)
     E, kappa = args.E, args.kappa
     nus = [float(v) for v in args.nu.split(",")]
-    out = {"E_Pa": E, "kappa": kappa, "sensor_rotary": args.sensor_rotary,
-           "resolution_hz": RESOLUTION_HZ, "f_measured_hz": list(F_MEASURED)}
+    out = {
+        "E_Pa": E,
+        "kappa": kappa,
+        "sensor_rotary": args.sensor_rotary,
+        "resolution_hz": RESOLUTION_HZ,
+        "f_measured_hz": list(F_MEASURED),
+    }
     sr = args.sensor_rotary
 
-    print(f"Ti strip {L*1e3:.1f} x {B*1e3:.0f} x {H*1e3:.0f} mm, rho {RHO:.0f}, E {E/1e9:.0f} GPa, "
-          f"kappa {kappa:.4f}; sensor {M_SENSOR*1e3:.1f} g point mass at x = {X_SENSOR*1e3:.1f} mm, "
-          f"rotary inertia: {'m h^2/12' if sr == 'plate' else 'none'}")
+    print(
+        f"Ti strip {L * 1e3:.1f} x {B * 1e3:.0f} x {H * 1e3:.0f} mm, rho {RHO:.0f}, E {E / 1e9:.0f} GPa, "
+        f"kappa {kappa:.4f}; sensor {M_SENSOR * 1e3:.1f} g point mass at x = {X_SENSOR * 1e3:.1f} mm, "
+        f"rotary inertia: {'m h^2/12' if sr == 'plate' else 'none'}"
+    )
 
     # --- convergence (nu = 0.33) -------------------------------------------------------
     print("\nmesh convergence (nu 0.33, with sensor): |f(ne) / f(2 ne) - 1|")
     conv = []
     prev = {}
     for ne in (10, 20, 40, 80, 160, 320):
-        cur = {"EB": frequencies(E, 0.33, kappa, ne, shear=False, sensor_rotary=sr),
-               "T": frequencies(E, 0.33, kappa, ne, shear=True, sensor_rotary=sr)}
+        cur = {
+            "EB": frequencies(E, 0.33, kappa, ne, shear=False, sensor_rotary=sr),
+            "T": frequencies(E, 0.33, kappa, ne, shear=True, sensor_rotary=sr),
+        }
         if prev:
             d = {k: np.abs(prev[k] / cur[k] - 1) for k in cur}
             conv.append({"ne": ne // 2, "EB": d["EB"].tolist(), "T": d["T"].tolist()})
-            print(f"  ne {ne//2:4d} -> {ne:4d}:  EB f1 {d['EB'][0]:.1e} f2 {d['EB'][1]:.1e}   "
-                  f"Timoshenko f1 {d['T'][0]:.1e} f2 {d['T'][1]:.1e}")
+            print(
+                f"  ne {ne // 2:4d} -> {ne:4d}:  EB f1 {d['EB'][0]:.1e} f2 {d['EB'][1]:.1e}   "
+                f"Timoshenko f1 {d['T'][0]:.1e} f2 {d['T'][1]:.1e}"
+            )
         prev = cur
     out["convergence"] = conv
 
@@ -204,22 +234,35 @@ def main(argv=None) -> int:
         "EB_rotary_vs_closed_form": (f_aR / h_aR - 1).tolist(),
         "Timoshenko_vs_closed_form": (f_bR / h_bR - 1).tolist(),
         "Timoshenko_kGx1e8_vs_EB": (f_big / f_a - 1).tolist(),
-        "closed_form_hz": {"EB_lambda": f_cf.tolist(), "Rayleigh": h_aR.tolist(),
-                           "Timoshenko": h_bR.tolist()},
+        "closed_form_hz": {
+            "EB_lambda": f_cf.tolist(),
+            "Rayleigh": h_aR.tolist(),
+            "Timoshenko": h_bR.tolist(),
+        },
     }
-    print(f"  (a) EB, no rotary inertia vs lambda 1.875104/4.694091 ({f_cf[0]:.3f}, {f_cf[1]:.3f} Hz):"
-          f" rel {ver['EB_no_rotary_vs_lambda'][0]:+.1e}, {ver['EB_no_rotary_vs_lambda'][1]:+.1e}")
-    print(f"  (a) EB + rotary vs closed form ({h_aR[0]:.3f}, {h_aR[1]:.3f} Hz):"
-          f" rel {ver['EB_rotary_vs_closed_form'][0]:+.1e}, {ver['EB_rotary_vs_closed_form'][1]:+.1e}")
-    print(f"  (b) Timoshenko vs closed form ({h_bR[0]:.3f}, {h_bR[1]:.3f} Hz):"
-          f" rel {ver['Timoshenko_vs_closed_form'][0]:+.1e}, {ver['Timoshenko_vs_closed_form'][1]:+.1e}")
-    print(f"  (b) kappa G x 1e8 vs (a), with sensor: rel {ver['Timoshenko_kGx1e8_vs_EB'][0]:+.1e}, "
-          f"{ver['Timoshenko_kGx1e8_vs_EB'][1]:+.1e}")
+    print(
+        f"  (a) EB, no rotary inertia vs lambda 1.875104/4.694091 ({f_cf[0]:.3f}, {f_cf[1]:.3f} Hz):"
+        f" rel {ver['EB_no_rotary_vs_lambda'][0]:+.1e}, {ver['EB_no_rotary_vs_lambda'][1]:+.1e}"
+    )
+    print(
+        f"  (a) EB + rotary vs closed form ({h_aR[0]:.3f}, {h_aR[1]:.3f} Hz):"
+        f" rel {ver['EB_rotary_vs_closed_form'][0]:+.1e}, {ver['EB_rotary_vs_closed_form'][1]:+.1e}"
+    )
+    print(
+        f"  (b) Timoshenko vs closed form ({h_bR[0]:.3f}, {h_bR[1]:.3f} Hz):"
+        f" rel {ver['Timoshenko_vs_closed_form'][0]:+.1e}, {ver['Timoshenko_vs_closed_form'][1]:+.1e}"
+    )
+    print(
+        f"  (b) kappa G x 1e8 vs (a), with sensor: rel {ver['Timoshenko_kGx1e8_vs_EB'][0]:+.1e}, "
+        f"{ver['Timoshenko_kGx1e8_vs_EB'][1]:+.1e}"
+    )
     out["verification"] = ver
 
     # --- table -----------------------------------------------------------------------------
-    print(f"\nwith sensor, ne = {args.ne}; shift = (f_T/f_EB - 1) x f; ratio = |shift| / "
-          f"{RESOLUTION_HZ} Hz (at model f / at measured f)")
+    print(
+        f"\nwith sensor, ne = {args.ne}; shift = (f_T/f_EB - 1) x f; ratio = |shift| / "
+        f"{RESOLUTION_HZ} Hz (at model f / at measured f)"
+    )
     print("   nu  mode    f_EB (Hz)   f_Tim (Hz)   f_T/f_EB-1   shift@model   shift@meas    ratio")
     rows = []
     for nu in nus:
@@ -228,12 +271,22 @@ def main(argv=None) -> int:
         for m in range(2):
             rel = fb[m] / fa[m] - 1
             s_mod, s_meas = fb[m] - fa[m], rel * F_MEASURED[m]
-            row = {"nu": nu, "mode": m + 1, "f_EB_hz": fa[m], "f_T_hz": fb[m], "rel": rel,
-                   "shift_model_hz": s_mod, "shift_measured_hz": s_meas,
-                   "ratio_model": abs(s_mod) / RESOLUTION_HZ, "ratio_measured": abs(s_meas) / RESOLUTION_HZ}
+            row = {
+                "nu": nu,
+                "mode": m + 1,
+                "f_EB_hz": fa[m],
+                "f_T_hz": fb[m],
+                "rel": rel,
+                "shift_model_hz": s_mod,
+                "shift_measured_hz": s_meas,
+                "ratio_model": abs(s_mod) / RESOLUTION_HZ,
+                "ratio_measured": abs(s_meas) / RESOLUTION_HZ,
+            }
             rows.append(row)
-            print(f"  {nu:.2f}  {m+1:3d}  {fa[m]:11.3f}  {fb[m]:11.3f}   {rel:+.3e}   {s_mod:+9.3f} Hz"
-                  f"  {s_meas:+9.3f} Hz  {row['ratio_model']:6.1f} / {row['ratio_measured']:.1f}")
+            print(
+                f"  {nu:.2f}  {m + 1:3d}  {fa[m]:11.3f}  {fb[m]:11.3f}   {rel:+.3e}   {s_mod:+9.3f} Hz"
+                f"  {s_meas:+9.3f} Hz  {row['ratio_model']:6.1f} / {row['ratio_measured']:.1f}"
+            )
     out["table"] = rows
     if args.json:
         with open(args.json, "w") as fh:

@@ -27,9 +27,22 @@ def write_pyuff_record(path, x, data, *, spacing, binary=0, id1="other system"):
     with 1; complex or real ``data``; returns ``path``."""
     import pyuff
 
-    record = {"type": 58, "binary": binary, "func_type": 4, "id1": id1, "rsp_node": 1,
-              "rsp_dir": 3, "ref_node": 1, "ref_dir": 3, "abscissa_spacing": spacing,
-              "abscissa_spec_data_type": 18, "ordinate_spec_data_type": 12,
-              "orddenom_spec_data_type": 13, "z_axis_spec_data_type": 0, "x": x, "data": data}
+    record = {
+        "type": 58,
+        "binary": binary,
+        "func_type": 4,
+        "id1": id1,
+        "rsp_node": 1,
+        "rsp_dir": 3,
+        "ref_node": 1,
+        "ref_dir": 3,
+        "abscissa_spacing": spacing,
+        "abscissa_spec_data_type": 18,
+        "ordinate_spec_data_type": 12,
+        "orddenom_spec_data_type": 13,
+        "z_axis_spec_data_type": 0,
+        "x": x,
+        "data": data,
+    }
     pyuff.UFF(str(path)).write_sets(record, mode="add")
     return path

@@ -151,19 +151,32 @@ def _solve(omega, u_b, phi_b, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0,
     if np.any(omega < 0) or not 0 < x_s <= L:
         raise ValueError("need omega >= 0 and 0 < x_s <= L")
     flat = omega.reshape(-1)
-    u_b, phi_b = (np.broadcast_to(np.asarray(v, complex), omega.shape).reshape(-1)
-                  for v in (u_b, phi_b))
+    u_b, phi_b = (
+        np.broadcast_to(np.asarray(v, complex), omega.shape).reshape(-1) for v in (u_b, phi_b)
+    )
     out = u_b + phi_b * x_s  # omega = 0: the base's rigid motion
     live = flat > 0
     if live.any():
-        A, b, e = _system(flat[live], u_b[live], phi_b[live], L=L, EI=EI, rhoA=rhoA, rhoI=rhoI,
-                          k_root=k_root, x_s=x_s, m=m, J=J)
+        A, b, e = _system(
+            flat[live],
+            u_b[live],
+            phi_b[live],
+            L=L,
+            EI=EI,
+            rhoA=rhoA,
+            rhoI=rhoI,
+            k_root=k_root,
+            x_s=x_s,
+            m=m,
+            J=J,
+        )
         out[live] = np.einsum("ni,ni->n", e, np.linalg.solve(A, b[..., None])[..., 0])
     return out.reshape(omega.shape)
 
 
-def afc(omega, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0, J=0.0,
-        rotation_per_translation=0.0):
+def afc(
+    omega, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0, J=0.0, rotation_per_translation=0.0
+):
     """H(omega) = w(x_s) / u_b: absolute displacement (= acceleration) at the body per base
     translation, the base rotating at the same time by phi_b = rotation_per_translation * u_b.
 
@@ -171,23 +184,36 @@ def afc(omega, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0, J=0.0,
     rhoI: kg m; k_root: N m/rad (complex allowed), None = rigid clamp; m: kg; J: kg m^2;
     rotation_per_translation: phi_b / u_b in rad/m, complex, scalar or broadcastable to omega.
     Returns a complex array of omega's shape (dimensionless)."""
-    return _solve(omega, 1.0, rotation_per_translation, L=L, EI=EI, rhoA=rhoA, rhoI=rhoI,
-                  k_root=k_root, x_s=x_s, m=m, J=J)
+    return _solve(
+        omega,
+        1.0,
+        rotation_per_translation,
+        L=L,
+        EI=EI,
+        rhoA=rhoA,
+        rhoI=rhoI,
+        k_root=k_root,
+        x_s=x_s,
+        m=m,
+        J=J,
+    )
 
 
 def afc_translation(omega, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0, J=0.0):
     """w(x_s) / u_b for a pure base translation (phi_b = 0); dimensionless, -> 1 as omega -> 0.
     Arguments as :func:`afc`."""
-    return _solve(omega, 1.0, 0.0, L=L, EI=EI, rhoA=rhoA, rhoI=rhoI, k_root=k_root, x_s=x_s,
-                  m=m, J=J)
+    return _solve(
+        omega, 1.0, 0.0, L=L, EI=EI, rhoA=rhoA, rhoI=rhoI, k_root=k_root, x_s=x_s, m=m, J=J
+    )
 
 
 def afc_rotation(omega, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0, J=0.0):
     """w(x_s) / phi_b (m/rad) for a pure base rotation about the clamp line (u_b = 0);
     -> x_s as omega -> 0. Arguments as :func:`afc`. By linearity
     afc = afc_translation + rotation_per_translation * afc_rotation."""
-    return _solve(omega, 0.0, 1.0, L=L, EI=EI, rhoA=rhoA, rhoI=rhoI, k_root=k_root, x_s=x_s,
-                  m=m, J=J)
+    return _solve(
+        omega, 0.0, 1.0, L=L, EI=EI, rhoA=rhoA, rhoI=rhoI, k_root=k_root, x_s=x_s, m=m, J=J
+    )
 
 
 def natural_frequencies_hz(n, *, L, EI, rhoA, rhoI=0.0, k_root=None, x_s, m=0.0, J=0.0):

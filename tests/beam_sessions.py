@@ -22,11 +22,11 @@ import dataclasses
 import functools
 import math
 
-import beam_reference as beam
 import numpy as np
+
+import beam_reference as beam
 from loop_data import noisy
 from plate_helpers import strip_setup
-
 from vibid.setup_model import Identification
 
 L, W, H_M, RHO = 0.100, 0.020, 0.001, 7920.0
@@ -38,17 +38,26 @@ def setup(freqs=F):
     """The declared setup: the strip, its sensor centred, stepped at ``freqs``."""
     s = strip_setup(y_m=W / 2)
     return dataclasses.replace(
-        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(map(float, freqs))),
-        identification=Identification("isotropic", {"D": (1.0, 100.0), "nu": (-0.3, 0.5),
-                                                    "beta": (1e-4, 0.1)}))
+        s,
+        excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(map(float, freqs))),
+        identification=Identification(
+            "isotropic", {"D": (1.0, 100.0), "nu": (-0.3, 0.5), "beta": (1e-4, 0.1)}
+        ),
+    )
 
 
 def _beam(effects: dict) -> dict:
     r = setup().sensors.response
     D, beta = TRUTH["D"], TRUTH["beta"]
-    kw = dict(L=L, EI=D * W * (1 + 1j * beta), rhoA=RHO * H_M * W,
-              rhoI=RHO * H_M**3 / 12 * W, x_s=r.x_m, m=r.mass_kg,
-              J=r.mass_kg * (r.radius_m**2 / 4 + H_M**2 / 12))
+    kw = dict(
+        L=L,
+        EI=D * W * (1 + 1j * beta),
+        rhoA=RHO * H_M * W,
+        rhoI=RHO * H_M**3 / 12 * W,
+        x_s=r.x_m,
+        m=r.mass_kg,
+        J=r.mass_kg * (r.radius_m**2 / 4 + H_M**2 / 12),
+    )
     if "k_theta_N_per_rad" in effects:
         loss = effects.get("beta_clamp", beta)
         kw["k_root"] = effects["k_theta_N_per_rad"] * W * (1 + 1j * loss)
@@ -68,7 +77,7 @@ def _loss_at(effects: dict, f_hz: float) -> float:
     return TRUTH["beta"] * (f_hz / 1000.0) ** effects.get("alpha", 0.0)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _afc(key: tuple) -> np.ndarray:
     effects = dict(key)
     omega = 2 * math.pi * F
@@ -78,14 +87,22 @@ def _afc(key: tuple) -> np.ndarray:
         theta = t0 / (1 - (F / f0) ** 2 + 1j * F / (f0 * q))
     if "alpha" in effects:  # EI (1 + i beta(f)) at each frequency
         kw = _beam(effects)
-        H = np.array([beam.afc(np.array([w]), **(kw | {"EI": kw["EI"].real * (
-            1 + 1j * _loss_at(effects, f))}), rotation_per_translation=t)[0]
-            for w, f, t in zip(omega, F, np.broadcast_to(theta, omega.shape))])
+        H = np.array(
+            [
+                beam.afc(
+                    np.array([w]),
+                    **(kw | {"EI": kw["EI"].real * (1 + 1j * _loss_at(effects, f))}),
+                    rotation_per_translation=t,
+                )[0]
+                for w, f, t in zip(omega, F, np.broadcast_to(theta, omega.shape))
+            ]
+        )
     else:
         H = beam.afc(omega, **_beam(effects), rotation_per_translation=theta)
     if "f_fixture_hz" in effects:  # a mode of the table the base sensor does not see
-        H = H * fixture_transmissibility(F, effects["f_fixture_hz"], effects["q_fixture"],
-                                         effects["a_fixture"])
+        H = H * fixture_transmissibility(
+            F, effects["f_fixture_hz"], effects["q_fixture"], effects["a_fixture"]
+        )
     H = H * effects.get("gain", 1.0) * np.exp(-1j * omega * effects.get("tau_s", 0.0))
     H = H + effects.get("crosstalk", 0.0)
     H.setflags(write=False)
@@ -124,5 +141,8 @@ def named_with_truth(loop, effects: dict, but=()) -> None:
     for n, v in (TRUTH | effects).items():
         if n in but:
             continue
-        assert abs(r.parameters[n] - v) < 3 * r.parameter_std[n], (n, r.parameters[n],
-                                                                  r.parameter_std[n])
+        assert abs(r.parameters[n] - v) < 3 * r.parameter_std[n], (
+            n,
+            r.parameters[n],
+            r.parameter_std[n],
+        )

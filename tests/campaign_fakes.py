@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass, field
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 
@@ -106,15 +106,15 @@ class FakeDaq:
     seed: int = 0
     fn_hz: float = 80.0
     eta: float = 0.01
-    gain: object = 25.0                 #: m/s² per Vpp, a number or a function of f
+    gain: object = 25.0  #: m/s² per Vpp, a number or a function of f
     noise_rel: float = 4e-4
     clock_offset_ppm: float = 40.0
     transient_scale: float = 0.5
     clip_m_s2: float | None = None
     step: int = -1
     records_in_step: int = 0
-    fail_at: tuple | None = None        #: (step, exception instance) raised by acquire
-    wall_delay_s: float = 0.0           #: real time each acquisition takes (signal tests)
+    fail_at: tuple | None = None  #: (step, exception instance) raised by acquire
+    wall_delay_s: float = 0.0  #: real time each acquisition takes (signal tests)
     acquisitions: list = field(default_factory=list)
 
     def base_amplitude(self, f):
@@ -130,7 +130,9 @@ class FakeDaq:
             time.sleep(self.wall_delay_s)
         g = self.generator
         f = g.frequency_hz
-        h = complex(sdof_h(f * (1 + 1e-6 * self.clock_offset_ppm), self.fn_hz, self.eta))  # as played
+        h = complex(
+            sdof_h(f * (1 + 1e-6 * self.clock_offset_ppm), self.fn_hz, self.eta)
+        )  # as played
         amp = self.base_amplitude(f)
         tau = 1.0 / (math.pi * self.fn_hz * self.eta)
         elapsed = self.clock.since_mark_s
@@ -139,12 +141,19 @@ class FakeDaq:
         rng = np.random.default_rng([self.seed, self.step + 1, self.records_in_step])
         self.records_in_step += 1
         base, resp = synthetic_step(
-            f, h, sample_rate_hz=self.sample_rate_hz, n_samples=n_samples,
-            base_amplitude_m_s2=max(amp, 1e-9), base_phase_rad=float(rng.uniform(0, 2 * np.pi)),
-            clock_offset_ppm=self.clock_offset_ppm, noise_std_m_s2=(self.noise_rel * 5.0,) * 2,
+            f,
+            h,
+            sample_rate_hz=self.sample_rate_hz,
+            n_samples=n_samples,
+            base_amplitude_m_s2=max(amp, 1e-9),
+            base_phase_rad=float(rng.uniform(0, 2 * np.pi)),
+            clock_offset_ppm=self.clock_offset_ppm,
+            noise_std_m_s2=(self.noise_rel * 5.0,) * 2,
             transient=Transient(t_amp, tau, self.fn_hz) if t_amp > 0 else None,
-            clip_m_s2=self.clip_m_s2, rng=rng)
-        t0 = datetime(2026, 1, 1, tzinfo=timezone.utc) + timedelta(seconds=self.clock.now_s())
+            clip_m_s2=self.clip_m_s2,
+            rng=rng,
+        )
+        t0 = datetime(2026, 1, 1, tzinfo=UTC) + timedelta(seconds=self.clock.now_s())
         self.clock.sleep(n_samples / self.sample_rate_hz)
         over = ()
         if self.clip_m_s2 is not None and np.max(np.abs(resp)) >= self.clip_m_s2:
@@ -169,14 +178,21 @@ def fake_stand(**daq_options) -> FakeStand:
     return FakeStand(gen, daq, clock, "fake")
 
 
-def short_setup(n_steps: int = 10, f_lo: float = 40.0, f_hi: float = 130.0, settle_s: float = 0.05,
-                sample_rate_hz: float = 25600.0):
+def short_setup(
+    n_steps: int = 10,
+    f_lo: float = 40.0,
+    f_hi: float = 130.0,
+    settle_s: float = 0.05,
+    sample_rate_hz: float = 25600.0,
+):
     """The example setup with ``n_steps`` frequencies from ``f_lo`` to ``f_hi`` Hz."""
     s = example_setup()
     freqs = tuple(float(f) for f in np.linspace(f_lo, f_hi, n_steps))
     from dataclasses import replace
 
-    return replace(s, excitation=Excitation(freqs, settle_s), daq=replace(s.daq, sample_rate_hz=sample_rate_hz))
+    return replace(
+        s, excitation=Excitation(freqs, settle_s), daq=replace(s.daq, sample_rate_hz=sample_rate_hz)
+    )
 
 
 def fast_config(**timing):
@@ -186,23 +202,30 @@ def fast_config(**timing):
     from vibid.acquisition.stand_config import StandConfig
 
     c = StandConfig()
-    t = replace(c.timing, min_record_s=0.1, min_cycles=10, expected_loss_factor=0.01, max_settle_s=3.0)
+    t = replace(
+        c.timing, min_record_s=0.1, min_cycles=10, expected_loss_factor=0.01, max_settle_s=3.0
+    )
     return replace(c, timing=replace(t, **timing))
 
 
 if __name__ == "__main__":  # a campaign process for the crash tests
-    from vibid.acquisition.campaign import run_campaign
-
     import time
 
     import scipy.special  # noqa: F401 - imported before "ready" (the first fit would), so that
+
     import vibid.signal  # noqa: F401   kill instants spread over the steps
+    from vibid.acquisition.campaign import run_campaign
 
     out = sys.argv[1]
     print("ready", flush=True)
     t = time.perf_counter()
     slow = 0.1 if "--slow" in sys.argv[2:] else 0.0
-    result = run_campaign(short_setup(), fake_stand(seed=7, wall_delay_s=slow), out, fast_config(),
-                          resume="--resume" in sys.argv[2:],
-                          progress=lambda p: print(p.index, flush=True))
+    result = run_campaign(
+        short_setup(),
+        fake_stand(seed=7, wall_delay_s=slow),
+        out,
+        fast_config(),
+        resume="--resume" in sys.argv[2:],
+        progress=lambda p: print(p.index, flush=True),
+    )
     print("done", result.run_status, result.n_steps, time.perf_counter() - t, flush=True)

@@ -45,8 +45,9 @@ def _prefect_console_follows_stderr() -> None:
 
     from prefect.logging.handlers import PrefectConsoleHandler
 
-    for logger in [logging.getLogger()] + [logging.getLogger(n) for n in
-                                          list(logging.root.manager.loggerDict)]:
+    for logger in [logging.getLogger()] + [
+        logging.getLogger(n) for n in list(logging.root.manager.loggerDict)
+    ]:
         for handler in getattr(logger, "handlers", []):
             if isinstance(handler, PrefectConsoleHandler):
                 handler.stream = _CurrentStderr()  # not setStream: it flushes the closed one

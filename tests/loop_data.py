@@ -15,6 +15,7 @@ import dataclasses
 import functools
 
 import numpy as np
+
 from plate_helpers import strip_setup
 
 TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}
@@ -29,15 +30,19 @@ RESTARTS = 1
 def strip_on(freqs=F, setup=None):
     """``setup`` (default: the paper's strip) stepped at ``freqs`` (Hz)."""
     s = setup or strip_setup()
-    return dataclasses.replace(s, excitation=dataclasses.replace(
-        strip_setup().excitation, frequencies_hz=tuple(float(f) for f in freqs)))
+    return dataclasses.replace(
+        s,
+        excitation=dataclasses.replace(
+            strip_setup().excitation, frequencies_hz=tuple(float(f) for f in freqs)
+        ),
+    )
 
 
 def _key(params: dict) -> tuple:
     return tuple(sorted(params.items()))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _fine_afc(key: tuple) -> np.ndarray:
     from vibid.hardware_mocks.simulated_session import true_afc
 
@@ -63,7 +68,7 @@ def data(effects: dict, seed: int):
     return noisy(fine_afc(effects), seed)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _declared(key: tuple, seed: int, restarts: int):
     from vibid.identify.fit import identify
 

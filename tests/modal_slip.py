@@ -48,8 +48,9 @@ def jenkins(a, k_j, slip):
     if a <= slip:
         return k_j + 0j
     phi = np.arccos(1 - 2 * slip / a)
-    return (k_j * (phi - 0.5 * np.sin(2 * phi)) / np.pi
-            + 4j * k_j * slip * (a - slip) / (np.pi * a * a))
+    return k_j * (phi - 0.5 * np.sin(2 * phi)) / np.pi + 4j * k_j * slip * (a - slip) / (
+        np.pi * a * a
+    )
 
 
 def stepped_sine(omega, linear, k_j, slip):

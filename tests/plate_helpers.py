@@ -7,8 +7,8 @@ import functools
 
 import numpy as np
 
-from vibid.setup_model import ResponseSensor, Sensors, Specimen, example_setup
 from vibid.identify.model.materials import flexural_rigidity
+from vibid.setup_model import ResponseSensor, Sensors, Specimen, example_setup
 
 #: The paper's strip: steel, E 198 GPa, nu 0.286, rho 7920, h 1 mm -> D = 17.97 N m.
 PAPER_D = flexural_rigidity(198e9, 0.286, 0.001)
@@ -26,14 +26,17 @@ def strip_setup(**sensor):
 def plate_setup(length_m, width_m, thickness_m, density=7920.0, **sensor):
     s = example_setup()
     spec = Specimen("test plate", length_m, width_m, thickness_m, density)
-    r = ResponseSensor(100.0, x_m=sensor.get("x_m", 0.9 * length_m),
-                       y_m=sensor.get("y_m", 0.5 * width_m),
-                       mass_kg=sensor.get("mass_kg", 0.0),
-                       radius_m=sensor.get("radius_m", 0.2 * width_m))
+    r = ResponseSensor(
+        100.0,
+        x_m=sensor.get("x_m", 0.9 * length_m),
+        y_m=sensor.get("y_m", 0.5 * width_m),
+        mass_kg=sensor.get("mass_kg", 0.0),
+        radius_m=sensor.get("radius_m", 0.2 * width_m),
+    )
     return dataclasses.replace(s, specimen=spec, sensors=Sensors(s.sensors.base, r))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def strip_model(kind="local", accuracy="default", nf=200):
     """The paper's strip model on ``nf`` frequencies 7.5 .. 1500 Hz (cached per session)."""
     from vibid.identify import build_forward_model

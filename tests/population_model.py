@@ -87,8 +87,13 @@ def stiffness(material: dict) -> dict:
     (D11, D12, D22, D66, beta) parameter set."""
     if "D" in material:
         D, nu = material["D"], material["nu"]
-        return {"D11": D, "D12": nu * D, "D22": D, "D66": (1 - nu) * D / 2,
-                "beta": material["beta"]}
+        return {
+            "D11": D,
+            "D12": nu * D,
+            "D22": D,
+            "D66": (1 - nu) * D / 2,
+            "beta": material["beta"],
+        }
     return {k: material[k] for k in ("D11", "D12", "D22", "D66", "beta")}
 
 
@@ -112,8 +117,11 @@ def _along(n, xi, p):
     xi = np.asarray(xi, float)
     f = xi**p * P
     d1 = p * xi ** (p - 1) * P + xi**p * P1
-    d2 = (p * (p - 1) * xi ** max(p - 2, 0) * P if p >= 2 else 0.0) + 2 * p * xi ** (
-        p - 1) * P1 + xi**p * P2
+    d2 = (
+        (p * (p - 1) * xi ** max(p - 2, 0) * P if p >= 2 else 0.0)
+        + 2 * p * xi ** (p - 1) * P1
+        + xi**p * P2
+    )
     return f, d1, d2
 
 
@@ -130,19 +138,23 @@ class Basis:
         Y = [a / B**i for i, a in enumerate(_legendre(n_y, t))]
         self.A = {(i, j): (X[i] * wt * L) @ X[j].T for i in range(3) for j in range(3)}
         self.C = {(i, j): (Y[i] * wt * B) @ Y[j].T for i in range(3) for j in range(3)}
-        self.a0 = X[0] @ (wt * L)           # int X dx
-        self.ax = X[0] @ (wt * L * t * L)   # int X x dx
-        self.a1 = X[1] @ (wt * L)           # int X' dx
-        self.c0 = Y[0] @ (wt * B)           # int Y dy
+        self.a0 = X[0] @ (wt * L)  # int X dx
+        self.ax = X[0] @ (wt * L * t * L)  # int X x dx
+        self.a1 = X[1] @ (wt * L)  # int X' dx
+        self.c0 = Y[0] @ (wt * B)  # int Y dy
         k = np.kron
         A, C = self.A, self.C
-        self.K = {"D11": k(A[2, 2], C[0, 0]), "D12": k(A[2, 0], C[0, 2]) + k(A[0, 2], C[2, 0]),
-                  "D22": k(A[0, 0], C[2, 2]), "D66": 4 * k(A[1, 1], C[1, 1])}
+        self.K = {
+            "D11": k(A[2, 2], C[0, 0]),
+            "D12": k(A[2, 0], C[0, 2]) + k(A[0, 2], C[2, 0]),
+            "D22": k(A[0, 0], C[2, 2]),
+            "D66": 4 * k(A[1, 1], C[1, 1]),
+        }
         self.M00 = k(A[0, 0], C[0, 0])
         self.Mgrad = k(A[1, 1], C[0, 0]) + k(A[0, 0], C[1, 1])
-        self.load1 = k(self.a0, self.c0)           # int psi
-        self.loadx = k(self.ax, self.c0)           # int psi x
-        self.loadgx = k(self.a1, self.c0)          # int psi_x
+        self.load1 = k(self.a0, self.c0)  # int psi
+        self.loadx = k(self.ax, self.c0)  # int psi x
+        self.loadgx = k(self.a1, self.c0)  # int psi_x
         # the clamp spring: int_0^B psi_x(0, y) psi_x(0, y) dy
         xp0 = _along(n_x, np.array([0.0]), self.p)[1][:, 0] / L
         self.S = k(np.outer(xp0, xp0), C[0, 0])
@@ -173,8 +185,7 @@ def _disc(basis_key, xs, ys, radius, n_disc=16):
     wd = np.outer(wr * radius / 2 * r, np.full(t.size, math.pi / n_disc)).ravel()
     xq, yq = xs + (R * np.cos(T)).ravel(), ys + (R * np.sin(T)).ravel()
     f, fx, fy = b.fields(xq, yq)
-    return ((f * wd) @ f.T, (fx * wd) @ fx.T + (fy * wd) @ fy.T, f @ wd, f @ (wd * xq),
-            fx @ wd)
+    return ((f * wd) @ f.T, (fx * wd) @ fx.T + (fy * wd) @ fy.T, f @ wd, f @ (wd * xq), fx @ wd)
 
 
 @dataclasses.dataclass
@@ -184,10 +195,10 @@ class System:
     K: dict
     S: np.ndarray | None
     M: np.ndarray
-    Mplate: np.ndarray   # the plate's translational mass alone (air damping acts on it)
-    load1: np.ndarray    # M r for r = 1
-    loadx: np.ndarray    # M r for r = x
-    plate1: np.ndarray   # Mplate r for r = 1
+    Mplate: np.ndarray  # the plate's translational mass alone (air damping acts on it)
+    load1: np.ndarray  # M r for r = 1
+    loadx: np.ndarray  # M r for r = x
+    plate1: np.ndarray  # Mplate r for r = 1
     platex: np.ndarray
     probe: np.ndarray
     xs: float
@@ -218,8 +229,18 @@ def system(plate: Plate, order, clamp, dL=0.0, dy=0.0, added_mass=0.0, height=0.
         J = plate.mass * ((h / 2 + height) ** 2 - (h / 2) ** 2) / area
         M = M + J * Mg
         loadx = loadx + J * dgx
-    return System(b.K, b.S if clamp == "elastic" else None, M, rh * b.M00, load1, loadx,
-                  rh * b.load1, rh * b.loadx, f, xs)
+    return System(
+        b.K,
+        b.S if clamp == "elastic" else None,
+        M,
+        rh * b.M00,
+        load1,
+        loadx,
+        rh * b.load1,
+        rh * b.loadx,
+        f,
+        xs,
+    )
 
 
 def _theta(f_hz, effects):
@@ -233,15 +254,23 @@ def _theta(f_hz, effects):
     return th
 
 
-def plate_afc(f_hz, plate: Plate, material: dict, effects: dict | None = None,
-              order=STRIP_ORDER) -> np.ndarray:
+def plate_afc(
+    f_hz, plate: Plate, material: dict, effects: dict | None = None, order=STRIP_ORDER
+) -> np.ndarray:
     """H(f) of the plate alone with the mechanical effects (no channel effects)."""
     e = dict(effects or {})
     f_hz = np.asarray(f_hz, float)
     D = stiffness(material)
     elastic = "k_theta_N_per_rad" in e
-    sy = system(plate, tuple(order), "elastic" if elastic else "rigid", e.get("dL_m", 0.0),
-                e.get("sensor_dy_m", 0.0), e.get("mass_kg", 0.0), e.get("height_m", 0.0))
+    sy = system(
+        plate,
+        tuple(order),
+        "elastic" if elastic else "rigid",
+        e.get("dL_m", 0.0),
+        e.get("sensor_dy_m", 0.0),
+        e.get("mass_kg", 0.0),
+        e.get("height_m", 0.0),
+    )
     Kr = sum(D[n] * sy.K[n] for n in ("D11", "D12", "D22", "D66"))
     beta, alpha = D["beta"], e.get("alpha", 0.0)
     spring = None
@@ -266,22 +295,31 @@ def plate_afc(f_hz, plate: Plate, material: dict, effects: dict | None = None,
             if spring is not None:
                 Kc = Kc + spring
             Z = Kc - w * w * sy.M + 1j * w * gamma * sy.Mplate
-            rhs = (w * w * (sy.load1 + theta[i] * sy.loadx)
-                   - 1j * w * gamma * (sy.plate1 + theta[i] * sy.platex))
+            rhs = w * w * (sy.load1 + theta[i] * sy.loadx) - 1j * w * gamma * (
+                sy.plate1 + theta[i] * sy.platex
+            )
             out[i] = 1 + theta[i] * sy.xs + sy.probe @ np.linalg.solve(Z, rhs)
     if "slip_kappa" in e:
         out = _slip(f_hz, out, plate, material, e, order)
     return out
 
 
-def natural_frequencies_hz(plate: Plate, material: dict, effects: dict | None = None,
-                           n=6, order=STRIP_ORDER) -> np.ndarray:
+def natural_frequencies_hz(
+    plate: Plate, material: dict, effects: dict | None = None, n=6, order=STRIP_ORDER
+) -> np.ndarray:
     """The first ``n`` undamped natural frequencies (Hz), base fixed."""
     e = dict(effects or {})
     D = stiffness(material)
     elastic = "k_theta_N_per_rad" in e
-    sy = system(plate, tuple(order), "elastic" if elastic else "rigid", e.get("dL_m", 0.0),
-                e.get("sensor_dy_m", 0.0), e.get("mass_kg", 0.0), e.get("height_m", 0.0))
+    sy = system(
+        plate,
+        tuple(order),
+        "elastic" if elastic else "rigid",
+        e.get("dL_m", 0.0),
+        e.get("sensor_dy_m", 0.0),
+        e.get("mass_kg", 0.0),
+        e.get("height_m", 0.0),
+    )
     K = sum(D[k] * sy.K[k] for k in ("D11", "D12", "D22", "D66"))
     if elastic:
         K = K + e["k_theta_N_per_rad"] * sy.S
@@ -302,14 +340,14 @@ def _slip(f_hz, H, plate, material, e, order):
     w0_sq = w1**2 / (1 + kappa)
     omega = 2 * math.pi * np.asarray(f_hz)
     slip_amp = e["slip_fraction"] / (beta * w1**2)
-    z = stepped_sine(omega, lambda w: w0_sq + 1j * beta * w1**2 - w * w, kappa * w0_sq,
-                     slip_amp)
+    z = stepped_sine(omega, lambda w: w0_sq + 1j * beta * w1**2 - w * w, kappa * w0_sq, slip_amp)
     z_lin = 1 / (w1**2 * (1 + 1j * beta) - omega**2)
     return H + c * omega**2 * (z - z_lin)
 
 
-def afc(f_hz, plate: Plate, material: dict, effects: dict | None = None,
-        order=STRIP_ORDER) -> np.ndarray:
+def afc(
+    f_hz, plate: Plate, material: dict, effects: dict | None = None, order=STRIP_ORDER
+) -> np.ndarray:
     """The measured ratio H(f): the plate with the mechanical effects, then the fixture, the
     channels' gain and delay and the crosstalk."""
     e = dict(effects or {})
@@ -334,16 +372,26 @@ def noisy(H, std, seed):
 
 
 # -- the declared model's least-squares refit ------------------------------------------
-def refit(f_hz, H, std, plate: Plate, declared: str, start: dict, free_effects=(),
-          fixed_effects=None, order=STRIP_ORDER):
+def refit(
+    f_hz,
+    H,
+    std,
+    plate: Plate,
+    declared: str,
+    start: dict,
+    free_effects=(),
+    fixed_effects=None,
+    order=STRIP_ORDER,
+):
     """The declared material model (``"isotropic"``: D, nu, beta; ``"orthotropic"``: D11,
     D12, D22, D66, beta) fitted to (H, std) by least squares from ``start`` (its values and
     those of ``free_effects``, names of this module's effect parameters), on the declared
     geometry with ``fixed_effects``. Returns (chi2_reduced, fitted dict)."""
     from scipy.optimize import least_squares
 
-    names = (["D", "nu", "beta"] if declared == "isotropic"
-             else ["D11", "D12", "D22", "D66", "beta"]) + list(free_effects)
+    names = (
+        ["D", "nu", "beta"] if declared == "isotropic" else ["D11", "D12", "D22", "D66", "beta"]
+    ) + list(free_effects)
     logs = [n not in ("nu", "D12", "alpha", "sensor_dy_m", "dL_m") for n in names]
     x0 = np.array([math.log(start[n]) if lg else start[n] for n, lg in zip(names, logs)])
     fixed = dict(fixed_effects or {})
@@ -358,7 +406,6 @@ def refit(f_hz, H, std, plate: Plate, declared: str, start: dict, free_effects=(
         r = (afc(f_hz, plate, mat, eff, order) - H) / std
         return np.concatenate([r.real, r.imag])
 
-    sol = least_squares(resid, x0, method="lm", x_scale=np.where(logs, 0.01, 0.01),
-                        max_nfev=400)
+    sol = least_squares(resid, x0, method="lm", x_scale=np.where(logs, 0.01, 0.01), max_nfev=400)
     dof = 2 * len(H) - len(names)
     return float(2 * sol.cost / dof), unpack(sol.x)

@@ -27,8 +27,13 @@ def _legendre(n, t):
     for k in range(n):
         c = np.zeros(k + 1)
         c[k] = 1.0
-        out.append((legendre.legval(s, c), 2 * legendre.legval(s, legendre.legder(c)),
-                    4 * legendre.legval(s, legendre.legder(c, 2))))
+        out.append(
+            (
+                legendre.legval(s, c),
+                2 * legendre.legval(s, legendre.legder(c)),
+                4 * legendre.legval(s, legendre.legder(c, 2)),
+            )
+        )
     return [np.array(v) for v in zip(*out)]
 
 
@@ -67,13 +72,16 @@ def matrices(L, B, h, rho, xs, ys, mass, radius, n_x=30, n_y=16, n_quad=64, n_di
     def gram(a, c, weights):
         return (a * weights) @ c.T
 
-    K = {"11": gram(P["xx"], P["xx"], w),
-         "12": gram(P["xx"], P["yy"], w) + gram(P["yy"], P["xx"], w),
-         "22": gram(P["yy"], P["yy"], w),
-         "66": 4 * gram(P["xy"], P["xy"], w)}
+    K = {
+        "11": gram(P["xx"], P["xx"], w),
+        "12": gram(P["xx"], P["yy"], w) + gram(P["yy"], P["xx"], w),
+        "22": gram(P["yy"], P["yy"], w),
+        "66": 4 * gram(P["xy"], P["xy"], w),
+    }
     rho_h = rho * h
-    M = rho_h * (gram(P["f"], P["f"], w) + h**2 / 12 * (gram(P["x"], P["x"], w)
-                                                       + gram(P["y"], P["y"], w)))
+    M = rho_h * (
+        gram(P["f"], P["f"], w) + h**2 / 12 * (gram(P["x"], P["x"], w) + gram(P["y"], P["y"], w))
+    )
     # the disc: Gauss-Legendre in r (area weight r dr) times equal steps in angle
     gr, wr = np.polynomial.legendre.leggauss(n_disc)
     r = (gr + 1) / 2 * radius
@@ -82,19 +90,35 @@ def matrices(L, B, h, rho, xs, ys, mass, radius, n_x=30, n_y=16, n_quad=64, n_di
     wd = (np.outer(wr * radius / 2 * r, np.full(t.size, math.pi / n_disc))).ravel()
     Q = fields(xs + (R * np.cos(T)).ravel(), ys + (R * np.sin(T)).ravel())
     density = mass / (math.pi * radius**2)
-    M = M + density * (gram(Q["f"], Q["f"], wd) + h**2 / 12 * (gram(Q["x"], Q["x"], wd)
-                                                              + gram(Q["y"], Q["y"], wd)))
+    M = M + density * (
+        gram(Q["f"], Q["f"], wd) + h**2 / 12 * (gram(Q["x"], Q["x"], wd) + gram(Q["y"], Q["y"], wd))
+    )
     load = rho_h * (P["f"] @ w) + density * (Q["f"] @ wd)
     probe = fields(np.array([xs]), np.array([ys]))["f"][:, 0]
     return K, M, load, probe
 
 
-def afc(f_hz, D, nu, beta, *, L=0.100, B=0.020, h=0.001, rho=7920.0, xs=0.090, ys=0.010,
-        mass=1e-3, radius=0.001, **kw):
+def afc(
+    f_hz,
+    D,
+    nu,
+    beta,
+    *,
+    L=0.100,
+    B=0.020,
+    h=0.001,
+    rho=7920.0,
+    xs=0.090,
+    ys=0.010,
+    mass=1e-3,
+    radius=0.001,
+    **kw,
+):
     """H (complex, per f_hz) of the isotropic Ritz plate, sensor at (xs, ys) m."""
     K, M, load, probe = matrices(L, B, h, rho, xs, ys, mass, radius, **kw)
     Kc = (D * K["11"] + nu * D * K["12"] + D * K["22"] + (1 - nu) * D / 2 * K["66"]) * (
-        1 + 1j * beta)
+        1 + 1j * beta
+    )
     out = []
     for f in np.atleast_1d(f_hz):
         w2 = (2 * math.pi * f) ** 2
@@ -107,10 +131,13 @@ def natural_frequencies_hz(D, nu, n=6, **geometry):
     """The first ``n`` natural frequencies (Hz), base fixed, of the isotropic Ritz plate."""
     import scipy.linalg
 
-    kw = dict(L=0.100, B=0.020, h=0.001, rho=7920.0, xs=0.090, ys=0.010, mass=1e-3,
-              radius=0.001) | geometry
-    K, M, _, _ = matrices(kw["L"], kw["B"], kw["h"], kw["rho"], kw["xs"], kw["ys"],
-                          kw["mass"], kw["radius"])
+    kw = (
+        dict(L=0.100, B=0.020, h=0.001, rho=7920.0, xs=0.090, ys=0.010, mass=1e-3, radius=0.001)
+        | geometry
+    )
+    K, M, _, _ = matrices(
+        kw["L"], kw["B"], kw["h"], kw["rho"], kw["xs"], kw["ys"], kw["mass"], kw["radius"]
+    )
     Kr = D * K["11"] + nu * D * K["12"] + D * K["22"] + (1 - nu) * D / 2 * K["66"]
     lam = scipy.linalg.eigh(Kr, M, eigvals_only=True)[:n]
     return np.sqrt(lam) / (2 * math.pi)

@@ -24,8 +24,14 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-_LAMBDA_CF = [1.875104068711961, 4.694091132974175, 7.854757438237613, 10.99554073487547,
-              14.13716839104647, 17.27875953208824]
+_LAMBDA_CF = [
+    1.875104068711961,
+    4.694091132974175,
+    7.854757438237613,
+    10.99554073487547,
+    14.13716839104647,
+    17.27875953208824,
+]
 _LAMBDA_FF = [4.730040744862704, 7.853204624095838, 10.99560783800167, 14.13716549125746]
 
 
@@ -44,7 +50,11 @@ def _free_free(k, eta):
     if k == 0:
         return np.ones_like(eta), np.zeros_like(eta), np.zeros_like(eta)
     if k == 1:
-        return np.sqrt(3.0) * (2 * eta - 1), 2 * np.sqrt(3.0) * np.ones_like(eta), np.zeros_like(eta)
+        return (
+            np.sqrt(3.0) * (2 * eta - 1),
+            2 * np.sqrt(3.0) * np.ones_like(eta),
+            np.zeros_like(eta),
+        )
     lam = _LAMBDA_FF[k - 2]
     s = (np.cosh(lam) - np.cos(lam)) / (np.sinh(lam) - np.sin(lam))
     a = lam * eta
@@ -54,8 +64,17 @@ def _free_free(k, eta):
     return f, d1, d2
 
 
-def ritz_matrices(length_m, width_m, thickness_m, density_kg_m3, sensor_xy_m, sensor_mass_kg,
-                  n_x=5, n_y=4, n_quad=48):
+def ritz_matrices(
+    length_m,
+    width_m,
+    thickness_m,
+    density_kg_m3,
+    sensor_xy_m,
+    sensor_mass_kg,
+    n_x=5,
+    n_y=4,
+    n_quad=48,
+):
     """Constant matrices of the Ritz model: K^alpha (alpha in 11, 12, 22, 66), M, b, psi_s."""
     gx, wx = np.polynomial.legendre.leggauss(n_quad)
     xi, wxi = (gx + 1) / 2, wx / 2
@@ -86,10 +105,13 @@ def ritz_matrices(length_m, width_m, thickness_m, density_kg_m3, sensor_xy_m, se
         "66": 4 * gram(Pxy, Pxy),
     }
     xs, ys = sensor_xy_m[0] / L, sensor_xy_m[1] / B
-    psi_s = np.array([
-        _clamped_free(_LAMBDA_CF[m], np.array(xs))[0] * _free_free(n, np.array(ys))[0]
-        for m in range(n_x) for n in range(n_y)
-    ])
+    psi_s = np.array(
+        [
+            _clamped_free(_LAMBDA_CF[m], np.array(xs))[0] * _free_free(n, np.array(ys))[0]
+            for m in range(n_x)
+            for n in range(n_y)
+        ]
+    )
     rho_h = density_kg_m3 * thickness_m
     M = rho_h * gram(P, P) + sensor_mass_kg * np.outer(psi_s, psi_s)
     b = rho_h * (P * wf).sum(axis=1) + sensor_mass_kg * psi_s
@@ -101,8 +123,15 @@ class RitzPlateModel:
 
     def __init__(self, setup, frequencies_hz, model="isotropic", **kw):
         sp, r = setup.specimen, setup.sensors.response
-        K, M, b, psi_s = ritz_matrices(sp.length_m, sp.width_m, sp.thickness_m,
-                                       sp.density_kg_m3, (r.x_m, r.y_m), r.mass_kg, **kw)
+        K, M, b, psi_s = ritz_matrices(
+            sp.length_m,
+            sp.width_m,
+            sp.thickness_m,
+            sp.density_kg_m3,
+            (r.x_m, r.y_m),
+            r.mass_kg,
+            **kw,
+        )
         self.model = model
         self.parameter_names = {
             "isotropic": ("D", "nu", "beta"),

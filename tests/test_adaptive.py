@@ -18,7 +18,6 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 from campaign_fakes import fake_stand, fast_config, short_setup  # noqa: E402
-
 from vibid.acquisition.campaign import CampaignError, run_campaign  # noqa: E402
 from vibid.acquisition.plan import Pause, StepCommand, record_samples  # noqa: E402
 from vibid.cli import main  # noqa: E402
@@ -41,7 +40,6 @@ def test_steps_across_a_mode_are_evenly_spaced_in_its_phase():
 
 
 def test_the_campaign_stalls_only_where_steps_stop_buying_what_their_information_promised():
-    import math
 
     from vibid.planner.adaptive.campaign import stalled
 
@@ -60,17 +58,28 @@ class Scripted:
 
     def __init__(self, batches, attribute=None):
         self.batches = batches
-        self.attribute = attribute or {"target": ["D=1%"], "band_hz": [40.0, 130.0],
-                                       "max_stand_time_s": 60.0, "batch_size": 2, "seed": 0}
+        self.attribute = attribute or {
+            "target": ["D=1%"],
+            "band_hz": [40.0, 130.0],
+            "max_stand_time_s": 60.0,
+            "batch_size": 2,
+            "seed": 0,
+        }
         self.starts = []
 
     def plan(self, session_path, start):
         self.starts.append((session_path, start))
         index = start
-        for batch in self.batches[1 if start else 0:]:
+        for batch in self.batches[1 if start else 0 :]:
             for f in batch:
-                yield StepCommand(index, index + 1, f, 0.05,
-                                  record_samples(f, 25600.0, fast_config().timing), 25600.0)
+                yield StepCommand(
+                    index,
+                    index + 1,
+                    f,
+                    0.05,
+                    record_samples(f, 25600.0, fast_config().timing),
+                    25600.0,
+                )
                 index += 1
             yield Pause()
         return "scripted batches played"
@@ -103,7 +112,9 @@ def test_an_adaptive_session_keeps_acquisition_order_and_lists_what_it_recorded(
     assert [p.index for p in afc.points] == [1, 3, 2, 0]
 
 
-def test_an_adaptive_session_is_created_with_its_first_step_and_reads_interrupted_unclosed(tmp_path):
+def test_an_adaptive_session_is_created_with_its_first_step_and_reads_interrupted_unclosed(
+    tmp_path,
+):
     setup, out = short_setup(), tmp_path / "a.h5"
     w = SessionWriter(out, setup, adaptive={"batch_size": 2})
     assert not out.exists()  # a setup lists at least one frequency: no file without a step
@@ -126,16 +137,27 @@ def test_an_adaptive_campaign_resumes_from_its_steps_with_its_own_options_only(t
         attribute = s.adaptive
     # its status says complete, but a resume is allowed: the chooser decides (here: one more batch)
     more = Scripted([[120.0, 60.0], [95.0]], attribute)
-    other_excitation = dataclasses.replace(setup, excitation=dataclasses.replace(
-        setup.excitation, frequencies_hz=(10.0, 20.0)))
-    result = run_campaign(other_excitation, fake_stand(), out, fast_config(), resume=True, chooser=more)
+    other_excitation = dataclasses.replace(
+        setup, excitation=dataclasses.replace(setup.excitation, frequencies_hz=(10.0, 20.0))
+    )
+    result = run_campaign(
+        other_excitation, fake_stand(), out, fast_config(), resume=True, chooser=more
+    )
     assert more.starts == [(str(out), 3)] and result.n_steps == 4
     with read_session(out) as s:
         assert list(s.frequencies_hz()) == [120.0, 60.0, 90.0, 95.0]
     with pytest.raises(CampaignError, match="other adaptive options"):
-        run_campaign(setup, fake_stand(), out, fast_config(), resume=True,
-                     chooser=Scripted([], {**attribute, "batch_size": 9}))
-    other_specimen = dataclasses.replace(setup, specimen=dataclasses.replace(setup.specimen, thickness_m=0.002))
+        run_campaign(
+            setup,
+            fake_stand(),
+            out,
+            fast_config(),
+            resume=True,
+            chooser=Scripted([], {**attribute, "batch_size": 9}),
+        )
+    other_specimen = dataclasses.replace(
+        setup, specimen=dataclasses.replace(setup.specimen, thickness_m=0.002)
+    )
     with pytest.raises(CampaignError, match="declared setup differs"):
         run_campaign(other_specimen, fake_stand(), out, fast_config(), resume=True, chooser=more)
     uniform = tmp_path / "u.h5"
@@ -154,15 +176,20 @@ def test_a_plan_that_cannot_go_on_aborts_without_a_retry_and_keeps_its_steps(tmp
             raise PlanError("the fit of 1 steps failed: too few AFC points")
 
     stand = fake_stand()
-    result = run_campaign(short_setup(), stand, tmp_path / "a.h5", fast_config(), chooser=Failing([]))
+    result = run_campaign(
+        short_setup(), stand, tmp_path / "a.h5", fast_config(), chooser=Failing([])
+    )
     assert result.run_status == "aborted" and result.n_steps == 1
     assert result.reason.startswith("the plan could not go on: ")  # not "stand fault:"
     assert not stand.generator.output_enabled
 
 
 # -- the campaign on the virtual strip -------------------------------------------------------
-STAND = {"drive": {"target_base_m_s2": 1.0, "initial_vpp": 0.04}, "timing": {"max_settle_s": 30.0},
-         "simulated": {"seed": 0, "noise": 0.003}}
+STAND = {
+    "drive": {"target_base_m_s2": 1.0, "initial_vpp": 0.04},
+    "timing": {"max_settle_s": 30.0},
+    "simulated": {"seed": 0, "noise": 0.003},
+}
 
 
 def _strip_stand(name, **simulated):
@@ -181,14 +208,17 @@ def _adaptive(setup, config, out, targets, *, loop=False, cap=120.0, lines=None)
     from vibid.planner.prior import parse_targets
 
     options = AdaptiveOptions(parse_targets(targets, ("D", "nu", "beta")), (18.75, 1500.0), cap)
-    chooser = AdaptiveCampaign(setup, config, options, loop=loop,
-                               say=(lines.append if lines is not None else None))
+    chooser = AdaptiveCampaign(
+        setup, config, options, loop=loop, say=(lines.append if lines is not None else None)
+    )
     with open_stand("simulated", setup, config) as stand:
         return run_campaign(setup, stand, out, config, chooser=chooser), chooser
 
 
 @pytest.mark.slow
-def test_the_adaptive_campaign_reaches_the_uniform_sweeps_certainty_in_far_less_stand_time(tmp_path):
+def test_the_adaptive_campaign_reaches_the_uniform_sweeps_certainty_in_far_less_stand_time(
+    tmp_path,
+):
     """On the virtual strip (0.3 % noise, Q 333): the setup's uniform sweep (80 steps,
     18.75-1500 Hz) and the adaptive campaign told to reach the uniform sweep's standard
     uncertainties; both identified as the report does."""
@@ -208,8 +238,10 @@ def test_the_adaptive_campaign_reaches_the_uniform_sweeps_certainty_in_far_less_
     a = identify_afc(session_afc(tmp_path / "a.h5"), loop=False, restarts=2).result
     truth = true_parameters(config)
     ratio = result.stand_time_s / uniform.stand_time_s
-    print(f"stand time adaptive {result.stand_time_s:.1f} s / uniform {uniform.stand_time_s:.1f} s "
-          f"= {ratio:.2f}; std ratio {np.asarray(a.std) / np.asarray(u.std)}")
+    print(
+        f"stand time adaptive {result.stand_time_s:.1f} s / uniform {uniform.stand_time_s:.1f} s "
+        f"= {ratio:.2f}; std ratio {np.asarray(a.std) / np.asarray(u.std)}"
+    )
     assert ratio < 1 / 3
     for name, value, std, u_std in zip(a.parameter_names, a.values, a.std, u.std):
         assert abs(value - truth[name]) < 3 * std, name
@@ -226,11 +258,14 @@ def test_a_resonance_where_the_model_has_none_gets_steps_across_it(tmp_path):
     """A table mode (the stand resonance of the virtual specimen, 660 Hz, Q 30) that the
     declared plate does not have, and no loop to name it: the residual's diagnosis finds a
     resonance where the model has none, and the next batch measures across it."""
-    setup, config = _strip_stand("adaptive-stand-mode", effects={
-        "stand_resonance": {"f_hz": 660.0, "q": 30.0, "theta_rad_per_m": 0.3}})
+    setup, config = _strip_stand(
+        "adaptive-stand-mode",
+        effects={"stand_resonance": {"f_hz": 660.0, "q": 30.0, "theta_rad_per_m": 0.3}},
+    )
     lines = []
-    result, chooser = _adaptive(setup, config, tmp_path / "a.h5", ["D=1e-5%", "nu=1e-4%"],
-                                cap=30.0, lines=lines)
+    result, chooser = _adaptive(
+        setup, config, tmp_path / "a.h5", ["D=1e-5%", "nu=1e-4%"], cap=30.0, lines=lines
+    )
     print("\n".join(lines))
     found = [d for d in chooser.history if d["unexpected"]]
     assert found and any(line.startswith("resonance where the model has none") for line in lines)
@@ -243,7 +278,9 @@ def test_a_resonance_where_the_model_has_none_gets_steps_across_it(tmp_path):
 
 
 @pytest.mark.slow
-def test_an_effect_the_loop_finds_between_batches_is_in_the_model_the_next_steps_are_chosen_on(tmp_path):
+def test_an_effect_the_loop_finds_between_batches_is_in_the_model_the_next_steps_are_chosen_on(
+    tmp_path,
+):
     """The undeclared 20 µs channel delay of the quick start's stand: the coarse sweep's fit
     does not explain the data, the loop adds the delay, and every later batch is chosen on
     (and every later fit starts from) the model with it."""
@@ -252,10 +289,13 @@ def test_an_effect_the_loop_finds_between_batches_is_in_the_model_the_next_steps
     from vibid.planner.prior import parse_targets
 
     setup, config = _strip_stand("adaptive-delay", effects={"channel_delay": {"tau_s": 2e-5}})
-    options = AdaptiveOptions(parse_targets(["D=0.0005%"], ("D", "nu", "beta")), (18.75, 1500.0), 60.0)
+    options = AdaptiveOptions(
+        parse_targets(["D=0.0005%"], ("D", "nu", "beta")), (18.75, 1500.0), 60.0
+    )
     lines = []
-    chooser = AdaptiveCampaign(setup, config, options, candidates=("channel_delay",),
-                               restarts=2, say=lines.append)
+    chooser = AdaptiveCampaign(
+        setup, config, options, candidates=("channel_delay",), restarts=2, say=lines.append
+    )
     with open_stand("simulated", setup, config) as stand:
         result = run_campaign(setup, stand, tmp_path / "a.h5", config, chooser=chooser)
     print("\n".join(lines))
@@ -269,11 +309,12 @@ def test_an_effect_the_loop_finds_between_batches_is_in_the_model_the_next_steps
 def test_campaign_options_that_do_not_go_together_are_refused_in_one_line(tmp_path, capsys):
     setup = str(EXAMPLES / "strip_setup.json")
     base = ["campaign", setup, "--stand", "simulated", "--out", str(tmp_path / "x.h5")]
-    for extra, message in ((["--adaptive", "--target", "D=0.1%", "--record-only"],
-                            "--record-only with --adaptive"),
-                           (["--target", "D=0.1%"], "--target goes with --adaptive"),
-                           (["--adaptive"], "--adaptive needs --target"),
-                           (["--adaptive", "--target", "D=0.1%", "--band", "5:20000"], "Nyquist")):
+    for extra, message in (
+        (["--adaptive", "--target", "D=0.1%", "--record-only"], "--record-only with --adaptive"),
+        (["--target", "D=0.1%"], "--target goes with --adaptive"),
+        (["--adaptive"], "--adaptive needs --target"),
+        (["--adaptive", "--target", "D=0.1%", "--band", "5:20000"], "Nyquist"),
+    ):
         assert main(base + extra) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
@@ -281,8 +322,21 @@ def test_campaign_options_that_do_not_go_together_are_refused_in_one_line(tmp_pa
 
 
 def test_the_dry_run_prints_the_coarse_sweep_and_the_rule(capsys):
-    rc = main(["campaign", str(EXAMPLES / "strip_setup.json"), "--stand", "simulated",
-               "--adaptive", "--target", "D=0.1%", "nu=0.002", "--band", "20:1000", "--dry-run"])
+    rc = main(
+        [
+            "campaign",
+            str(EXAMPLES / "strip_setup.json"),
+            "--stand",
+            "simulated",
+            "--adaptive",
+            "--target",
+            "D=0.1%",
+            "nu=0.002",
+            "--band",
+            "20:1000",
+            "--dry-run",
+        ]
+    )
     out = capsys.readouterr().out
     assert rc == 0
     first = out.splitlines()[0]

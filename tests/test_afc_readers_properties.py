@@ -31,8 +31,13 @@ from vibid.signal.uff import write_afc_uff
 ROOT = Path(__file__).parent.parent
 TITANIUM_SETUP = ROOT / "tests" / "data" / "titanium_setup.json"  # DAQ 25.6 kHz
 
-SETTINGS = settings(max_examples=40, deadline=None, derandomize=True, database=None,
-                    suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 _names = itertools.count()
 
 
@@ -82,8 +87,16 @@ def afcs(draw, with_std=None, min_size=2, max_size=25):
     """(f Hz distinct, H, std or None): an AFC a reader must take (finite, in range, with a
     point of |H| >= 1 above its std)."""
     n = draw(st.integers(min_size, max_size))
-    f = np.array(draw(st.lists(st.floats(0.01, 12_000.0, allow_subnormal=False), min_size=n,
-                               max_size=n, unique=True)))
+    f = np.array(
+        draw(
+            st.lists(
+                st.floats(0.01, 12_000.0, allow_subnormal=False),
+                min_size=n,
+                max_size=n,
+                unique=True,
+            )
+        )
+    )
     re = np.array(draw(st.lists(_component, min_size=n, max_size=n)))
     im = np.array(draw(st.lists(_component, min_size=n, max_size=n)))
     re[draw(st.integers(0, n - 1))] = draw(st.sampled_from([1.0, -3.5, 250.0]))
@@ -91,8 +104,9 @@ def afcs(draw, with_std=None, min_size=2, max_size=25):
     H.real, H.imag = re, im
     if with_std is None:
         with_std = draw(st.booleans())
-    std = np.array(draw(st.lists(st.floats(1e-4, 0.5), min_size=n, max_size=n))) \
-        if with_std else None
+    std = (
+        np.array(draw(st.lists(st.floats(1e-4, 0.5), min_size=n, max_size=n))) if with_std else None
+    )
     return f, H, std
 
 
@@ -115,6 +129,7 @@ def _clean_csv(f, H, std) -> bytes:
 
 # --- CSV: the same points, written otherwise ----------------------------------------------
 
+
 @st.composite
 def csv_variants(draw):
     """(clean bytes, variant bytes) of one AFC: the rows permuted and some repeated as they
@@ -133,8 +148,9 @@ def csv_variants(draw):
     rows = [[names[c] for c in columns] + ([note] if note else [])]
     for k in order:
         cells = _cells(f, H, std, k, fmt)
-        rows.append([pad + cells[c] + pad for c in columns]
-                    + (["25 \u00b0C caf\u00e9"] if note else []))
+        rows.append(
+            [pad + cells[c] + pad for c in columns] + (["25 \u00b0C caf\u00e9"] if note else [])
+        )
     lines = [",".join(r) for r in rows]
     for _ in range(draw(st.integers(0, 3))):  # blank lines anywhere (also before the header)
         lines.insert(draw(st.integers(0, len(lines))), draw(st.sampled_from(["", "  ", ",,"])))
@@ -153,14 +169,30 @@ def test_a_csv_written_otherwise_reads_as_its_clean_file(folder, files):
 
 # --- CSV: damaged files ---------------------------------------------------------------------
 
-_BAD_NUMBERS = ["nan", "NaN", "inf", "-inf", "1e308", "-1e300", "1e999", "2e6", "", "x",
-                "1,5", "0x10", "1_0", "--1", "\u00b11"]
+_BAD_NUMBERS = [
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e300",
+    "1e999",
+    "2e6",
+    "",
+    "x",
+    "1,5",
+    "0x10",
+    "1_0",
+    "--1",
+    "\u00b11",
+]
 
 
 #: Bytes spliced into a CSV as junk: none that can continue a number (a digit spliced into
 #: one makes another number, which no reader can tell).
 _JUNK = st.binary(min_size=1, max_size=12).map(
-    lambda b: bytes(c for c in b if chr(c) not in "0123456789.eE+-_") or b"\x00")
+    lambda b: bytes(c for c in b if chr(c) not in "0123456789.eE+-_") or b"\x00"
+)
 
 
 @st.composite
@@ -192,7 +224,7 @@ def csv_damaged(draw):
         lines.insert(draw(st.integers(1, len(lines))), ",".join(_cells(f, H * 1.5 + 1.0, std, k)))
     data = ("\n".join(lines) + "\n").encode()
     if kind == "cut":
-        data = clean[:draw(st.integers(0, len(clean) - 1))]
+        data = clean[: draw(st.integers(0, len(clean) - 1))]
     elif kind == "bytes":  # in the rows: junk that makes a header name another name makes
         at = draw(st.integers(clean.index(b"\n"), len(clean)))  # another column
         data = clean[:at] + draw(_JUNK) + clean[at:]
@@ -200,8 +232,9 @@ def csv_damaged(draw):
 
 
 def _points(f, H, std) -> set:
-    return {(float(f[k]), complex(H[k]), None if std is None else float(std[k]))
-            for k in range(len(f))}
+    return {
+        (float(f[k]), complex(H[k]), None if std is None else float(std[k])) for k in range(len(f))
+    }
 
 
 @SETTINGS
@@ -230,6 +263,7 @@ def test_a_damaged_csv_is_refused_in_one_line_or_reads_as_what_it_holds(folder, 
 
 # --- UFF58: the same points, written otherwise ----------------------------------------------
 
+
 @st.composite
 def uff_variants(draw):
     """(f, H, std, order): an AFC and the order its points are written in, some repeated as
@@ -250,8 +284,12 @@ def test_a_uff_written_otherwise_reads_as_its_clean_file(folder, afc, form):
     p = folder / f"u{next(_names)}.uff"
     write_afc_uff(p, f[order], H[order], std[order], session_id="s")
     raw = p.read_bytes()
-    raw = {"as written": raw, "crlf": raw.replace(b"\n", b"\r\n"), "blank lines": b"\n \n" + raw,
-           "bom": b"\xef\xbb\xbf" + raw}[form]
+    raw = {
+        "as written": raw,
+        "crlf": raw.replace(b"\n", b"\r\n"),
+        "blank lines": b"\n \n" + raw,
+        "bom": b"\xef\xbb\xbf" + raw,
+    }[form]
     _same(_read(_file(folder, raw, ".uff")), _read(clean))
 
 
@@ -290,6 +328,7 @@ def test_another_system_s_uff_reads_as_its_clean_file(folder, case):
 
 # --- UFF58: damaged files ---------------------------------------------------------------------
 
+
 @SETTINGS
 @given(afcs(with_std=True), st.data())
 def test_a_truncated_or_padded_uff_is_refused_in_one_line(folder, afc, data):
@@ -302,10 +341,11 @@ def test_a_truncated_or_padded_uff_is_refused_in_one_line(folder, afc, data):
     raw = clean.read_bytes()
     how = data.draw(st.sampled_from(["cut", "append", "splice"]))
     if how == "cut":
-        damaged = raw[:data.draw(st.integers(0, len(raw) - 1))]
+        damaged = raw[: data.draw(st.integers(0, len(raw) - 1))]
     elif how == "append":
-        damaged = raw + data.draw(st.sampled_from([b"x", b"\n    -1\n", b"    -1\n    58\n",
-                                                   b"\x00\xff", b"1,2,3\n"]))
+        damaged = raw + data.draw(
+            st.sampled_from([b"x", b"\n    -1\n", b"    -1\n    58\n", b"\x00\xff", b"1,2,3\n"])
+        )
     else:
         at = data.draw(st.integers(0, len(raw)))
         damaged = raw[:at] + data.draw(st.binary(min_size=1, max_size=9)) + raw[at:]
@@ -327,7 +367,7 @@ def test_a_bad_double_in_a_uff_is_refused_naming_its_point(folder, afc, data):
     k = data.draw(st.integers(0, len(f) - 1))
     part = data.draw(st.sampled_from([1, 2]))  # re or im (0: the frequency)
     value = data.draw(st.sampled_from([np.nan, np.inf, -np.inf, 1e308, -1e300, 2 * MAX_ABS_H]))
-    raw[start + 8 * (3 * k + part):start + 8 * (3 * k + part + 1)] = struct.pack("<d", value)
+    raw[start + 8 * (3 * k + part) : start + 8 * (3 * k + part + 1)] = struct.pack("<d", value)
     q = _file(folder, bytes(raw), ".uff")
     outcome, message = _outcome(q)
     assert outcome == "refused"
@@ -337,32 +377,73 @@ def test_a_bad_double_in_a_uff_is_refused_naming_its_point(folder, afc, data):
 
 # --- the command line --------------------------------------------------------------------
 
+
 def _uff_without_end(folder):
     p = folder / "cut.uff"
-    write_afc_uff(p, np.array([100.0, 200.0]), np.array([1 + 0j, 2 + 0j]),
-                  np.array([0.01, 0.01]), session_id="s")
+    write_afc_uff(
+        p,
+        np.array([100.0, 200.0]),
+        np.array([1 + 0j, 2 + 0j]),
+        np.array([0.01, 0.01]),
+        session_id="s",
+    )
     p.write_bytes(p.read_bytes()[:-40])
     return p
 
 
-@pytest.mark.parametrize("name, make, message", [
-    ("zero.csv", lambda d: "frequency_hz,re,im,std\n" + "".join(
-        f"{10 * k},0,0,0.001\n" for k in range(1, 60)), "every H is 0"),
-    ("huge.csv", lambda d: "frequency_hz,re,im\n10,1e308,0\n20,1e300,1e300\n", "line 2: re 1e+308"),
-    ("nyquist.csv", lambda d: "frequency_hz,re,im\n100,1,0\n12800,1,0\n",
-     "line 3: 12800.0 Hz is not below the Nyquist frequency 12800.0 Hz"),
-    ("cr.csv", lambda d: "frequency_hz,re,im\r10,1,0\r20,1,x\r", "line 3: im 'x' is not a number"),
-    ("cut.uff", _uff_without_end, "truncated UFF file"),
-])
+@pytest.mark.parametrize(
+    "name, make, message",
+    [
+        (
+            "zero.csv",
+            lambda d: (
+                "frequency_hz,re,im,std\n" + "".join(f"{10 * k},0,0,0.001\n" for k in range(1, 60))
+            ),
+            "every H is 0",
+        ),
+        (
+            "huge.csv",
+            lambda d: "frequency_hz,re,im\n10,1e308,0\n20,1e300,1e300\n",
+            "line 2: re 1e+308",
+        ),
+        (
+            "nyquist.csv",
+            lambda d: "frequency_hz,re,im\n100,1,0\n12800,1,0\n",
+            "line 3: 12800.0 Hz is not below the Nyquist frequency 12800.0 Hz",
+        ),
+        (
+            "cr.csv",
+            lambda d: "frequency_hz,re,im\r10,1,0\r20,1,x\r",
+            "line 3: im 'x' is not a number",
+        ),
+        ("cut.uff", _uff_without_end, "truncated UFF file"),
+    ],
+)
 def test_vibid_identify_refuses_a_bad_afc_in_one_line(tmp_path, name, make, message):
     """As a process: rc 1, exactly one line on stderr, no traceback, in a few seconds."""
     made = make(tmp_path)
     p = made if isinstance(made, Path) else tmp_path / name
     if not isinstance(made, Path):
         p.write_text(made, newline="")
-    run = subprocess.run([sys.executable, "-m", "vibid", "identify", "--afc", str(p), "--setup",
-                          str(TITANIUM_SETUP), "--json", str(tmp_path / "x.json")],
-                         capture_output=True, text=True, timeout=60, cwd=ROOT, check=False)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "vibid",
+            "identify",
+            "--afc",
+            str(p),
+            "--setup",
+            str(TITANIUM_SETUP),
+            "--json",
+            str(tmp_path / "x.json"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=ROOT,
+        check=False,
+    )
     assert run.returncode == 1, run.stderr
     assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr, run.stderr
     assert message in run.stderr and f"{p}: " in run.stderr

@@ -142,10 +142,12 @@ def test_tip_response_to_the_tenth_mode_matches_the_closed_form():
     omega, k = lam**2 * OMEGA_UNIT, lam / L
     ch, c, sh, s = np.cosh(lam), np.cos(lam), np.sinh(lam), np.sin(lam)
     beam = dict(L=L, EI=EI, rhoA=RHOA, x_s=L)
-    np.testing.assert_allclose(br.afc_translation(omega, **beam), (ch + c) / (1 + c * ch),
-                               rtol=1e-10)
-    np.testing.assert_allclose(br.afc_rotation(omega, **beam), (sh + s) / (k * (1 + c * ch)),
-                               rtol=1e-10)
+    np.testing.assert_allclose(
+        br.afc_translation(omega, **beam), (ch + c) / (1 + c * ch), rtol=1e-10
+    )
+    np.testing.assert_allclose(
+        br.afc_rotation(omega, **beam), (sh + s) / (k * (1 + c * ch)), rtol=1e-10
+    )
 
 
 # ---------------------------------------------------------------- 2: root spring
@@ -153,6 +155,7 @@ def _spring_det(K):
     def det(s):
         ch, sh, c, sn = np.cosh(s), np.sinh(s), np.cos(s), np.sin(s)
         return np.linalg.det([[ch + c, sh, -sn], [sh - sn, ch, -c], [2 * s, -K, -K]])
+
     return det
 
 
@@ -197,15 +200,26 @@ def test_tip_rotary_inertia_frequencies_match_fe(m):
 
 
 FORCED_CASES = {
-    "tip body, lossy EI, clamp": dict(EI=EI * (1 + 0.02j), rhoA=RHOA, x_s=L, m=0.2 * RHOA * L,
-                                     J=0.01 * RHOA * L**3),
-    "inner body, Rayleigh, lossy spring": dict(EI=EI * (1 + 0.01j), rhoA=RHOA,
-                                               rhoI=RHOA * (L / 30) ** 2,
-                                               k_root=5 * EI / L * (1 + 0.1j), x_s=0.7 * L,
-                                               m=0.1 * RHOA * L, J=0.02 * RHOA * L**3),
-    "inner body, Rayleigh, clamp, undamped": dict(EI=EI, rhoA=RHOA, rhoI=RHOA * (L / 20) ** 2,
-                                                 x_s=0.35 * L, m=0.5 * RHOA * L,
-                                                 J=0.005 * RHOA * L**3),
+    "tip body, lossy EI, clamp": dict(
+        EI=EI * (1 + 0.02j), rhoA=RHOA, x_s=L, m=0.2 * RHOA * L, J=0.01 * RHOA * L**3
+    ),
+    "inner body, Rayleigh, lossy spring": dict(
+        EI=EI * (1 + 0.01j),
+        rhoA=RHOA,
+        rhoI=RHOA * (L / 30) ** 2,
+        k_root=5 * EI / L * (1 + 0.1j),
+        x_s=0.7 * L,
+        m=0.1 * RHOA * L,
+        J=0.02 * RHOA * L**3,
+    ),
+    "inner body, Rayleigh, clamp, undamped": dict(
+        EI=EI,
+        rhoA=RHOA,
+        rhoI=RHOA * (L / 20) ** 2,
+        x_s=0.35 * L,
+        m=0.5 * RHOA * L,
+        J=0.005 * RHOA * L**3,
+    ),
 }
 
 
@@ -225,8 +239,15 @@ def test_forced_response_matches_fe(name, rotation):
 LIMIT_CASES = [
     dict(EI=EI, rhoA=RHOA, x_s=L),
     dict(EI=EI, rhoA=RHOA, x_s=L, m=RHOA * L, J=0.02 * RHOA * L**3),
-    dict(EI=EI, rhoA=RHOA, rhoI=RHOA * (L / 20) ** 2, k_root=3 * EI / L, x_s=0.7 * L,
-         m=0.3 * RHOA * L, J=0.02 * RHOA * L**3),
+    dict(
+        EI=EI,
+        rhoA=RHOA,
+        rhoI=RHOA * (L / 20) ** 2,
+        k_root=3 * EI / L,
+        x_s=0.7 * L,
+        m=0.3 * RHOA * L,
+        J=0.02 * RHOA * L**3,
+    ),
 ]
 
 
@@ -257,8 +278,9 @@ def test_combined_base_motion_is_the_sum_of_translation_and_rotation():
     expected = br.afc_translation(omega, L=L, **beam) + phi * br.afc_rotation(omega, L=L, **beam)
     np.testing.assert_allclose(h, expected, rtol=1e-12, atol=1e-14)
     scalar = br.afc(omega, L=L, rotation_per_translation=0.4, **beam)
-    np.testing.assert_allclose(scalar, expected + (0.4 - phi) * br.afc_rotation(omega, L=L, **beam),
-                               rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(
+        scalar, expected + (0.4 - phi) * br.afc_rotation(omega, L=L, **beam), rtol=1e-12, atol=1e-14
+    )
 
 
 # ---------------------------------------------------------------- 6: loss factor
@@ -277,9 +299,12 @@ def test_loss_factor_resonance_matches_one_mode_approximation():
     gain = phi(L) * quad(phi, 0, L)[0] / quad(lambda x: phi(x) ** 2, 0, L)[0]  # ~ 2 x 0.783
     w1 = lam**2 * OMEGA_UNIT
     beam = dict(L=L, EI=EI * (1 + 1j * beta), rhoA=RHOA, x_s=L)
-    peak = minimize_scalar(lambda w: -abs(br.afc_translation(w, **beam)),
-                           bounds=(0.99 * w1, 1.01 * w1), method="bounded",
-                           options=dict(xatol=1e-9 * w1))
+    peak = minimize_scalar(
+        lambda w: -abs(br.afc_translation(w, **beam)),
+        bounds=(0.99 * w1, 1.01 * w1),
+        method="bounded",
+        options=dict(xatol=1e-9 * w1),
+    )
     assert abs(peak.x / (w1 * np.sqrt(1 + beta**2)) - 1) < 1e-4
     assert abs(-peak.fun / (gain * np.sqrt(1 + beta**2) / beta) - 1) < 5e-3
     phase = np.degrees(np.angle(br.afc_translation(w1, **beam)))

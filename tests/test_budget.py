@@ -25,10 +25,14 @@ H_STD, RHO_STD = 1e-5, 40.0  # 1 % of the 1 mm thickness, 0.5 % of 7920 kg/m³
 def _setup(**response):
     s = example_setup()
     return dataclasses.replace(
-        s, specimen=dataclasses.replace(s.specimen, thickness_std_m=H_STD,
-                                        density_std_kg_m3=RHO_STD, length_std_m=1e-4),
-        sensors=dataclasses.replace(s.sensors, response=dataclasses.replace(
-            s.sensors.response, **response)))
+        s,
+        specimen=dataclasses.replace(
+            s.specimen, thickness_std_m=H_STD, density_std_kg_m3=RHO_STD, length_std_m=1e-4
+        ),
+        sensors=dataclasses.replace(
+            s.sensors, response=dataclasses.replace(s.sensors.response, **response)
+        ),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -64,13 +68,14 @@ def test_the_thickness_and_density_move_E_as_the_plate_scales(massless):
     assert "mostly the declared length" in " ".join(block["notes"])
     # what the setup gives no uncertainty for is said, not silently left at zero
     (unknown,) = [n for n in block["notes"] if n.startswith("the setup declares no")]
-    assert ("for the width, sensor position (x), sensor position (y), sensor mass: the "
-            "budget leaves them out") in unknown
+    assert (
+        "for the width, sensor position (x), sensor position (y), sensor mass: the "
+        "budget leaves them out"
+    ) in unknown
     assert not {"thickness_m", "density_kg_m3", "length_m"} - set(parts)
 
 
-def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_the_total(
-        massless):
+def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_the_total(massless):
     """The fit's covariance C holds the discretisation's bias b as b bᵀ: the budget splits
     it into ``fit`` √(gᵀ (C − b bᵀ) g) and ``discretisation`` |gᵀ b|, g the constant's
     gradient, which add in quadrature to the std C alone gave before the split. g here is
@@ -84,8 +89,11 @@ def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_th
     block = engineering_budget(s, result)
     D, nu = result.parameters["D"], result.parameters["nu"]
     h = s.specimen.thickness_m
-    g = {"E_Pa": [12 * (1 - nu**2) / h**3, -24 * D * nu / h**3, 0.0], "nu": [0.0, 1.0, 0.0],
-         "G_Pa": [6 * (1 - nu) / h**3, -6 * D / h**3, 0.0]}
+    g = {
+        "E_Pa": [12 * (1 - nu**2) / h**3, -24 * D * nu / h**3, 0.0],
+        "nu": [0.0, 1.0, 0.0],
+        "G_Pa": [6 * (1 - nu) / h**3, -6 * D / h**3, 0.0],
+    }
     keys, J, _ = sensitivities("isotropic", result.parameter_names, result.values, h)
     C = np.asarray(result.covariance, float)
     for i, k in enumerate(keys):
@@ -93,16 +101,19 @@ def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_th
         assert parts["discretisation"] == pytest.approx(abs(np.dot(g[k], b)), rel=1e-6)
         assert parts["discretisation"] > 0
         # the total as before the split: the fit's part gᵀ C g and the declared ones
-        before = J[i] @ C @ J[i] + sum(v**2 for n, v in parts.items()
-                                        if n not in ("fit", "discretisation"))
+        before = J[i] @ C @ J[i] + sum(
+            v**2 for n, v in parts.items() if n not in ("fit", "discretisation")
+        )
         assert block[k]["std"] == pytest.approx(math.sqrt(before), rel=1e-12)
         assert math.hypot(parts["fit"], parts["discretisation"]) == pytest.approx(
-            math.sqrt(J[i] @ C @ J[i]), rel=1e-12)
+            math.sqrt(J[i] @ C @ J[i]), rel=1e-12
+        )
     # without a bias (no signed model error) the fit's part is gᵀ C g, as before
     plain = fit_parts(keys, J, C)
     assert all(set(p) == {"fit"} for p in plain.values())
     assert [plain[k]["fit"] for k in keys] == pytest.approx(
-        [math.sqrt(J[i] @ C @ J[i]) for i in range(len(keys))], rel=1e-15)
+        [math.sqrt(J[i] @ C @ J[i]) for i in range(len(keys))], rel=1e-15
+    )
 
 
 def test_the_fit_part_is_the_covariance_less_the_bias_term():
@@ -125,15 +136,25 @@ def test_the_fit_part_is_the_covariance_less_the_bias_term():
 def test_the_model_part_is_the_weighted_spread_of_the_compared_models():
     """Two isotropic models 2 ln 3 apart in QAIC weigh 3 : 1; their E differ by ΔE, so the
     spread is √(w₁ w₂) ΔE = √3/4 ΔE."""
+
     def fit(D, chi2_red, p):
-        return SimpleNamespace(plate_model=SimpleNamespace(model="isotropic"), dof=100,
-                               chi2_reduced_reported=chi2_red, parameters={"D": D, "nu": 0.3},
-                               parameter_names=("D", "nu", "beta") + ("x",) * (p - 3))
+        return SimpleNamespace(
+            plate_model=SimpleNamespace(model="isotropic"),
+            dof=100,
+            chi2_reduced_reported=chi2_red,
+            parameters={"D": D, "nu": 0.3},
+            parameter_names=("D", "nu", "beta") + ("x",) * (p - 3),
+        )
+
     final = fit(18.0, 4.0, 4)
     # QAIC = chi2/c + 2p, c = 4: 100 + 8 for the final, 100 + 8 + 2 ln 3 for the other
     other = fit(17.0, 4.0 + 4 * 2 * math.log(3) / 100, 4)
-    loop = SimpleNamespace(unexplained_residual=True, final=final,
-                           stages=[SimpleNamespace(result=final)], alternatives=(other,))
+    loop = SimpleNamespace(
+        unexplained_residual=True,
+        final=final,
+        stages=[SimpleNamespace(result=final)],
+        alternatives=(other,),
+    )
     h = 0.001
     E = [12 * D * (1 - 0.09) / h**3 for D in (18.0, 17.0)]
     spread = model_spread(loop, "isotropic", h)
@@ -155,17 +176,25 @@ def test_the_clamp_line_part_is_the_refit_at_a_longer_span_times_the_box(massles
     from vibid.identify.fit import identify
 
     declared, result = massless
-    s = dataclasses.replace(declared, specimen=dataclasses.replace(declared.specimen,
-                                                                   length_std_m=None))
+    s = dataclasses.replace(
+        declared, specimen=dataclasses.replace(declared.specimen, length_std_m=None)
+    )
     L, x, h = s.specimen.length_m, s.sensors.response.x_m, s.specimen.thickness_m
     d = 1e-4
     longer = with_declared(with_declared(s, "length_m", L + d), "sensor_x_m", x + d)
-    refit = identify(longer, result.frequency_hz, result.H, result.H_std, method="local",
-                     start=result.parameters)
-    dE = (constants("isotropic", refit.parameters, h)["E_Pa"]
-          - constants("isotropic", result.parameters, h)["E_Pa"]) / d
-    loop = SimpleNamespace(unexplained_residual=True, final=result,
-                           stages=[SimpleNamespace(result=result, held=())], alternatives=())
+    refit = identify(
+        longer, result.frequency_hz, result.H, result.H_std, method="local", start=result.parameters
+    )
+    dE = (
+        constants("isotropic", refit.parameters, h)["E_Pa"]
+        - constants("isotropic", result.parameters, h)["E_Pa"]
+    ) / d
+    loop = SimpleNamespace(
+        unexplained_residual=True,
+        final=result,
+        stages=[SimpleNamespace(result=result, held=())],
+        alternatives=(),
+    )
     box = dict(s.identification.bounds)
     for lo, hi in ((-5e-3, 5e-3), (0.0, 2e-3)):
         part = clamp_line(s, loop, box | {"dL_m": (lo, hi)})["E_Pa"]
@@ -187,7 +216,6 @@ def test_the_clamp_line_part_covers_a_free_span_the_data_cannot_name():
     import beam_reference as beam
     from loop_data import noisy
     from plate_helpers import plate_setup
-
     from vibid.identify import configure
     from vibid.identify.loop import close_loop
     from vibid.setup_model import Identification
@@ -196,19 +224,34 @@ def test_the_clamp_line_part_covers_a_free_span_the_data_cannot_name():
     L, W, h, rho, E, dL = 0.1, 0.02, 0.003, 4550.0, 110e9, 3e-3
     f = np.linspace(60.0, 1600.0, 80)
     s = plate_setup(L, W, h, rho, x_m=0.096, y_m=W / 2, mass_kg=0.0017, radius_m=0.0038)
-    s = dataclasses.replace(s, identification=Identification(
-        "isotropic", {"D": (10.0, 1000.0), "nu": (-0.3, 0.5), "beta": (1e-4, 0.1)}))
+    s = dataclasses.replace(
+        s,
+        identification=Identification(
+            "isotropic", {"D": (10.0, 1000.0), "nu": (-0.3, 0.5), "beta": (1e-4, 0.1)}
+        ),
+    )
     r = s.sensors.response
-    H = beam.afc(2 * math.pi * f, L=L + dL, EI=E * h**3 / 12 * W * (1 + 0.005j),
-                 rhoA=rho * h * W, rhoI=rho * h**3 / 12 * W, x_s=r.x_m + dL, m=r.mass_kg,
-                 J=r.mass_kg * (r.radius_m**2 / 4 + h**2 / 12)) + 0.02
+    H = (
+        beam.afc(
+            2 * math.pi * f,
+            L=L + dL,
+            EI=E * h**3 / 12 * W * (1 + 0.005j),
+            rhoA=rho * h * W,
+            rhoI=rho * h**3 / 12 * W,
+            x_s=r.x_m + dL,
+            m=r.mass_kg,
+            J=r.mass_kg * (r.radius_m**2 / 4 + h**2 / 12),
+        )
+        + 0.02
+    )
     H, sd = noisy(H, 2)
     loop = close_loop(s, f, H, sd, seed=0, restarts=1)
     assert loop.unexplained_residual and "free_length" not in loop.effects
     block = engineering_budget(s, loop.final, loop)
     value, parts = block["E_Pa"]["value"], block["budget"]["E_Pa"]
-    assert E - value > 4 * math.hypot(parts["fit"], parts.get("discretisation", 0.0),
-                                      parts.get("model", 0.0))
+    assert E - value > 4 * math.hypot(
+        parts["fit"], parts.get("discretisation", 0.0), parts.get("model", 0.0)
+    )
     assert E - value < 2 * block["E_Pa"]["std"]
 
 
@@ -218,8 +261,13 @@ def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_val
     s, result = massless
     report = build_report(result, setup=s)
     eng = report["engineering"]
-    assert set(eng["budget"]["E_Pa"]) == {"fit", "discretisation", "thickness_m",
-                                          "density_kg_m3", "length_m"}
+    assert set(eng["budget"]["E_Pa"]) == {
+        "fit",
+        "discretisation",
+        "thickness_m",
+        "density_kg_m3",
+        "length_m",
+    }
     assert report["plausibility"]["material_class"] == "steel"  # "steel strip 100x20x1"
     assert not report["plausibility"]["violations"]
     md = summary_markdown(report)
@@ -231,10 +279,12 @@ def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_val
     assert len(disc["meshes"]) == 3 and len(set(disc["meshes"])) == 3
     assert disc["meshes"][1] == result.discretisation.meshes[1]
     assert disc["order"] > 1 and disc["factor"] >= 1 and disc["limited"] is False
-    assert disc["bias"] == pytest.approx(dict(zip(result.parameter_names,
-                                                  result.model_error_bias)), rel=1e-15)
+    assert disc["bias"] == pytest.approx(
+        dict(zip(result.parameter_names, result.model_error_bias)), rel=1e-15
+    )
     assert report["identification"]["model_error_std"] == pytest.approx(
-        {n: abs(b) for n, b in disc["bias"].items()}, rel=1e-15)
+        {n: abs(b) for n, b in disc["bias"].items()}, rel=1e-15
+    )
     # the same fit with nu pushed past 0.5: a warning in the report, report.md and console
     bent = dataclasses.replace(result, values=np.array([17.97, 0.55, 0.003]))
     report = build_report(bent, setup=s)
@@ -245,21 +295,30 @@ def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_val
     assert "NOT PHYSICAL" in console_summary(report)
 
 
-def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_models(
-        monkeypatch):
+def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_models(monkeypatch):
     """A residual whose autocorrelation time is tau makes tau points one: the same two
     models, tau = 5 and a chi2 gap five times wider, weigh 3 : 1 again. A model that leaves
     a parameter outside its prior box is no defensible model: it has no weight."""
     from vibid.identify.loop import rounds
 
     def fit(D, chi2_red, name):
-        return SimpleNamespace(plate_model=SimpleNamespace(model="isotropic"), dof=100,
-                               chi2_reduced_reported=chi2_red, parameters={"D": D, "nu": 0.3},
-                               parameter_names=("D", "nu", "beta", "x"), name=name)
+        return SimpleNamespace(
+            plate_model=SimpleNamespace(model="isotropic"),
+            dof=100,
+            chi2_reduced_reported=chi2_red,
+            parameters={"D": D, "nu": 0.3},
+            parameter_names=("D", "nu", "beta", "x"),
+            name=name,
+        )
+
     final = fit(18.0, 4.0, "final")
     other = fit(17.0, 4.0 + 5 * 4 * 2 * math.log(3) / 100, "other")
-    loop = SimpleNamespace(unexplained_residual=True, final=final,
-                           stages=[SimpleNamespace(result=final)], alternatives=(other,))
+    loop = SimpleNamespace(
+        unexplained_residual=True,
+        final=final,
+        stages=[SimpleNamespace(result=final)],
+        alternatives=(other,),
+    )
     h = 0.001
     E = [12 * D * (1 - 0.09) / h**3 for D in (18.0, 17.0)]
     spread = model_spread(loop, "isotropic", h, tau=5.0)
@@ -267,15 +326,16 @@ def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_mod
     # without tau the gap is five times wider in QAIC: the other weighs 3^-5 of the final
     w = 3.0**-5 / (1 + 3.0**-5)
     assert model_spread(loop, "isotropic", h)["E_Pa"] == pytest.approx(
-        math.sqrt(w * (1 - w)) * abs(E[0] - E[1]), rel=1e-9)
-    monkeypatch.setattr(rounds, "outside_prior",
-                        lambda r, box: ["nu"] if r.name == "other" else [])
+        math.sqrt(w * (1 - w)) * abs(E[0] - E[1]), rel=1e-9
+    )
+    monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["nu"] if r.name == "other" else [])
     assert model_spread(loop, "isotropic", h, tau=5.0, box={})["E_Pa"] == 0.0
     # where the final model is outside the box too, the box tells none from another: the
     # spread is over every model compared (not zero: the final's alone)
     monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["nu"])
     assert model_spread(loop, "isotropic", h, tau=5.0, box={})["E_Pa"] == pytest.approx(
-        math.sqrt(3) / 4 * abs(E[0] - E[1]), rel=1e-9)
+        math.sqrt(3) / 4 * abs(E[0] - E[1]), rel=1e-9
+    )
 
 
 @pytest.mark.slow
@@ -305,11 +365,20 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     start = {"D": 127.14, "nu": -0.326, "beta": 0.01073}  # the declared fit's estimate
     fitted = identify(s, f, H, std, used=used, method="local", start=start)
     part = engineering_budget(s, fitted)["budget"]["E_Pa"]["length_m"]
-    longer = identify(with_declared(s, "length_m", s.specimen.length_m + 5e-4), f, H, std,
-                      used=used, method="local", start=fitted.parameters)
+    longer = identify(
+        with_declared(s, "length_m", s.specimen.length_m + 5e-4),
+        f,
+        H,
+        std,
+        used=used,
+        method="local",
+        start=fitted.parameters,
+    )
     h = s.specimen.thickness_m
-    moved = (constants("isotropic", longer.parameters, h)["E_Pa"]
-             - constants("isotropic", fitted.parameters, h)["E_Pa"])
+    moved = (
+        constants("isotropic", longer.parameters, h)["E_Pa"]
+        - constants("isotropic", fitted.parameters, h)["E_Pa"]
+    )
     assert fitted.chi2_reduced > 1e3 and moved == pytest.approx(2.0e9, rel=0.1)
     assert part == pytest.approx(abs(moved), rel=0.2)
     # nu held (as the loop holds a parameter it kept inside its box): the shift moves the
@@ -322,10 +391,19 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     assert shift[list(fitted.parameter_names).index("nu")] == 0.0
     keys, g, _ = sensitivities("isotropic", list(fitted.parameter_names), fitted.values, h)
     part_held = abs(g[keys.index("E_Pa")] @ shift)
-    longer_held = identify(with_declared(s, "length_m", s.specimen.length_m + 5e-4), f, H,
-                           std, used=used, method="local", start=fitted.parameters,
-                           bounds=dict(s.identification.bounds) | {"nu": (nu - 1e-6, nu + 1e-6)},
-                           kinds={"nu": ("logit", nu - 1e-7, nu + 1e-7)})
-    moved_held = (constants("isotropic", longer_held.parameters, h)["E_Pa"]
-                  - constants("isotropic", fitted.parameters, h)["E_Pa"])
+    longer_held = identify(
+        with_declared(s, "length_m", s.specimen.length_m + 5e-4),
+        f,
+        H,
+        std,
+        used=used,
+        method="local",
+        start=fitted.parameters,
+        bounds=dict(s.identification.bounds) | {"nu": (nu - 1e-6, nu + 1e-6)},
+        kinds={"nu": ("logit", nu - 1e-7, nu + 1e-7)},
+    )
+    moved_held = (
+        constants("isotropic", longer_held.parameters, h)["E_Pa"]
+        - constants("isotropic", fitted.parameters, h)["E_Pa"]
+    )
     assert part_held == pytest.approx(abs(moved_held), rel=0.2)

@@ -12,7 +12,6 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 from campaign_fakes import fake_stand, fast_config, sdof_h, short_setup  # noqa: E402
-
 from vibid.acquisition.campaign import CampaignError, amplitude_m_s2, run_campaign  # noqa: E402
 from vibid.acquisition.plan import damping_settle_s, plan_summary, record_samples, stepped_sine  # noqa: E402
 from vibid.acquisition.stand_config import TimingConfig  # noqa: E402
@@ -44,7 +43,9 @@ def test_dry_run_lists_every_step_with_the_setup_settle():
     assert [c.frequency_hz for c in summary.commands] == list(setup.excitation.frequencies_hz)
     assert all(c.settle_s == 0.05 for c in summary.commands)
     assert summary.settle_s == pytest.approx(12 * 0.05)
-    assert summary.duration_s == pytest.approx(summary.settle_s + sum(c.n_samples for c in summary.commands) / 25600)
+    assert summary.duration_s == pytest.approx(
+        summary.settle_s + sum(c.n_samples for c in summary.commands) / 25600
+    )
     with pytest.raises(VibidError, match="cannot start"):
         stepped_sine(setup, fast_config(), start=13)
 
@@ -60,7 +61,9 @@ def test_unsettled_record_is_recorded_again_at_multiples_of_the_damping_settle()
     for k in (1, 2, 3, 4):
         cmd = plan.send(StepOutcome(settled=False))
         assert (cmd.index, cmd.attempt) == (0, k)
-        assert waits[-1] + cmd.settle_s == pytest.approx(k * d)  # the k-th multiple since the change
+        assert waits[-1] + cmd.settle_s == pytest.approx(
+            k * d
+        )  # the k-th multiple since the change
         waits.append(k * d + cmd.record_s)
     cmd = plan.send(StepOutcome(settled=False))  # 5 d passes the 10 s cap: up to the cap
     assert waits[-1] + cmd.settle_s == pytest.approx(10.0)
@@ -76,7 +79,9 @@ def test_unsettled_record_is_recorded_again_after_the_damping_settle():
     first = next(plan)
     again = plan.send(StepOutcome(settled=False))
     assert (again.index, again.attempt) == (0, 1)
-    assert again.settle_s == pytest.approx(damping_settle_s(70.0, cfg.timing) - first.settle_s - first.record_s)
+    assert again.settle_s == pytest.approx(
+        damping_settle_s(70.0, cfg.timing) - first.settle_s - first.record_s
+    )
     nxt = plan.send(StepOutcome(settled=True))  # the neighbour starts with the damping settle
     d80 = damping_settle_s(80.0, cfg.timing)
     assert nxt.index == 1 and nxt.settle_s == pytest.approx(d80)
@@ -98,7 +103,9 @@ def _zscores(path, ppm=40.0, eta=0.01):
 def test_campaign_afc_equals_the_specimens_h_within_its_uncertainty(tmp_path):
     path = tmp_path / "s.h5"
     stand = fake_stand(seed=3, clock_offset_ppm=-150.0)
-    result = run_campaign(short_setup(12), stand, path, fast_config(settle_time_constants=14.0, max_settle_s=10.0))
+    result = run_campaign(
+        short_setup(12), stand, path, fast_config(settle_time_constants=14.0, max_settle_s=10.0)
+    )
     assert (result.run_status, result.reason, result.n_steps) == ("complete", "", 12)
     table, z_re, z_im = _zscores(path, ppm=-150.0)
     assert table.used.all(), table.flags
@@ -113,13 +120,21 @@ def test_sharp_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_a
     setup = short_setup(5, 60.0, 100.0, settle_s=0.02)  # 80 Hz, the resonance, is step 2
     eta = 1 / 300
     short = tmp_path / "short.h5"
-    run_campaign(setup, fake_stand(seed=1, eta=eta), short,
-                 fast_config(expected_loss_factor=eta, max_settle_s=0.0))
+    run_campaign(
+        setup,
+        fake_stand(seed=1, eta=eta),
+        short,
+        fast_config(expected_loss_factor=eta, max_settle_s=0.0),
+    )
     table, *_ = _zscores(short, eta=eta)
     assert "unsettled" in table.flags[2]
     settled = tmp_path / "settled.h5"
-    run_campaign(setup, fake_stand(seed=1, eta=eta), settled,
-                 fast_config(expected_loss_factor=eta, settle_time_constants=16.0, max_settle_s=30.0))
+    run_campaign(
+        setup,
+        fake_stand(seed=1, eta=eta),
+        settled,
+        fast_config(expected_loss_factor=eta, settle_time_constants=16.0, max_settle_s=30.0),
+    )
     table, z_re, z_im = _zscores(settled, eta=eta)
     assert not any("unsettled" in f for f in table.flags), table.flags
     assert np.max(np.abs(np.concatenate([z_re, z_im]))) < 4.5
@@ -127,8 +142,12 @@ def test_sharp_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_a
         attrs = [s.step_attributes(i) for i in range(5)]
     # 70 Hz rang on: recorded again after 16 time constants; 80 Hz, its neighbour, settled as
     # long from the start
-    assert attrs[1]["vibid_resettled"] and attrs[1]["vibid_settle_s"] == pytest.approx(16 * 300 / (math.pi * 70))
-    assert not attrs[2]["vibid_resettled"] and attrs[2]["vibid_settle_s"] == pytest.approx(16 * 300 / (math.pi * 80))
+    assert attrs[1]["vibid_resettled"] and attrs[1]["vibid_settle_s"] == pytest.approx(
+        16 * 300 / (math.pi * 70)
+    )
+    assert not attrs[2]["vibid_resettled"] and attrs[2]["vibid_settle_s"] == pytest.approx(
+        16 * 300 / (math.pi * 80)
+    )
     assert attrs[0]["vibid_settle_s"] == 0.02
 
 
@@ -139,7 +158,9 @@ def test_drive_control_holds_the_base_within_tolerance_and_never_above_max_drive
     cfg = fast_config(settle_time_constants=14.0, max_settle_s=10.0)
     run_campaign(short_setup(10), stand, path, cfg)
     with read_session(path) as s:
-        base = np.array([amplitude_m_s2(st.base, st.frequency_hz, st.sample_rate_hz) for st in s.steps()])
+        base = np.array(
+            [amplitude_m_s2(st.base, st.frequency_hz, st.sample_rate_hz) for st in s.steps()]
+        )
         drives = np.array([s.step_attributes(i)["vibid_drive_vpp"] for i in range(len(s))])
     assert np.all(np.abs(base / 5.0 - 1) <= 0.05), base
     # the drive followed the shaker: 5 m/s² / gain(f)
@@ -165,9 +186,13 @@ def test_abort_limit_switches_off_writes_the_step_aborted_and_closes_with_the_re
     path = tmp_path / "s.h5"
     stand = fake_stand(seed=4)
     cfg = fast_config(settle_time_constants=14.0, max_settle_s=10.0)
-    cfg = replace(cfg, drive=replace(cfg.drive, abort_response_m_s2=100.0))  # |H| 100 at 80 Hz: 500 m/s²
+    cfg = replace(
+        cfg, drive=replace(cfg.drive, abort_response_m_s2=100.0)
+    )  # |H| 100 at 80 Hz: 500 m/s²
     result = run_campaign(short_setup(10), stand, path, cfg)
-    assert result.run_status == "aborted" and "abort limit 100 m/s2 at 80 Hz (step 4)" in result.reason
+    assert (
+        result.run_status == "aborted" and "abort limit 100 m/s2 at 80 Hz (step 4)" in result.reason
+    )
     assert result.n_steps == 5
     assert not stand.generator.output_enabled
     assert ("freq", 90.0) not in stand.generator.log
@@ -220,7 +245,10 @@ def test_stand_fault_aborts_with_its_message_and_output_off(tmp_path):
     path = tmp_path / "s.h5"
     stand = fake_stand(seed=7, fail_at=(2, GeneratorError("generator: no reply to 'FREQ 60'")))
     result = run_campaign(short_setup(), stand, path, fast_config())
-    assert result.run_status == "aborted" and result.reason == "stand fault: generator: no reply to 'FREQ 60'"
+    assert (
+        result.run_status == "aborted"
+        and result.reason == "stand fault: generator: no reply to 'FREQ 60'"
+    )
     assert result.n_steps == 2 and not stand.generator.output_enabled
     with read_session(path) as s:
         assert s.run_status_reason == result.reason
@@ -233,7 +261,10 @@ def test_unexpected_error_closes_interrupted_and_is_raised(tmp_path):
         run_campaign(short_setup(), stand, path, fast_config())
     assert not stand.generator.output_enabled
     with read_session(path) as s:
-        assert (len(s), s.run_status) == (1, "interrupted") and "ZeroDivisionError" in s.run_status_reason
+        assert (len(s), s.run_status) == (
+            1,
+            "interrupted",
+        ) and "ZeroDivisionError" in s.run_status_reason
 
 
 def test_stop_request_ends_cleanly_between_steps(tmp_path):
@@ -252,7 +283,11 @@ def test_stop_request_ends_cleanly_between_steps(tmp_path):
     result = run_campaign(short_setup(), stand, path, fast_config(), progress=progress, stop=event)
     # step 1 is written and reported while step 2 settles; step 2, measured, is written at the
     # stop, and nothing more is played
-    assert (result.run_status, result.reason, result.n_steps) == ("interrupted", "stopped on request", 3)
+    assert (result.run_status, result.reason, result.n_steps) == (
+        "interrupted",
+        "stopped on request",
+        3,
+    )
     assert [p.index for p in seen] == [0, 1, 2] and seen[0].n_steps == 10
     assert {a[0] for a in stand.daq.acquisitions} == {0, 1, 2}
     assert seen[1].eta_s > 0 and math.isfinite(seen[1].h_abs)
@@ -260,8 +295,13 @@ def test_stop_request_ends_cleanly_between_steps(tmp_path):
 
 def test_progress_reports_the_steps_h_and_phase(tmp_path):
     seen = []
-    run_campaign(short_setup(), fake_stand(seed=7), tmp_path / "s.h5", fast_config(settle_time_constants=14.0, max_settle_s=10.0),
-                 progress=seen.append)
+    run_campaign(
+        short_setup(),
+        fake_stand(seed=7),
+        tmp_path / "s.h5",
+        fast_config(settle_time_constants=14.0, max_settle_s=10.0),
+        progress=seen.append,
+    )
     h = sdof_h(np.array([p.frequency_hz for p in seen]) * (1 + 40e-6))
     np.testing.assert_allclose([p.h_abs for p in seen], np.abs(h), rtol=2e-3)
     np.testing.assert_allclose([p.phase_deg for p in seen], np.degrees(np.angle(h)), atol=0.2)
@@ -270,8 +310,15 @@ def test_progress_reports_the_steps_h_and_phase(tmp_path):
 
 def test_optional_fields_are_written_and_the_session_validates(tmp_path, capsys):
     path = tmp_path / "s.h5"
-    run_campaign(short_setup(), fake_stand(seed=7), path, fast_config(), operator="A. Tester",
-                 notes="clamp torque 5 N m", temperature_c=21.5)
+    run_campaign(
+        short_setup(),
+        fake_stand(seed=7),
+        path,
+        fast_config(),
+        operator="A. Tester",
+        notes="clamp torque 5 N m",
+        temperature_c=21.5,
+    )
     with read_session(path) as s:
         assert (s.operator, s.notes) == ("A. Tester", "clamp torque 5 N m")
         assert {st.temperature_c for st in s.steps()} == {21.5}
@@ -298,12 +345,18 @@ def test_resume_refuses_a_complete_file_another_setup_and_a_missing_file(tmp_pat
 def test_bad_stand_configuration_is_refused_before_any_file_or_drive(tmp_path):
     path = tmp_path / "s.h5"
     cfg = fast_config()
-    for bad in (replace(cfg, drive=replace(cfg.drive, initial_vpp=6.0)),  # above max_vpp 5
-                replace(cfg, timing=replace(cfg.timing, min_record_s=0.0))):
+    for bad in (
+        replace(cfg, drive=replace(cfg.drive, initial_vpp=6.0)),  # above max_vpp 5
+        replace(cfg, timing=replace(cfg.timing, min_record_s=0.0)),
+    ):
         stand = fake_stand()
         with pytest.raises(VibidError, match="stand configuration"):
             run_campaign(short_setup(), stand, path, bad)
-        assert not path.exists() and stand.daq.acquisitions == [] and not stand.generator.output_enabled
+        assert (
+            not path.exists()
+            and stand.daq.acquisitions == []
+            and not stand.generator.output_enabled
+        )
 
 
 def test_a_file_that_cannot_be_written_aborts_with_output_off(tmp_path, monkeypatch):
@@ -314,7 +367,9 @@ def test_a_file_that_cannot_be_written_aborts_with_output_off(tmp_path, monkeypa
 
     def full_disk(self, **kw):
         if self.n_steps == 2:
-            raise VibidError(f"{self.path}: cannot write the session file (No space left on device)")
+            raise VibidError(
+                f"{self.path}: cannot write the session file (No space left on device)"
+            )
         return real(self, **kw)
 
     monkeypatch.setattr(SessionWriter, "append", full_disk)
@@ -339,7 +394,9 @@ def test_a_planned_setup_settles_and_records_each_step_as_listed():
     assert commands[0].n_samples == record_samples(70.0, fs, cfg.timing)  # the stand's minimum
     for c, wanted_s in zip(commands[1:], (1.0, 2.0)):
         cycles = c.n_samples * c.frequency_hz / fs
-        assert c.record_s >= wanted_s - 0.5 / fs and abs(cycles - round(cycles)) < c.frequency_hz / fs
+        assert (
+            c.record_s >= wanted_s - 0.5 / fs and abs(cycles - round(cycles)) < c.frequency_hz / fs
+        )
         assert c.record_s < wanted_s + 1.0 / c.frequency_hz + 1.0 / fs  # the least whole cycles
 
 
@@ -350,10 +407,15 @@ def test_the_drive_controls_amplitude_is_right_on_a_long_record_with_a_clock_off
     fs, f, t_s, ppm = 25600.0, 1427.5, 8.75, 40.0
     t = np.arange(int(fs * t_s)) / fs
     x = 1.0 * np.cos(2 * np.pi * f * (1 + ppm * 1e-6) * t + 0.3) + 0.02
-    one_fit = np.linalg.lstsq(np.stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t),
-                                        np.ones_like(t)], 1), x, rcond=None)[0]
+    one_fit = np.linalg.lstsq(
+        np.stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t), np.ones_like(t)], 1),
+        x,
+        rcond=None,
+    )[0]
     assert np.hypot(*one_fit[:2]) == pytest.approx(2 / np.pi, abs=0.01)  # the old reading
     assert amplitude_m_s2(x, f, fs) == pytest.approx(1.0, abs=2e-3)
     # a short record at a low frequency still fits whole cycles (4 at least)
     t = np.arange(int(fs * 0.4)) / fs
-    assert amplitude_m_s2(0.5 * np.sin(2 * np.pi * 12.5 * t), 12.5, fs) == pytest.approx(0.5, rel=1e-6)
+    assert amplitude_m_s2(0.5 * np.sin(2 * np.pi * 12.5 * t), 12.5, fs) == pytest.approx(
+        0.5, rel=1e-6
+    )

@@ -20,7 +20,6 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 from campaign_fakes import fake_stand, fast_config, short_setup  # noqa: E402
 from test_campaign import assert_same_steps  # noqa: E402
-
 from vibid.acquisition.campaign import run_campaign  # noqa: E402
 from vibid.cli import main  # noqa: E402
 from vibid.session import file_problems, read_session  # noqa: E402
@@ -42,8 +41,13 @@ def _env(kill_at=None):
 
 
 def _child(out, *args, kill_at=None):
-    return subprocess.Popen([sys.executable, str(HERE / "campaign_fakes.py"), str(out), *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(kill_at))
+    return subprocess.Popen(
+        [sys.executable, str(HERE / "campaign_fakes.py"), str(out), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_env(kill_at),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -77,12 +81,18 @@ def _closed(path):
         return s.run_status_written
 
 
-KILL_POINTS = [f"{tag}:{phase}" for tag in ("create", "step0", "step5", "step9", "close")
-               for phase in WRITE_PHASES if not (tag == "create" and phase == "after_copy")]
+KILL_POINTS = [
+    f"{tag}:{phase}"
+    for tag in ("create", "step0", "step5", "step9", "close")
+    for phase in WRITE_PHASES
+    if not (tag == "create" and phase == "after_copy")
+]
 
 
 @pytest.mark.parametrize("kill_at", KILL_POINTS)
-def test_kill_at_every_write_phase_leaves_a_valid_file_that_resume_completes(tmp_path, reference, capsys, kill_at):
+def test_kill_at_every_write_phase_leaves_a_valid_file_that_resume_completes(
+    tmp_path, reference, capsys, kill_at
+):
     out = tmp_path / "s.h5"
     child = _child(out, kill_at=kill_at)
     stdout, stderr = child.communicate(timeout=120)
@@ -107,8 +117,13 @@ def test_kill_in_a_resumed_campaign_then_resume_again(tmp_path, reference, capsy
     child.communicate(timeout=120)
     assert child.returncode == -signal.SIGKILL
     # an interrupted close leaves run_status written: the resume's own write is a phase too
-    result = run_campaign(short_setup(), fake_stand(seed=7, fail_at=(5, KeyboardInterrupt())), out, fast_config(),
-                          resume=True)
+    result = run_campaign(
+        short_setup(),
+        fake_stand(seed=7, fail_at=(5, KeyboardInterrupt())),
+        out,
+        fast_config(),
+        resume=True,
+    )
     assert (result.run_status, result.n_steps) == ("interrupted", 5)
     for kill_at in ("resume:after_write", "step7:after_fsync"):
         child = _child(out, "--resume", kill_at=kill_at)
@@ -134,7 +149,8 @@ def campaign_seconds(tmp_path_factory):
 
 @pytest.mark.parametrize("draw", range(20))
 def test_sigkill_at_a_random_instant_leaves_a_valid_file_that_resume_completes(
-        tmp_path, reference, capsys, campaign_seconds, draw):
+    tmp_path, reference, capsys, campaign_seconds, draw
+):
     rng = np.random.default_rng(1000 + draw)
     out = tmp_path / "s.h5"
     delay_s = float(rng.uniform(0.0, 0.95 * campaign_seconds))

@@ -16,7 +16,7 @@ worked out by hand.
 import math
 import sys
 from dataclasses import dataclass, replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +24,6 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 from campaign_fakes import FakeGenerator, FakeStand, VirtualClock  # noqa: E402
-
 from vibid.acquisition.campaign import run_campaign  # noqa: E402
 from vibid.acquisition.protocols import Reading  # noqa: E402
 from vibid.acquisition.stand_config import StandConfig  # noqa: E402
@@ -35,18 +34,25 @@ from vibid.signal import StepRecord, afc_from_records, afc_from_session  # noqa:
 from vibid.signal.flags import FREE_VIBRATION_LEAK_STD, free_vibration  # noqa: E402
 
 FS = 25600.0
-N = 6400                 # 0.25 s: 4 Hz bins
-F = 487.5                # the drive
+N = 6400  # 0.25 s: 4 Hz bins
+F = 487.5  # the drive
 F_N, ETA = 496.5, 0.003  # the mode 9 Hz (2.25 bins) above it, its loss factor
 GAMMA = math.pi * F_N * ETA  # the free vibration decays as exp(-GAMMA t): 4.68 /s
 H = 4.0 + 3.0j
-NOISE = 4e-4             # per channel, m/s² (the stand configuration's default, times 1 m/s²)
+NOISE = 4e-4  # per channel, m/s² (the stand configuration's default, times 1 m/s²)
 
 
 def _records(ring_m_s2, *, seed=1, decay_s=1.0 / GAMMA):
     transient = Transient(ring_m_s2, decay_s, F_N, 0.3) if ring_m_s2 else None
-    return synthetic_step(F, H, sample_rate_hz=FS, n_samples=N, noise_std_m_s2=(NOISE, NOISE),
-                          transient=transient, rng=seed)
+    return synthetic_step(
+        F,
+        H,
+        sample_rate_hz=FS,
+        n_samples=N,
+        noise_std_m_s2=(NOISE, NOISE),
+        transient=transient,
+        rng=seed,
+    )
 
 
 def _point(records):
@@ -110,11 +116,18 @@ class RingingDaq:
         ring = self.ring_per_base * base * math.exp(-GAMMA * self.clock.since_mark_s)
         rng = np.random.default_rng([self.step + 1, self.records_in_step])
         self.records_in_step += 1
-        b, r = synthetic_step(g.frequency_hz, H, sample_rate_hz=FS, n_samples=n_samples,
-                              base_amplitude_m_s2=base, noise_std_m_s2=(NOISE * 5, NOISE * 5),
-                              transient=Transient(ring, 1.0 / GAMMA, F_N, 0.3), rng=rng)
+        b, r = synthetic_step(
+            g.frequency_hz,
+            H,
+            sample_rate_hz=FS,
+            n_samples=n_samples,
+            base_amplitude_m_s2=base,
+            noise_std_m_s2=(NOISE * 5, NOISE * 5),
+            transient=Transient(ring, 1.0 / GAMMA, F_N, 0.3),
+            rng=rng,
+        )
         self.clock.sleep(n_samples / FS)
-        return Reading(b, r, FS, datetime(2026, 1, 1, tzinfo=timezone.utc).isoformat(), ())
+        return Reading(b, r, FS, datetime(2026, 1, 1, tzinfo=UTC).isoformat(), ())
 
     def close(self):
         pass

@@ -11,7 +11,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -37,10 +36,12 @@ def _write_setup(tmp_path, freqs=FREQS, settle_s=0.5):
 def _write_stand(tmp_path, name, timing=None, drive=None, **simulated):
     # settling is free in virtual time: up to 40 s lets the 75 Hz mode (decay 1.4 s) ring
     # out below the noise wherever the runner finds a record unsettled
-    doc = {"generator": {"url": f"vibidsim://{name}"},
-           "timing": {"min_record_s": 0.1, "min_cycles": 10, "max_settle_s": 40.0, **(timing or {})},
-           "drive": drive or {},
-           "simulated": {"seed": 5, **simulated}}
+    doc = {
+        "generator": {"url": f"vibidsim://{name}"},
+        "timing": {"min_record_s": 0.1, "min_cycles": 10, "max_settle_s": 40.0, **(timing or {})},
+        "drive": drive or {},
+        "simulated": {"seed": 5, **simulated},
+    }
     path = tmp_path / f"{name}.json"
     path.write_text(json.dumps(doc))
     return path
@@ -53,13 +54,32 @@ def test_simulated_campaign_afc_equals_the_virtual_specimens_h(tmp_path, capsys,
     name = f"afc{int(ppm)}"
     setup, stand_json = _write_setup(tmp_path), _write_stand(tmp_path, name, clock_offset_ppm=ppm)
     out = tmp_path / "s.h5"
-    code = main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(out), "--operator", "T. Est", "--temperature-c", "22.5", "--record-only"])
+    code = main(
+        [
+            "campaign",
+            str(setup),
+            "--stand",
+            "simulated",
+            "--stand-config",
+            str(stand_json),
+            "--out",
+            str(out),
+            "--operator",
+            "T. Est",
+            "--temperature-c",
+            "22.5",
+            "--record-only",
+        ]
+    )
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert captured.out.strip().startswith(f"{out}: complete, 10 of 10 steps; stand time ")
     lines = captured.err.strip().splitlines()
-    assert len(lines) == 10 and lines[0].startswith("step 1/10  20 Hz  |H| ") and "\r" not in captured.err
+    assert (
+        len(lines) == 10
+        and lines[0].startswith("step 1/10  20 Hz  |H| ")
+        and "\r" not in captured.err
+    )
     virtual = lookup_stand(name)
     assert not virtual.instrument.output_on
     with read_session(out) as s:
@@ -69,37 +89,75 @@ def test_simulated_campaign_afc_equals_the_virtual_specimens_h(tmp_path, capsys,
         stand_time_s = s.stand_time_s
     # stand time: every step's settle and record, summed; the virtual stand's clock, which
     # runs only while the specimen settles or is recorded, ran exactly that long
-    assert stand_time_s == pytest.approx(sum(t + st.n_samples / st.sample_rate_hz
-                                             for t, st in steps), rel=1e-12)
+    assert stand_time_s == pytest.approx(
+        sum(t + st.n_samples / st.sample_rate_hz for t, st in steps), rel=1e-12
+    )
     assert all(t >= 0.5 for t, _ in steps)  # the setup's settle_s is a floor
     assert stand_time_s == pytest.approx(virtual.clock.now_s(), rel=1e-12)
     assert f"stand time {stand_time_s:.1f} s" in captured.out
     truth = virtual.specimen.h(np.array(FREQS) * (1 + 1e-6 * ppm))  # at the frequency played
     assert table.used.all(), table.flags
-    z = np.concatenate([(table.H.real - truth.real) / table.std_re, (table.H.imag - truth.imag) / table.std_im])
+    z = np.concatenate(
+        [(table.H.real - truth.real) / table.std_re, (table.H.imag - truth.imag) / table.std_im]
+    )
     assert np.max(np.abs(z)) < 4.5 and np.mean(z**2) < 3.0, z
     np.testing.assert_allclose(table.frequency_hz / np.array(FREQS) - 1, ppm * 1e-6, atol=2e-6)
     assert main(["validate", str(out)]) == 0
-    assert "valid session, 10 steps (10 ok), 20-400 Hz, declared model isotropic, run complete" in capsys.readouterr().out
+    assert (
+        "valid session, 10 steps (10 ok), 20-400 Hz, declared model isotropic, run complete"
+        in capsys.readouterr().out
+    )
 
 
 def test_bad_output_paths_are_refused_before_the_stand_opens(tmp_path, capsys):
     setup = _write_setup(tmp_path)
     stand_json = _write_stand(tmp_path, "badpath")
-    t = time.perf_counter()
     missing = tmp_path / "no" / "s.h5"
-    assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(missing)]) == 1
+    assert (
+        main(
+            [
+                "campaign",
+                str(setup),
+                "--stand",
+                "simulated",
+                "--stand-config",
+                str(stand_json),
+                "--out",
+                str(missing),
+            ]
+        )
+        == 1
+    )
     err = capsys.readouterr().err
-    assert err.strip() == f"vibid campaign: error: --out {missing}: the directory {missing.parent} does not exist"
+    assert (
+        err.strip()
+        == f"vibid campaign: error: --out {missing}: the directory {missing.parent} does not exist"
+    )
     existing = tmp_path / "exists.h5"
     existing.write_bytes(b"x")
     assert main(["campaign", str(setup), "--stand", "simulated", "--out", str(existing)]) == 1
     assert "already exists" in capsys.readouterr().err
-    assert main(["campaign", str(setup), "--stand", "simulated", "--out", str(tmp_path / "none.h5"),
-                 "--resume"]) == 1
+    assert (
+        main(
+            [
+                "campaign",
+                str(setup),
+                "--stand",
+                "simulated",
+                "--out",
+                str(tmp_path / "none.h5"),
+                "--resume",
+            ]
+        )
+        == 1
+    )
     assert "no such session file to resume" in capsys.readouterr().err
-    assert main(["campaign", str(setup), "--stand", "ni", "--realtime", "--out", str(tmp_path / "x.h5")]) == 1
+    assert (
+        main(
+            ["campaign", str(setup), "--stand", "ni", "--realtime", "--out", str(tmp_path / "x.h5")]
+        )
+        == 1
+    )
     assert "--realtime" in capsys.readouterr().err
     from vibid.hardware_mocks.virtual_stand import _STANDS
 
@@ -110,24 +168,46 @@ def test_generator_fault_aborts_the_campaign_with_output_off(tmp_path, capsys):
     from vibid.hardware_mocks.virtual_stand import lookup_stand
 
     setup = _write_setup(tmp_path)
-    stand_json = _write_stand(tmp_path, "fault", faults=[{"kind": "no_reply", "at_step": 3, "count": 5}])
+    stand_json = _write_stand(
+        tmp_path, "fault", faults=[{"kind": "no_reply", "at_step": 3, "count": 5}]
+    )
     out = tmp_path / "s.h5"
-    code = main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(out), "--record-only"])
+    code = main(
+        [
+            "campaign",
+            str(setup),
+            "--stand",
+            "simulated",
+            "--stand-config",
+            str(stand_json),
+            "--out",
+            str(out),
+            "--record-only",
+        ]
+    )
     captured = capsys.readouterr()
     assert code == 1
     assert captured.out.startswith(f"{out}: aborted, 3 of 10 steps (stand fault: ")
     assert not lookup_stand("fault").instrument.output_on
     assert file_problems(out) == []
     with read_session(out) as s:
-        assert (len(s), s.run_status) == (3, "aborted") and s.run_status_reason.startswith("stand fault: ")
+        assert (len(s), s.run_status) == (3, "aborted") and s.run_status_reason.startswith(
+            "stand fault: "
+        )
 
 
 def _cli(*args):
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parent.parent / "src"), env.get("PYTHONPATH", "")])
-    return subprocess.Popen([sys.executable, "-m", "vibid", "campaign", "--record-only", *map(str, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(__file__).parent.parent / "src"), env.get("PYTHONPATH", "")]
+    )
+    return subprocess.Popen(
+        [sys.executable, "-m", "vibid", "campaign", "--record-only", *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs SIGKILL (POSIX)")
@@ -135,8 +215,12 @@ def test_killed_campaign_process_is_continued_by_resume(tmp_path, capsys):
     # between the first two modes (75 and 497 Hz) and with a short settle rule, so that the
     # real-time run takes a few seconds
     n = 16
-    setup = _write_setup(tmp_path, tuple(float(f) for f in np.linspace(200.0, 380.0, n)), settle_s=0.05)
-    stand_json = _write_stand(tmp_path, "killed", timing={"expected_loss_factor": 0.05, "max_settle_s": 1.0})
+    setup = _write_setup(
+        tmp_path, tuple(float(f) for f in np.linspace(200.0, 380.0, n)), settle_s=0.05
+    )
+    stand_json = _write_stand(
+        tmp_path, "killed", timing={"expected_loss_factor": 0.05, "max_settle_s": 1.0}
+    )
     out = tmp_path / "s.h5"
     child = _cli(setup, "--stand", "simulated", "--stand-config", stand_json, "--out", out)
     for line in child.stderr:  # kill it as soon as it reported its third step
@@ -150,14 +234,30 @@ def test_killed_campaign_process_is_continued_by_resume(tmp_path, capsys):
     with read_session(out) as s:
         n_killed = len(s)
     assert 3 <= n_killed < n, "the campaign ended before the kill"
-    resumed = _cli(setup, "--stand", "simulated", "--stand-config", stand_json, "--out", out, "--resume")
+    resumed = _cli(
+        setup, "--stand", "simulated", "--stand-config", stand_json, "--out", out, "--resume"
+    )
     stdout, stderr = resumed.communicate(timeout=300)
     assert resumed.returncode == 0, stderr
     assert stdout.strip().startswith(f"{out}: complete, {n} of {n} steps; stand time ")
     assert stderr.strip().splitlines()[0].startswith(f"step {n_killed + 1}/{n}")
     reference = tmp_path / "reference.h5"
-    assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                 "--out", str(reference), "--record-only"]) == 0
+    assert (
+        main(
+            [
+                "campaign",
+                str(setup),
+                "--stand",
+                "simulated",
+                "--stand-config",
+                str(stand_json),
+                "--out",
+                str(reference),
+                "--record-only",
+            ]
+        )
+        == 0
+    )
     with read_session(out) as a, read_session(reference) as b:
         assert a.run_status == "complete" and len(a) == len(b) == n
         for i in range(n_killed):  # what was recorded before the kill is the uninterrupted run's
@@ -172,7 +272,9 @@ def test_killed_campaign_process_is_continued_by_resume(tmp_path, capsys):
     assert np.max(z) < 5.0, z
 
 
-def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_avoids_it(tmp_path, capsys):
+def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_avoids_it(
+    tmp_path, capsys
+):
     """The virtual plate's first mode (75 Hz, loss factor 0.003: Q 333, decay time 1.4 s),
     played with a 0.02 s settle: with the damping settle switched off the signal stage flags
     the transient; with the runner's rule (up to 40 s of virtual settle) no step is flagged."""
@@ -182,11 +284,26 @@ def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_av
     tables = {}
     for name, timing in (("q-short", {"max_settle_s": 0.0}), ("q-rule", {})):
         # |H| reaches 125: a 1 m/s² base keeps the response (125 m/s², 13 g) in the 50 g range
-        stand_json = _write_stand(tmp_path, name, timing=timing,
-                                  drive={"target_base_m_s2": 1.0, "initial_vpp": 0.04})
+        stand_json = _write_stand(
+            tmp_path, name, timing=timing, drive={"target_base_m_s2": 1.0, "initial_vpp": 0.04}
+        )
         out = tmp_path / f"{name}.h5"
-        assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand_json),
-                     "--out", str(out), "--record-only"]) == 0
+        assert (
+            main(
+                [
+                    "campaign",
+                    str(setup),
+                    "--stand",
+                    "simulated",
+                    "--stand-config",
+                    str(stand_json),
+                    "--out",
+                    str(out),
+                    "--record-only",
+                ]
+            )
+            == 0
+        )
         with read_session(out) as s:
             tables[name] = afc_from_session(s)
     f_n, _ = lookup_stand("q-rule").specimen.nearest_mode(75.0)
@@ -194,7 +311,9 @@ def test_q333_resonance_with_a_short_settle_is_flagged_and_the_q_based_settle_av
     assert "unsettled" in tables["q-short"].flags[2]
     assert not any("unsettled" in f for f in tables["q-rule"].flags), tables["q-rule"].flags
     assert tables["q-rule"].used.all(), tables["q-rule"].flags
-    truth = lookup_stand("q-rule").specimen.h(np.array([72.0, 74.0, 75.0, 76.0, 78.0]) * (1 + 40e-6))
+    truth = lookup_stand("q-rule").specimen.h(
+        np.array([72.0, 74.0, 75.0, 76.0, 78.0]) * (1 + 40e-6)
+    )
     t = tables["q-rule"]
     z = np.concatenate([(t.H.real - truth.real) / t.std_re, (t.H.imag - truth.imag) / t.std_im])
     assert np.max(np.abs(z)) < 4.5, z
@@ -206,9 +325,11 @@ def test_dry_run_prints_the_plan_without_opening_the_stand(tmp_path, capsys):
     assert main(["campaign", str(setup), "--stand", "ni", "--out", str(out), "--dry-run"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     # default timing: 20 cycles or 0.25 s of whole cycles at 25.6 kHz
-    assert lines[:3] == ["step 1/3  20 Hz  settle 0.5 s  record 25600 samples (1 s)",
-                         "step 2/3  100 Hz  settle 0.5 s  record 6400 samples (0.25 s)",
-                         "step 3/3  1000 Hz  settle 0.5 s  record 6400 samples (0.25 s)"]
+    assert lines[:3] == [
+        "step 1/3  20 Hz  settle 0.5 s  record 25600 samples (1 s)",
+        "step 2/3  100 Hz  settle 0.5 s  record 6400 samples (0.25 s)",
+        "step 3/3  1000 Hz  settle 0.5 s  record 6400 samples (0.25 s)",
+    ]
     assert lines[3].startswith("3 steps: settle 1.5 s + record 1.5 s = at least 3 s")
     assert not out.exists()
 
@@ -232,5 +353,6 @@ def test_each_steps_progress_carries_its_uncertainty_and_its_stand_time(tmp_path
     with read_session(tmp_path / "s.h5") as s:
         table = afc_from_session(s)
     np.testing.assert_allclose([p.h_std for p in seen], table.std, rtol=1e-9)
-    assert result.stand_time_s == pytest.approx(sum(p.settle_s + p.record_s for p in seen),
-                                                rel=1e-12)
+    assert result.stand_time_s == pytest.approx(
+        sum(p.settle_s + p.record_s for p in seen), rel=1e-12
+    )

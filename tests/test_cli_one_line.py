@@ -14,18 +14,31 @@ ARGV = ["modes", "setup.json", "--params", "D=1"]
 def _raising(exc):
     def run(args):
         raise exc
+
     return run
 
 
-@pytest.mark.parametrize("exc, shown", [
-    (VibidError("a\nb"), "vibid modes: error: a; b"),
-    (VibidError("first\r\n\n  second\rthird\u2028fourth\x85fifth\n"),
-     "vibid modes: error: first; second; third; fourth; fifth"),
-    (SetupError(["setup.x: bad\nvalue", "setup.y: missing"]),
-     "vibid modes: error: setup.x: bad; value; setup.y: missing"),
-    (RuntimeError("boom\non two lines"), ("vibid modes: internal error: RuntimeError: boom; on "
-                                          "two lines (run with --debug for the traceback)")),
-])
+@pytest.mark.parametrize(
+    "exc, shown",
+    [
+        (VibidError("a\nb"), "vibid modes: error: a; b"),
+        (
+            VibidError("first\r\n\n  second\rthird\u2028fourth\x85fifth\n"),
+            "vibid modes: error: first; second; third; fourth; fifth",
+        ),
+        (
+            SetupError(["setup.x: bad\nvalue", "setup.y: missing"]),
+            "vibid modes: error: setup.x: bad; value; setup.y: missing",
+        ),
+        (
+            RuntimeError("boom\non two lines"),
+            (
+                "vibid modes: internal error: RuntimeError: boom; on "
+                "two lines (run with --debug for the traceback)"
+            ),
+        ),
+    ],
+)
 def test_an_error_message_with_line_breaks_is_printed_on_one_line(monkeypatch, capsys, exc, shown):
     monkeypatch.setattr(vibid.cli.modes, "run", _raising(exc))
     assert main(ARGV) == 1

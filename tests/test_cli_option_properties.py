@@ -26,11 +26,22 @@ from vibid.cli.options import check_values, parse_number, parse_values
 from vibid.cli.plan import parse_band
 from vibid.errors import VibidError
 from vibid.parameters import catalogue, specimen_scale
-from vibid.planner.prior import NormalPrior, Target, check_stand_time_cap, parse_prior, parse_targets
+from vibid.planner.prior import (
+    NormalPrior,
+    Target,
+    check_stand_time_cap,
+    parse_prior,
+    parse_targets,
+)
 from vibid.setup_model import SetupError, example_setup, parse_setup
 
-PROPERTIES = settings(deadline=None, derandomize=True, database=None, max_examples=120,
-                      suppress_health_check=[HealthCheck.too_slow])
+PROPERTIES = settings(
+    deadline=None,
+    derandomize=True,
+    database=None,
+    max_examples=120,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 CLI = settings(PROPERTIES, max_examples=20)
 NAMES = ("D", "nu", "beta")
 STRIP = str(Path(__file__).parent.parent / "examples" / "strip_setup.json")
@@ -64,12 +75,40 @@ def spelled(draw, x: float, *, padded: bool = True) -> str:
     return text
 
 
-NOT_NUMBERS = ["nan", "NaN", "-nan", "inf", "-inf", "Infinity", "1e999", "-1e999", "1e400", "",
-               " ", "1,5", "0x10", "1e", "e5", ".", "--1", "1..2", "½", "²", "5 5", "٫5", "1%",
-               "\u00a0", "one", "D", "5\n6", "\x00"]
+NOT_NUMBERS = [
+    "nan",
+    "NaN",
+    "-nan",
+    "inf",
+    "-inf",
+    "Infinity",
+    "1e999",
+    "-1e999",
+    "1e400",
+    "",
+    " ",
+    "1,5",
+    "0x10",
+    "1e",
+    "e5",
+    ".",
+    "--1",
+    "1..2",
+    "½",
+    "²",
+    "5 5",
+    "٫5",
+    "1%",
+    "\u00a0",
+    "one",
+    "D",
+    "5\n6",
+    "\x00",
+]
 #: text that is mostly not a number, sometimes one
-anything = st.one_of(st.sampled_from(NOT_NUMBERS), st.text(max_size=12),
-                     finite.flatmap(lambda x: spelled(x)))
+anything = st.one_of(
+    st.sampled_from(NOT_NUMBERS), st.text(max_size=12), finite.flatmap(lambda x: spelled(x))
+)
 
 
 def clean(text: str) -> float | None:
@@ -115,8 +154,11 @@ names = st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,6}", fullmatch=True)
 
 
 @PROPERTIES
-@given(st.dictionaries(names, finite, min_size=1, max_size=5).flatmap(
-    lambda d: st.tuples(st.just(d), st.tuples(*[spelled(x) for x in d.values()]))))
+@given(
+    st.dictionaries(names, finite, min_size=1, max_size=5).flatmap(
+        lambda d: st.tuples(st.just(d), st.tuples(*[spelled(x) for x in d.values()]))
+    )
+)
 def test_name_value_lists_read_every_value_as_given(case):
     values, texts = case
     items = [f"{n}={t}" for n, t in zip(values, texts)]
@@ -138,12 +180,22 @@ NAME_GRAMMAR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # ASCII letters, digits, u
 
 
 @PROPERTIES
-@given(st.lists(st.one_of(st.text(max_size=10), st.tuples(names, anything).map("=".join),
-                          st.tuples(names, finite.map(repr)).map("=".join)), min_size=1, max_size=3))
+@given(
+    st.lists(
+        st.one_of(
+            st.text(max_size=10),
+            st.tuples(names, anything).map("=".join),
+            st.tuples(names, finite.map(repr)).map("=".join),
+        ),
+        min_size=1,
+        max_size=3,
+    )
+)
 def test_any_name_value_list_reads_whole_or_is_a_one_line_error(items):
     parts = [i.partition("=") for i in items]
-    valid = (all(s and NAME_GRAMMAR.fullmatch(n) and clean(v) is not None for n, s, v in parts)
-             and len({n for n, _, _ in parts}) == len(parts))
+    valid = all(
+        s and NAME_GRAMMAR.fullmatch(n) and clean(v) is not None for n, s, v in parts
+    ) and len({n for n, _, _ in parts}) == len(parts)
     event("valid" if valid else "refused")
     try:
         got = parse_values(items, "--params")
@@ -172,8 +224,13 @@ def allowed(q, x) -> bool:
 
 
 @PROPERTIES
-@given(st.sampled_from(sorted(catalogue())), st.one_of(st.floats(), st.sampled_from(
-    [0.0, -0.0, -1.0, 0.5, 1e-300, -1e-300, math.inf, -math.inf, math.nan])))
+@given(
+    st.sampled_from(sorted(catalogue())),
+    st.one_of(
+        st.floats(),
+        st.sampled_from([0.0, -0.0, -1.0, 0.5, 1e-300, -1e-300, math.inf, -math.inf, math.nan]),
+    ),
+)
 def test_a_value_is_refused_exactly_when_its_parameters_rule_says_so(name, x):
     q = catalogue()[name]
     problem = q.value_problem(x)
@@ -202,7 +259,8 @@ def target(draw, value=positive):
     name, x, pct = draw(st.sampled_from(NAMES)), draw(value), draw(st.booleans())
     eq = draw(st.sampled_from(["=", " = "]))
     return f"{name}{eq}{draw(spelled(x, padded=False))}{'%' if pct else ''}", Target(
-        name, x / 100 if pct else x, pct)
+        name, x / 100 if pct else x, pct
+    )
 
 
 @PROPERTIES
@@ -213,9 +271,16 @@ def test_targets_read_as_their_clean_spelling(pairs):
 
 
 @PROPERTIES
-@given(st.one_of(target(st.floats(max_value=0.0, allow_infinity=False)), st.tuples(
-    st.sampled_from(NAMES), st.sampled_from(["1e999", "nan", "inf", "-1e999", "", "x", "1e-999"]),
-    st.sampled_from(["", "%"])).map(lambda t: (f"{t[0]}={t[1]}{t[2]}", None))))
+@given(
+    st.one_of(
+        target(st.floats(max_value=0.0, allow_infinity=False)),
+        st.tuples(
+            st.sampled_from(NAMES),
+            st.sampled_from(["1e999", "nan", "inf", "-1e999", "", "x", "1e-999"]),
+            st.sampled_from(["", "%"]),
+        ).map(lambda t: (f"{t[0]}={t[1]}{t[2]}", None)),
+    )
+)
 def test_a_target_that_is_not_a_positive_finite_number_is_a_one_line_error(case):
     text, _ = case
     with pytest.raises(VibidError) as info:
@@ -236,10 +301,16 @@ def test_any_target_reads_whole_or_is_a_one_line_error(texts):
 
 @st.composite
 def prior(draw):
-    name, mean, std, pct = (draw(st.sampled_from(NAMES)), draw(finite), draw(positive),
-                            draw(st.booleans()))
-    text = (f"{name}={draw(spelled(mean, padded=False))}{draw(sep)}"
-            f"{draw(spelled(std, padded=False))}{'%' if pct else ''}")
+    name, mean, std, pct = (
+        draw(st.sampled_from(NAMES)),
+        draw(finite),
+        draw(positive),
+        draw(st.booleans()),
+    )
+    text = (
+        f"{name}={draw(spelled(mean, padded=False))}{draw(sep)}"
+        f"{draw(spelled(std, padded=False))}{'%' if pct else ''}"
+    )
     s = std / 100 * abs(mean) if pct else std
     return text, (NormalPrior(name, mean, s) if s > 0 and math.isfinite(s) else None)
 
@@ -257,8 +328,9 @@ def test_priors_read_as_their_clean_spelling_or_say_why_not(pairs):
 
 
 @PROPERTIES
-@given(st.sampled_from(NAMES), st.sampled_from(["1e999", "nan", "inf", "-1e999"]), st.booleans(),
-       sep)
+@given(
+    st.sampled_from(NAMES), st.sampled_from(["1e999", "nan", "inf", "-1e999"]), st.booleans(), sep
+)
 def test_a_prior_of_no_finite_number_is_a_one_line_error(name, bad, where, s):
     text = f"{name}={bad}{s}5" if where else f"{name}=5{s}{bad}"
     with pytest.raises(VibidError) as info:
@@ -267,8 +339,10 @@ def test_a_prior_of_no_finite_number_is_a_one_line_error(name, bad, where, s):
 
 
 @PROPERTIES
-@given(st.sampled_from(NAMES), st.lists(st.sampled_from(["17±3", "17+-30%", "0.3+/-0.05"]),
-                                         min_size=2, max_size=3))
+@given(
+    st.sampled_from(NAMES),
+    st.lists(st.sampled_from(["17±3", "17+-30%", "0.3+/-0.05"]), min_size=2, max_size=3),
+)
 def test_a_prior_or_target_given_twice_is_refused(name, specs):
     with pytest.raises(VibidError, match=f"^--prior: {name} is given twice$"):
         parse_prior([f"{name}={s}" for s in specs], NAMES)
@@ -278,8 +352,10 @@ def test_a_prior_or_target_given_twice_is_refused(name, specs):
 
 # -- a band, a cap --------------------------------------------------------------------------------
 @PROPERTIES
-@given(finite.flatmap(lambda lo: st.tuples(st.just(lo), spelled(lo))),
-       finite.flatmap(lambda hi: st.tuples(st.just(hi), spelled(hi))))
+@given(
+    finite.flatmap(lambda lo: st.tuples(st.just(lo), spelled(lo))),
+    finite.flatmap(lambda hi: st.tuples(st.just(hi), spelled(hi))),
+)
 def test_a_band_reads_as_its_clean_spelling(lo, hi):
     assert parse_band(f"{lo[1]}:{hi[1]}") == (lo[0], hi[0])
 
@@ -312,10 +388,18 @@ def test_a_stand_time_cap_is_a_positive_finite_number_of_seconds(seconds):
 
 # -- the setup JSON's numbers ---------------------------------------------------------------------
 #: Numeric fields of the setup document, by their path in it.
-FIELDS = [("specimen", "length_m"), ("specimen", "thickness_m"), ("specimen", "density_kg_m3"),
-          ("sensors", "base", "sensitivity_mV_per_g"), ("sensors", "response", "mass_kg"),
-          ("sensors", "response", "x_m"), ("daq", "sample_rate_hz"), ("excitation", "settle_s"),
-          ("identification", "bounds", "D", 0), ("identification", "bounds", "nu", 1)]
+FIELDS = [
+    ("specimen", "length_m"),
+    ("specimen", "thickness_m"),
+    ("specimen", "density_kg_m3"),
+    ("sensors", "base", "sensitivity_mV_per_g"),
+    ("sensors", "response", "mass_kg"),
+    ("sensors", "response", "x_m"),
+    ("daq", "sample_rate_hz"),
+    ("excitation", "settle_s"),
+    ("identification", "bounds", "D", 0),
+    ("identification", "bounds", "nu", 1),
+]
 TOKEN = "__VALUE__"
 
 
@@ -354,8 +438,12 @@ def json_spelled(draw, x: float) -> str:
 
 
 @PROPERTIES
-@given(st.sampled_from(FIELDS), st.floats(min_value=-1e6, max_value=1e6).flatmap(
-    lambda x: st.tuples(st.just(x), json_spelled(x))))
+@given(
+    st.sampled_from(FIELDS),
+    st.floats(min_value=-1e6, max_value=1e6).flatmap(
+        lambda x: st.tuples(st.just(x), json_spelled(x))
+    ),
+)
 def test_a_setup_number_reads_as_its_clean_spelling_or_is_refused_the_same(path, pair):
     x, raw = pair
     got, clean_one = read(setup_text(path, raw)), read(setup_text(path, json.dumps(x)))
@@ -367,9 +455,28 @@ def test_a_setup_number_reads_as_its_clean_spelling_or_is_refused_the_same(path,
 
 
 @PROPERTIES
-@given(st.sampled_from(FIELDS), st.sampled_from(
-    ["NaN", "Infinity", "-Infinity", "1e999", "-1e999", '"5"', "true", "null", "[]", "{}", "[1, 2]",
-     '"nan"', "0", "-1", '""']))
+@given(
+    st.sampled_from(FIELDS),
+    st.sampled_from(
+        [
+            "NaN",
+            "Infinity",
+            "-Infinity",
+            "1e999",
+            "-1e999",
+            '"5"',
+            "true",
+            "null",
+            "[]",
+            "{}",
+            "[1, 2]",
+            '"nan"',
+            "0",
+            "-1",
+            '""',
+        ]
+    ),
+)
 def test_a_setup_value_that_is_no_possible_number_is_a_one_line_error(path, raw):
     kind, what = read(setup_text(path, raw))
     if raw == "0" and path[-1] in ("mass_kg", "settle_s"):
@@ -402,15 +509,26 @@ def simulated(tmp_path_factory):
 
     truths = []
     mp = pytest.MonkeyPatch()
-    mp.setattr(vibid.hardware_mocks.simulated_session, "simulate_session",
-               lambda out, setup, truth, **kw: truths.append(dict(truth)))
+    mp.setattr(
+        vibid.hardware_mocks.simulated_session,
+        "simulate_session",
+        lambda out, setup, truth, **kw: truths.append(dict(truth)),
+    )
     yield tmp_path_factory.mktemp("simulate"), truths
     mp.undo()
 
 
 @CLI
-@given(st.one_of(st.sampled_from(NOT_NUMBERS), finite.flatmap(lambda x: spelled(x)), st.text(
-    alphabet=st.characters(blacklist_characters=",", blacklist_categories=("Cs",)), max_size=8)))
+@given(
+    st.one_of(
+        st.sampled_from(NOT_NUMBERS),
+        finite.flatmap(lambda x: spelled(x)),
+        st.text(
+            alphabet=st.characters(blacklist_characters=",", blacklist_categories=("Cs",)),
+            max_size=8,
+        ),
+    )
+)
 def test_simulate_takes_a_delay_as_its_number_or_refuses_it_in_one_line(simulated, text):
     folder, truths = simulated
     assume("," not in text)
@@ -434,8 +552,9 @@ def _argparse_float(text: str) -> float | None:
 
 
 @CLI
-@given(st.one_of(st.sampled_from(NOT_NUMBERS), st.floats(max_value=0.0).map(repr),
-                 st.text(max_size=6)))
+@given(
+    st.one_of(st.sampled_from(NOT_NUMBERS), st.floats(max_value=0.0).map(repr), st.text(max_size=6))
+)
 def test_plan_refuses_a_cap_that_is_no_positive_number_in_one_line(tmp_path_factory, text):
     import vibid.planner
 
@@ -444,8 +563,9 @@ def test_plan_refuses_a_cap_that_is_no_positive_number_in_one_line(tmp_path_fact
     out = tmp_path_factory.getbasetemp() / "p.json"
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(vibid.planner, "plan_test", lambda *a, **k: pytest.fail("planning started"))
-        err = _stderr_of(["plan", STRIP, "--target", "D=1%", f"--max-stand-time={text}",
-                          "--out", str(out)])
+        err = _stderr_of(
+            ["plan", STRIP, "--target", "D=1%", f"--max-stand-time={text}", "--out", str(out)]
+        )
     if x is None:
         assert err.rc == 2, err  # argparse's usage error: not a number at all
         return
@@ -475,4 +595,3 @@ def _stderr_of(argv) -> _Run:
     text = err.getvalue()
     assert "Traceback" not in text, text
     return _Run(rc, text)
-

@@ -18,8 +18,15 @@ MODES_HZ = np.array([150.0, 420.0, 1100.0])
 AMPLITUDES = np.array([1.0, 0.6, 0.3])
 Q = np.array([40.0, 35.0, 30.0])
 REL_NOISE = 0.003
-SPEC_KEYS = {"kind", "f_hz", "q", "size", "note",
-             "hidden_mode_hz", "causal"}  # the last two added by vibid (README, report fields)
+SPEC_KEYS = {
+    "kind",
+    "f_hz",
+    "q",
+    "size",
+    "note",
+    "hidden_mode_hz",
+    "causal",
+}  # the last two added by vibid (README, report fields)
 
 
 def modal_afc(f_hz, modes_hz=MODES_HZ, q=Q):
@@ -85,8 +92,9 @@ def test_an_unmodelled_resonance_is_one_extra_pole(seed):
     assert d.ratio(660.0).shape == ()
 
 
-@pytest.mark.parametrize("hidden_hz, named", [((700.0,), 700.0), ((560.0, 760.0), 760.0),
-                                              ((900.0,), None), ((), None)])
+@pytest.mark.parametrize(
+    "hidden_hz, named", [((700.0,), 700.0), ((560.0, 760.0), 760.0), ((900.0,), None), ((), None)]
+)
 def test_an_extra_pole_beside_a_mode_the_model_hides_names_that_mode(hidden_hz, named):
     """A mode the model's sensor does not see (a strip's torsion on its node line) within
     25 % of the extra pole is named as what it may be; the nearest one (in ratio: 760 is
@@ -150,7 +158,11 @@ def test_the_titanium_strips_664_hz_feature_is_not_causal_and_its_modes_are():
         f, re, im, _ = np.loadtxt(fh, delimiter=",", skiprows=1, unpack=True)
     H = re + 1j * im
     assert [causal(f, H, f_hz) for f_hz in (197.5, 661.0, 982.0, 1280.0)] == [
-        True, False, True, True]
+        True,
+        False,
+        True,
+        True,
+    ]
 
 
 @pytest.mark.parametrize("seed", [0, 6, 7])
@@ -206,9 +218,17 @@ def test_the_pole_polish_converges_and_rounding_does_not_move_it():
 
     rng = np.random.default_rng(0)
     f = np.linspace(150.0, 1600.0, 1500)
-    R = ((1.02 + resonance(f, 660, 300) * 0.02 + resonance(f, 1250, 6) * 0.5
-          + resonance(f, 1280, 350) * 0.01) * np.exp(-2j * np.pi * f * 2e-5)
-         * (f / 800) ** 0.15 * (1 + 0.03 * np.sin(f / 60)))
+    R = (
+        (
+            1.02
+            + resonance(f, 660, 300) * 0.02
+            + resonance(f, 1250, 6) * 0.5
+            + resonance(f, 1280, 350) * 0.01
+        )
+        * np.exp(-2j * np.pi * f * 2e-5)
+        * (f / 800) ** 0.15
+        * (1 + 0.03 * np.sin(f / 60))
+    )
     std = 0.003 * np.abs(R)
     R = R + std * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
     w = 1 / std
@@ -221,15 +241,20 @@ def test_the_pole_polish_converges_and_rounding_does_not_move_it():
     cplx = poles.imag != 0
 
     def at(x):
-        p = x[:len(poles)] * unit + 0j
-        p[cplx] += 1j * x[len(poles):] * unit
+        p = x[: len(poles)] * unit + 0j
+        p[cplx] += 1j * x[len(poles) :] * unit
         return _chi2(_columns(f, p), R, w)
 
     x = np.concatenate([poles.real, poles.imag[cplx]]) / unit
     reach = _REACH * f.max() / f.mean()
     bounds = [(-reach, reach)] * len(poles) + [(1e-3 * reach, reach)] * int(cplx.sum())
-    better = minimize(at, x, method="Nelder-Mead", bounds=bounds,
-                      options=dict(xatol=1e-10, fatol=1e-12, maxfev=3000))
+    better = minimize(
+        at,
+        x,
+        method="Nelder-Mead",
+        bounds=bounds,
+        options=dict(xatol=1e-10, fatol=1e-12, maxfev=3000),
+    )
     assert better.fun >= chi2 * (1 - 1e-6)
     for _ in range(3):
         again = _polish(f, R * (1 + 1e-9 * rng.standard_normal(f.size)), w, start)

@@ -5,9 +5,9 @@ import math
 
 import numpy as np
 import pytest
-from plate_helpers import PAPER_THETA, plate_setup, strip_setup
 from scipy.optimize import brentq
 
+from plate_helpers import PAPER_THETA, plate_setup, strip_setup
 from vibid.cli import main
 from vibid.identify import build_forward_model, natural_frequencies
 
@@ -25,15 +25,18 @@ def spring_cantilever_lambda(K: float, n: int = 1) -> float:
 
     grid = np.linspace(1e-3, 3.0 * n + 2.0, 4000)
     vals = np.array([det(x) for x in grid])
-    roots = [brentq(det, a, b) for a, b, fa, fb in zip(grid[:-1], grid[1:], vals[:-1], vals[1:])
-             if fa * fb < 0]
+    roots = [
+        brentq(det, a, b)
+        for a, b, fa, fb in zip(grid[:-1], grid[1:], vals[:-1], vals[1:])
+        if fa * fb < 0
+    ]
     return roots[n - 1]
 
 
 def test_beam_reference_reproduces_the_clamped_and_pinned_limits():
     assert spring_cantilever_lambda(1e9) == pytest.approx(1.875104, abs=1e-5)
     assert spring_cantilever_lambda(1e9, 2) == pytest.approx(4.694091, abs=1e-5)
-    assert spring_cantilever_lambda(1e-9) < 1e-3 * 1.9 ** 1 + 0.05  # a rigid rotation (ω -> 0)
+    assert spring_cantilever_lambda(1e-9) < 1e-3 * 1.9**1 + 0.05  # a rigid rotation (ω -> 0)
 
 
 def test_a_stiff_spring_reproduces_the_rigid_clamp():
@@ -53,8 +56,9 @@ def test_first_frequency_matches_a_beam_on_a_rotational_spring(K):
     D = E * h**3 / 12.0
     setup = plate_setup(L, W, h, rho, x_m=0.09, y_m=0.005, mass_kg=0.0, radius_m=0.001)
     k_theta = K * D / L  # per metre of edge: k_r L / EI = k_θ W L / (D W)
-    f, _ = natural_frequencies(setup, {"D": D, "nu": 0.0, "beta": 0.0,
-                                       "k_theta_N_per_rad": k_theta}, 1)
+    f, _ = natural_frequencies(
+        setup, {"D": D, "nu": 0.0, "beta": 0.0, "k_theta_N_per_rad": k_theta}, 1
+    )
     lam = spring_cantilever_lambda(K)
     beam = lam**2 * math.sqrt(D / (rho * h)) / L**2 / (2 * math.pi)
     assert f[0] == pytest.approx(beam, rel=2e-5)
@@ -94,5 +98,7 @@ def test_modes_command_takes_the_clamp_parameter(tmp_path, capsys):
     assert 0.9 * rigid < soft < 0.999 * rigid
     assert main(args + ["k_theta_N_per_rad=-5"]) == 1
     # the catalogue's one wording for a value, as vibid simulate says it
-    assert ("--params: k_theta_N_per_rad (a stiffness) must be positive, got -5.0"
-            in capsys.readouterr().err)
+    assert (
+        "--params: k_theta_N_per_rad (a stiffness) must be positive, got -5.0"
+        in capsys.readouterr().err
+    )

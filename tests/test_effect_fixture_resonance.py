@@ -12,13 +12,13 @@ strip's step of |H| across its 661 Hz feature."""
 
 import math
 
-import beam_sessions as bs
 import numpy as np
 import pytest
 
-from vibid.identify.loop.diagnosis import Diagnosis, Feature
+import beam_sessions as bs
 from vibid.identify.effects import EFFECTS
 from vibid.identify.loop import close_loop
+from vibid.identify.loop.diagnosis import Diagnosis, Feature
 
 FIXTURE = {"f_fixture_hz": 660.0, "q_fixture": 30.0, "a_fixture": 0.05}
 
@@ -45,18 +45,27 @@ def test_it_is_placed_at_the_pole_across_which_the_ratio_steps():
     class Fitted(Diagnosis):
         def ratio(self, frequency_hz):
             x = np.asarray(frequency_hz, float)
-            return np.interp(x, f, step.real) + 1j * np.interp(x, f, step.imag) - 1 + (
-                np.interp(x, f, bump.real) + 1j * np.interp(x, f, bump.imag))
+            return (
+                np.interp(x, f, step.real)
+                + 1j * np.interp(x, f, step.imag)
+                - 1
+                + (np.interp(x, f, bump.real) + 1j * np.interp(x, f, bump.imag))
+            )
 
-    d = Fitted(features=(Feature("extra_pole", 980.0, 400.0, significance=90.0),
-                         Feature("extra_pole", 660.0, 30.0, significance=40.0, causal=False)))
+    d = Fitted(
+        features=(
+            Feature("extra_pole", 980.0, 400.0, significance=90.0),
+            Feature("extra_pole", 660.0, 30.0, significance=40.0, causal=False),
+        )
+    )
     assert EFFECTS["fixture_resonance"].placed_at(d).f_hz == 660.0
     assert EFFECTS["stand_resonance"].placed_at(d).f_hz == 980.0  # causal poles only
     assert EFFECTS["fixture_resonance"].placed_at(Diagnosis()) is None
     # a pole beside a mode the model's sensor does not see is that mode (the Ritz plate's
     # torsion with its sensor off the centre line, test_identify_loop_ritz.py)
-    hidden = Fitted(features=(Feature("extra_pole", 660.0, 30.0, significance=40.0,
-                                      hidden_mode_hz=700.0),))
+    hidden = Fitted(
+        features=(Feature("extra_pole", 660.0, 30.0, significance=40.0, hidden_mode_hz=700.0),)
+    )
     assert EFFECTS["fixture_resonance"].placed_at(hidden) is None
 
 

@@ -8,12 +8,10 @@ sensor of radius 3.8 mm centred 5.5 mm off the centre line), where the torsion m
 the band makes the sensor's position visible in the AFC.
 """
 
-import dataclasses
-
 import numpy as np
 import pytest
-from plate_helpers import plate_setup
 
+from plate_helpers import plate_setup
 from vibid.identify import build_forward_model
 from vibid.identify.effects.sensor_position import places
 
@@ -27,8 +25,9 @@ def _setup(dy=0.0):
 
 
 def _effect_model(dy):
-    return build_forward_model(_setup(), F, effects=("sensor_position",),
-                               theta0=THETA | {"sensor_dy_m": dy})
+    return build_forward_model(
+        _setup(), F, effects=("sensor_position",), theta0=THETA | {"sensor_dy_m": dy}
+    )
 
 
 @pytest.fixture(scope="module")

@@ -4,11 +4,11 @@ shear field adds to the Kirchhoff plate equals the closed-form Timoshenko/Raylei
 ratio (Huang 1961): the field is Timoshenko's theory on a beam (the forced response and a
 sensor's: tests/test_transverse_shear_vs_timoshenko.py)."""
 
-import huang_cantilever as huang
 import numpy as np
 import pytest
-from plate_helpers import plate_setup
 
+import huang_cantilever as huang
+from plate_helpers import plate_setup
 from vibid.identify.model.forward import natural_frequencies
 from vibid.identify.model.materials import flexural_rigidity
 
@@ -46,10 +46,17 @@ def test_orthotropic_form_equals_isotropic_form_at_the_isotropic_shear_modulus()
     setup = plate_setup(L, B, H, density=RHO, mass_kg=0.0, radius_m=0.002)
     nu = 0.33
     D = flexural_rigidity(E, nu, H)
-    iso, _ = natural_frequencies(setup, {"D": D, "nu": nu, "beta": 0.0}, 3,
-                                 effects=("transverse_shear",))
-    ortho = {"D11": D, "D12": nu * D, "D22": D, "D66": (1 - nu) * D / 2, "beta": 0.0,
-             "G13_Pa": E / (2 * (1 + nu))}
+    iso, _ = natural_frequencies(
+        setup, {"D": D, "nu": nu, "beta": 0.0}, 3, effects=("transverse_shear",)
+    )
+    ortho = {
+        "D11": D,
+        "D12": nu * D,
+        "D22": D,
+        "D66": (1 - nu) * D / 2,
+        "beta": 0.0,
+        "G13_Pa": E / (2 * (1 + nu)),
+    }
     f_o, _ = natural_frequencies(setup, ortho, 3)
     np.testing.assert_allclose(f_o, iso, rtol=1e-10)
 

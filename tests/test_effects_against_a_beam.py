@@ -13,11 +13,11 @@ by far more."""
 
 import math
 
-import beam_reference as beam
 import numpy as np
 import pytest
-from plate_helpers import plate_setup
 
+import beam_reference as beam
+from plate_helpers import plate_setup
 from vibid.identify import build_forward_model, natural_frequencies
 from vibid.identify.model.forward import plate_model_for
 
@@ -25,23 +25,35 @@ L, W, H_M, RHO, E = 0.1, 0.01, 0.0005, 7800.0, 200e9
 D = E * H_M**3 / 12.0
 M_S, R_S, X_S = 2e-4, 0.0005, 0.09
 SETUP = plate_setup(L, W, H_M, RHO, x_m=X_S, y_m=W / 2, mass_kg=M_S, radius_m=R_S)
-BEAM = dict(L=L, EI=D * W, rhoA=RHO * H_M * W, rhoI=RHO * H_M**3 / 12 * W, x_s=X_S, m=M_S,
-            J=M_S * (R_S**2 / 4 + H_M**2 / 12))
+BEAM = dict(
+    L=L,
+    EI=D * W,
+    rhoA=RHO * H_M * W,
+    rhoI=RHO * H_M**3 / 12 * W,
+    x_s=X_S,
+    m=M_S,
+    J=M_S * (R_S**2 / 4 + H_M**2 / 12),
+)
 PLATE = {"D": D, "nu": 0.0, "beta": 0.0}
 HEIGHT = 3e-3
 DL = 3e-3
 K_THETA = 5.0 * D / L  # N/rad per metre of edge: k_r L / EI = 5
 
 
-@pytest.mark.parametrize("extra, beam_change", [
-    ({}, {}),
-    ({"height_m": HEIGHT}, {"J": BEAM["J"] + M_S * (H_M * HEIGHT + HEIGHT**2)}),
-    ({"dL_m": DL}, {"L": L + DL, "x_s": X_S + DL}),
-    ({"dL_m": -DL}, {"L": L - DL, "x_s": X_S - DL}),
-    ({"k_theta_N_per_rad": K_THETA}, {"k_root": K_THETA * W}),
-    ({"k_theta_N_per_rad": K_THETA, "dL_m": DL},  # the spring on a stretched plate: k / s²
-     {"k_root": K_THETA * W, "L": L + DL, "x_s": X_S + DL}),
-])
+@pytest.mark.parametrize(
+    "extra, beam_change",
+    [
+        ({}, {}),
+        ({"height_m": HEIGHT}, {"J": BEAM["J"] + M_S * (H_M * HEIGHT + HEIGHT**2)}),
+        ({"dL_m": DL}, {"L": L + DL, "x_s": X_S + DL}),
+        ({"dL_m": -DL}, {"L": L - DL, "x_s": X_S - DL}),
+        ({"k_theta_N_per_rad": K_THETA}, {"k_root": K_THETA * W}),
+        (
+            {"k_theta_N_per_rad": K_THETA, "dL_m": DL},  # the spring on a stretched plate: k / s²
+            {"k_root": K_THETA * W, "L": L + DL, "x_s": X_S + DL},
+        ),
+    ],
+)
 def test_natural_frequencies_match_the_beam(extra, beam_change):
     f, _ = natural_frequencies(SETUP, PLATE | extra, 3)
     fb = beam.natural_frequencies_hz(3, **(BEAM | beam_change))
@@ -69,8 +81,9 @@ def test_a_stand_resonance_is_the_beam_under_a_rocking_base():
     res = {"f_hz_1": 300.0, "q_1": 15.0, "theta_rad_per_m_1": 0.5}
     theta_f = 0.5 / (1 - (F / 300.0) ** 2 + 1j * F / (300.0 * 15.0))
     H = _afc({"beta": beta} | res, F)
-    Hb = beam.afc(OMEGA, **(BEAM | {"EI": BEAM["EI"] * (1 + 1j * beta)}),
-                  rotation_per_translation=theta_f)
+    Hb = beam.afc(
+        OMEGA, **(BEAM | {"EI": BEAM["EI"] * (1 + 1j * beta)}), rotation_per_translation=theta_f
+    )
     plain = beam.afc(OMEGA, **(BEAM | {"EI": BEAM["EI"] * (1 + 1j * beta)}))
     assert np.abs(H - Hb).max() < 2e-3 * np.abs(Hb).max()
     assert np.max(np.abs(Hb - plain) / np.abs(plain)) > 0.05  # near 300 Hz, where no mode is
@@ -85,9 +98,16 @@ def test_a_clamp_with_its_own_loss_is_the_beam_on_a_lossy_spring(beta_clamp):
     beta = 0.01
     k = {"k_theta_N_per_rad": K_THETA, "beta_clamp": beta_clamp}
     H = _afc({"beta": beta} | k, F)
-    Hb = beam.afc(OMEGA, **(BEAM | {"EI": BEAM["EI"] * (1 + 1j * beta),
-                                     "k_root": K_THETA * W * (1 + 1j * beta_clamp)}))
-    same_loss = beam.afc(OMEGA, **(BEAM | {"EI": BEAM["EI"] * (1 + 1j * beta),
-                                            "k_root": K_THETA * W * (1 + 1j * beta)}))
+    Hb = beam.afc(
+        OMEGA,
+        **(
+            BEAM
+            | {"EI": BEAM["EI"] * (1 + 1j * beta), "k_root": K_THETA * W * (1 + 1j * beta_clamp)}
+        ),
+    )
+    same_loss = beam.afc(
+        OMEGA,
+        **(BEAM | {"EI": BEAM["EI"] * (1 + 1j * beta), "k_root": K_THETA * W * (1 + 1j * beta)}),
+    )
     assert np.abs(H - Hb).max() < 2e-3 * np.abs(Hb).max()
     assert np.abs(Hb - same_loss).max() > 5e-2 * np.abs(Hb).max()

@@ -5,8 +5,8 @@ checks by adding its typical size below."""
 
 import numpy as np
 import pytest
-from plate_helpers import PAPER_THETA, strip_setup
 
+from plate_helpers import PAPER_THETA, strip_setup
 from vibid.identify import build_forward_model
 from vibid.identify.effects import EFFECTS
 
@@ -48,8 +48,12 @@ def test_every_effect_has_a_typical_size_and_declares_its_parameters():
         # a null value for every parameter, but a resonance's frequency and quality factor,
         # which have none once its size is null (a clamp's loss: the plate's)
         nulls = term.null_values(STRIP)
-        assert nulls and set(term.names) - set(nulls) <= {"f_hz_1", "q_1", "f_fixture_hz",
-                                                           "q_fixture"}
+        assert nulls and set(term.names) - set(nulls) <= {
+            "f_hz_1",
+            "q_1",
+            "f_fixture_hz",
+            "q_fixture",
+        }
 
 
 @pytest.fixture(scope="module")
@@ -68,8 +72,9 @@ def test_effect_in_every_evaluator(name, plain):
     extra = TYPICAL[needs] if needs else {}
     own = TYPICAL[name]
     values = STRIP | extra | own
-    fm = build_forward_model(strip_setup(), F, effects=((needs,) if needs else ()) + (name,),
-                             theta0=values)
+    fm = build_forward_model(
+        strip_setup(), F, effects=((needs,) if needs else ()) + (name,), theta0=values
+    )
     names = fm.parameter_names
     th = np.array([values[n] for n in names])
     H, Hf = np.asarray(fm.afc(th)), fm.afc_full(th)
@@ -106,7 +111,9 @@ def test_effect_in_every_evaluator(name, plain):
         step[i] = h
 
         def central(k):
-            return (np.asarray(fm.afc(th + k * step)) - np.asarray(fm.afc(th - k * step))) / (2 * k * h)
+            return (np.asarray(fm.afc(th + k * step)) - np.asarray(fm.afc(th - k * step))) / (
+                2 * k * h
+            )
 
         Jr = (4 * central(1) - central(2)) / 3
         Jfd = (fm.afc_full(th + step) - fm.afc_full(th - step)) / (2 * h)

@@ -21,8 +21,16 @@ SPACE = ParameterSpace.from_bounds(tuple(BOUNDS), BOUNDS)
 
 
 def _run(theta, status=Status.CONVERGED):
-    return LocalResult("trust-region-newton", np.zeros(3), np.asarray(theta, float), 57.0,
-                       status, "converged (the step became negligible)", 12, 13)
+    return LocalResult(
+        "trust-region-newton",
+        np.zeros(3),
+        np.asarray(theta, float),
+        57.0,
+        status,
+        "converged (the step became negligible)",
+        12,
+        13,
+    )
 
 
 def _status(D=17.97, nu=0.286, beta=0.003, chi2=57.0, status=Status.CONVERGED):
@@ -31,8 +39,10 @@ def _status(D=17.97, nu=0.286, beta=0.003, chi2=57.0, status=Status.CONVERGED):
 
 
 def test_an_estimate_inside_the_physical_range_keeps_the_optimisers_word():
-    assert _status(nu=0.3) == (Status.CONVERGED,
-                               "trust-region-newton converged (the step became negligible)")
+    assert _status(nu=0.3) == (
+        Status.CONVERGED,
+        "trust-region-newton converged (the step became negligible)",
+    )
     # the prior box's edges are not the physical range's ends: nu = 0 (the box's low) and
     # a D below the box are warnings of their own, and may be converged
     assert _status(nu=0.0)[0] is Status.CONVERGED
@@ -76,7 +86,6 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     strip's own AFC converges."""
     sys.path.insert(0, str(Path(__file__).parent))
     from ritz_toy import RitzPlateModel
-
     from vibid.errors import VibidError
     from vibid.identify import configure
     from vibid.identify.fit import identify
@@ -88,8 +97,15 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     f = np.linspace(20.0, 1500.0, 60)
     fm = RitzPlateModel(setup, f)
     start = {"D": 17.97, "nu": 0.286, "beta": 0.003}
-    flat = identify(setup, f, np.full(f.size, 1e-3 + 0j), np.full(f.size, 1e-3),
-                    forward_model=fm, method="local", start=start)
+    flat = identify(
+        setup,
+        f,
+        np.full(f.size, 1e-3 + 0j),
+        np.full(f.size, 1e-3),
+        forward_model=fm,
+        method="local",
+        start=start,
+    )
     assert flat.local_results[0].status is Status.CONVERGED  # the optimiser's own word
     assert flat.status is Status.AT_PHYSICAL_LIMIT and not flat.converged
     assert flat.parameters["D"] < 1e-3 * BOUNDS["D"][0]
@@ -98,7 +114,14 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     with pytest.raises(VibidError, match="did not converge.*physical range"):
         require_converged(Identified(flat, None, ""))
     H = np.asarray(fm.afc(np.array(list(start.values()))))
-    own = identify(setup, f, H, 0.003 * np.abs(H) + 1e-4, forward_model=fm, method="local",
-                   start={"D": 20.0, "nu": 0.3, "beta": 0.004})
+    own = identify(
+        setup,
+        f,
+        H,
+        0.003 * np.abs(H) + 1e-4,
+        forward_model=fm,
+        method="local",
+        start={"D": 20.0, "nu": 0.3, "beta": 0.004},
+    )
     assert own.status is Status.CONVERGED
     assert own.parameters["nu"] == pytest.approx(0.286, rel=1e-6)

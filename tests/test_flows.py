@@ -36,13 +36,24 @@ def sessions(tmp_path_factory):
     from vibid.setup_model import example_setup
 
     s = example_setup()
-    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                              frequencies_hz=FREQUENCIES_HZ))
+    s = dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=FREQUENCIES_HZ)
+    )
     folder = tmp_path_factory.mktemp("flows")
     out = {}
-    for name, params, seed in (("A", TRUTH | {"tau_s": TAU_S}, 1), ("B", TRUTH, 2), ("C", TRUTH, 3)):
-        out[name] = simulate_session(folder / f"session-{name}.h5", s, params, seed=seed,
-                                     conditions=StandConditions(record_s=0.05), accuracy="default")
+    for name, params, seed in (
+        ("A", TRUTH | {"tau_s": TAU_S}, 1),
+        ("B", TRUTH, 2),
+        ("C", TRUTH, 3),
+    ):
+        out[name] = simulate_session(
+            folder / f"session-{name}.h5",
+            s,
+            params,
+            seed=seed,
+            conditions=StandConditions(record_s=0.05),
+            accuracy="default",
+        )
     return out
 
 
@@ -62,8 +73,9 @@ def identified_cli(sessions, tmp_path_factory):
 def replayed_cli(sessions, tmp_path_factory):
     folder = tmp_path_factory.mktemp("replay")
     path, report_dir = folder / "report.json", folder / "report"
-    rc = main(["replay", sessions["A"], "--json", str(path), "--report", str(report_dir),
-               *LOOP_OPTIONS])
+    rc = main(
+        ["replay", sessions["A"], "--json", str(path), "--report", str(report_dir), *LOOP_OPTIONS]
+    )
     return rc, _read(path), report_dir
 
 
@@ -74,8 +86,9 @@ def stages_b(sessions, tmp_path_factory):
 
     data = afc_task.fn(sessions["B"])
     identified = identify_task.fn(data, loop=False, restarts=1)
-    report, paths = report_task.fn(data, identified,
-                                   report_dir=tmp_path_factory.mktemp("stages") / "B")
+    report, paths = report_task.fn(
+        data, identified, report_dir=tmp_path_factory.mktemp("stages") / "B"
+    )
     return data, identified, report, paths
 
 
@@ -164,18 +177,35 @@ def test_replay_calibrates_the_clamp_as_identify_does(sessions, tmp_path, capsys
 
     options = ["--no-loop", "--restarts", "1"]
     path = tmp_path / "identify.json"
-    assert main(["identify", sessions["B"], "--json", str(path), "--no-progress", *options,
-                 "--reference-E", "206e9", "--reference-E-std", "4e9"]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                sessions["B"],
+                "--json",
+                str(path),
+                "--no-progress",
+                *options,
+                "--reference-E",
+                "206e9",
+                "--reference-E-std",
+                "4e9",
+            ]
+        )
+        == 0
+    )
     by_identify = _read(path)["reference"]
-    report = replay_flow(sessions["B"], loop=False, restarts=1, reference_E_pa=206e9,
-                         reference_E_std_pa=4e9)
+    report = replay_flow(
+        sessions["B"], loop=False, restarts=1, reference_E_pa=206e9, reference_E_std_pa=4e9
+    )
     block = report["reference"]
     assert set(block) == set(by_identify)
     for key in ("free_length_m", "free_length_std_m", "declared_length_m"):
         assert block[key] == pytest.approx(by_identify[key], rel=1e-9)
     E = report["engineering"]["E_Pa"]["value"]
     assert block["free_length_m"] / block["declared_length_m"] == pytest.approx(
-        (206e9 / E) ** 0.25, rel=5e-4)
+        (206e9 / E) ** 0.25, rel=5e-4
+    )
     capsys.readouterr()
     assert main(["replay", sessions["B"], "--reference-E=-5e9"]) == 1
     err = capsys.readouterr().err.strip()
@@ -205,20 +235,31 @@ def test_replay_publishes_artifacts_keyed_by_specimen(replayed_cli):
 
     _, report, _ = replayed_cli
     with get_client(sync_client=True) as client:
-        found = client.read_artifacts(artifact_filter=ArtifactFilter(
-            key=ArtifactFilterKey(any_=[f"{SPECIMEN_KEY}-report", f"{SPECIMEN_KEY}-parameters"])))
+        found = client.read_artifacts(
+            artifact_filter=ArtifactFilter(
+                key=ArtifactFilterKey(any_=[f"{SPECIMEN_KEY}-report", f"{SPECIMEN_KEY}-parameters"])
+            )
+        )
     # other replays in this Prefect server publish under the same specimen's keys: this
     # run's are the ones of its session and its identified D
-    reports = [a for a in found if a.key == f"{SPECIMEN_KEY}-report"
-               and report["session_id"] in a.data]
+    reports = [
+        a for a in found if a.key == f"{SPECIMEN_KEY}-report" and report["session_id"] in a.data
+    ]
     assert reports and all(a.type == "markdown" for a in reports)
     assert any("channel_delay" in a.data for a in reports)
     tables = [a for a in found if a.key == f"{SPECIMEN_KEY}-parameters"]
     assert tables and all(a.type == "table" for a in tables)
-    rows = [next(r for r in (json.loads(a.data) if isinstance(a.data, str) else a.data)
-                 if r["quantity"] == "D") for a in tables]
-    assert any(d["value"] == report["parameters"]["D"]["value"] and d["unit"] == "N m"
-               for d in rows)
+    rows = [
+        next(
+            r
+            for r in (json.loads(a.data) if isinstance(a.data, str) else a.data)
+            if r["quantity"] == "D"
+        )
+        for a in tables
+    ]
+    assert any(
+        d["value"] == report["parameters"]["D"]["value"] and d["unit"] == "N m" for d in rows
+    )
 
 
 # -- the stages as plain functions ------------------------------------------------------------
@@ -261,8 +302,7 @@ def test_the_model_is_drawn_on_a_fine_grid_through_its_resonances(stages_b):
     assert np.max(np.abs(on - fitted) / np.abs(fitted)) < 1e-3
 
 
-def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stages_b,
-                                                                          monkeypatch):
+def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stages_b, monkeypatch):
     """The live AFC's last version: the identified model on fine_model's grid (its
     resonance peaks at their height, not straight lines between the steps), computed once
     by set_identified; drawing it computes nothing more."""
@@ -282,8 +322,10 @@ def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stage
     assert np.array_equal(f, grid) and np.allclose(mag, np.abs(H)) and label == "identified model"
     assert np.abs(np.diff(phase)).max() < 90  # unwrapped along the grid
     near = np.abs(grid - natural[0]) < 1.0
-    assert mag[near].max() > 20 * np.abs(result.H[u][np.abs(result.frequency_hz[u]
-                                                              - natural[0]) < 30]).max()
+    assert (
+        mag[near].max()
+        > 20 * np.abs(result.H[u][np.abs(result.frequency_hz[u] - natural[0]) < 30]).max()
+    )
     # drawing it computes nothing more (no wall clock: the suite runs under load)
     import vibid.report.figures as figures
 
@@ -312,10 +354,16 @@ def batch(sessions, tmp_path_factory):
     from vibid.flows import batch_replay_flow
 
     folder = tmp_path_factory.mktemp("batch")
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                      dashboard_address=":0") as cluster:
-        result = batch_replay_flow([sessions[k] for k in "ABC"], report_dir=folder,
-                                   task_runner=cluster, loop=False, restarts=1)
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as cluster:
+        result = batch_replay_flow(
+            [sessions[k] for k in "ABC"],
+            report_dir=folder,
+            task_runner=cluster,
+            loop=False,
+            restarts=1,
+        )
     return result, folder
 
 
@@ -354,10 +402,16 @@ def test_replay_flow_writes_and_reads_uff58_and_fits_the_magnitude(sessions, tmp
     from vibid.flows import replay_flow
 
     uff = tmp_path / "A.uff"
-    first = replay_flow(sessions["A"], uff_path=uff, magnitude_only=True, restarts=1,
-                        candidates="sensor_gain")
-    again = replay_flow(afc_path=uff, setup_path=sessions["A"], magnitude_only=True,
-                        restarts=1, candidates="sensor_gain")
+    first = replay_flow(
+        sessions["A"], uff_path=uff, magnitude_only=True, restarts=1, candidates="sensor_gain"
+    )
+    again = replay_flow(
+        afc_path=uff,
+        setup_path=sessions["A"],
+        magnitude_only=True,
+        restarts=1,
+        candidates="sensor_gain",
+    )
     for report in (first, again):
         check_report_format(report)
         assert report["identification"]["data"] == "magnitude"

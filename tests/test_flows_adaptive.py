@@ -26,10 +26,16 @@ def adaptive(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("adaptive")
     stand = folder / "stand.json"
-    stand.write_text(json.dumps({
-        "generator": {"url": "vibidsim://flow-adaptive"},
-        "drive": {"target_base_m_s2": 1.0, "initial_vpp": 0.04},
-        "timing": {"max_settle_s": 30.0}, "simulated": {"seed": 2, "noise": 0.003}}))
+    stand.write_text(
+        json.dumps(
+            {
+                "generator": {"url": "vibidsim://flow-adaptive"},
+                "drive": {"target_base_m_s2": 1.0, "initial_vpp": 0.04},
+                "timing": {"max_settle_s": 30.0},
+                "simulated": {"seed": 2, "noise": 0.003},
+            }
+        )
+    )
     out, report_dir = folder / "a.h5", folder / "report"
     published = []
     real = live.prefect_publish
@@ -41,12 +47,35 @@ def adaptive(tmp_path_factory):
     stdout = io.StringIO()
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout):
         mp.setattr(live, "prefect_publish", spy)
-        rc = main(["campaign", str(EXAMPLES / "strip_setup.json"), "--stand", "simulated",
-                   "--stand-config", str(stand), "--out", str(out), "--report", str(report_dir),
-                   "--adaptive", "--target", "D=0.002%", "--max-stand-time", "120",
-                   "--no-loop", "--restarts", "1"])
-    return {"rc": rc, "out": out, "stdout": stdout.getvalue(), "published": published,
-            "report": json.loads((report_dir / "report.json").read_text())}
+        rc = main(
+            [
+                "campaign",
+                str(EXAMPLES / "strip_setup.json"),
+                "--stand",
+                "simulated",
+                "--stand-config",
+                str(stand),
+                "--out",
+                str(out),
+                "--report",
+                str(report_dir),
+                "--adaptive",
+                "--target",
+                "D=0.002%",
+                "--max-stand-time",
+                "120",
+                "--no-loop",
+                "--restarts",
+                "1",
+            ]
+        )
+    return {
+        "rc": rc,
+        "out": out,
+        "stdout": stdout.getvalue(),
+        "published": published,
+        "report": json.loads((report_dir / "report.json").read_text()),
+    }
 
 
 def test_the_adaptive_flow_records_an_adaptive_session_and_reports_the_truth(adaptive):

@@ -35,15 +35,26 @@ def _write_inputs(folder, name, **simulated):
     from vibid.setup_model import example_setup
 
     s = example_setup()
-    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                              frequencies_hz=FREQUENCIES_HZ))
+    s = dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=FREQUENCIES_HZ)
+    )
     setup = folder / "setup.json"
     setup.write_text(s.to_json())
     stand = folder / "stand.json"
-    stand.write_text(json.dumps({
-        "generator": {"url": f"vibidsim://{name}", "timeout_s": 0.2},
-        "timing": {"min_record_s": 0.05, "min_cycles": 10, "max_settle_s": 40.0},
-        "simulated": {"seed": 3, "noise": 0.003, "effects": {"channel_delay": {"tau_s": TAU_S}}, **simulated}}))
+    stand.write_text(
+        json.dumps(
+            {
+                "generator": {"url": f"vibidsim://{name}", "timeout_s": 0.2},
+                "timing": {"min_record_s": 0.05, "min_cycles": 10, "max_settle_s": 40.0},
+                "simulated": {
+                    "seed": 3,
+                    "noise": 0.003,
+                    "effects": {"channel_delay": {"tau_s": TAU_S}},
+                    **simulated,
+                },
+            }
+        )
+    )
     return setup, stand
 
 
@@ -54,25 +65,50 @@ def campaign(tmp_path_factory):
     import vibid.acquisition.campaign as acquisition
 
     folder = tmp_path_factory.mktemp("campaign")
-    setup, stand = _write_inputs(folder, "flow-campaign", faults=[
-        {"kind": "no_reply", "at_step": FAULT_STEP, "count": 5}])
+    setup, stand = _write_inputs(
+        folder, "flow-campaign", faults=[{"kind": "no_reply", "at_step": FAULT_STEP, "count": 5}]
+    )
     out, report_dir = folder / "strip.h5", folder / "report"
     calls = []
     real = acquisition.run_campaign
 
     def recorded(*args, **kwargs):
         result = real(*args, **kwargs)
-        calls.append({"main_thread": threading.current_thread() is threading.main_thread(),
-                      "resume": kwargs.get("resume"), "result": result})
+        calls.append(
+            {
+                "main_thread": threading.current_thread() is threading.main_thread(),
+                "resume": kwargs.get("resume"),
+                "result": result,
+            }
+        )
         return result
 
     stdout = io.StringIO()
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(stdout):
         mp.setattr(acquisition, "run_campaign", recorded)
-        rc = main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand),
-                   "--out", str(out), "--report", str(report_dir), *OPTIONS])
-    return {"rc": rc, "stdout": stdout.getvalue(), "out": out, "report_dir": report_dir,
-            "calls": calls, "report": json.loads((report_dir / "report.json").read_text())}
+        rc = main(
+            [
+                "campaign",
+                str(setup),
+                "--stand",
+                "simulated",
+                "--stand-config",
+                str(stand),
+                "--out",
+                str(out),
+                "--report",
+                str(report_dir),
+                *OPTIONS,
+            ]
+        )
+    return {
+        "rc": rc,
+        "stdout": stdout.getvalue(),
+        "out": out,
+        "report_dir": report_dir,
+        "calls": calls,
+        "report": json.loads((report_dir / "report.json").read_text()),
+    }
 
 
 def test_campaign_completes_validates_and_its_report_finds_the_delay(campaign):
@@ -87,8 +123,10 @@ def test_campaign_completes_validates_and_its_report_finds_the_delay(campaign):
     before, after = (float(w) for w in chi2.split() if w[0].isdigit())
     report = campaign["report"]
     stages = report["loop"]["stages"]
-    assert (before, after) == (float(f"{stages[0]['chi2_reduced']:.4g}"),
-                               float(f"{stages[-1]['chi2_reduced']:.4g}"))
+    assert (before, after) == (
+        float(f"{stages[0]['chi2_reduced']:.4g}"),
+        float(f"{stages[-1]['chi2_reduced']:.4g}"),
+    )
     # the delay explains nearly all of the residual (what is left, chi2/dof about 4 here, is
     # the virtual stand's records scattering more than the signal stage's stated std)
     assert before > 1000.0 and after < before / 1000.0
@@ -152,8 +190,20 @@ def test_an_aborted_campaign_is_not_retried_and_says_why_in_one_line(tmp_path, c
     doc["drive"] = {"abort_response_m_s2": 1.0}  # the first record exceeds it
     stand.write_text(json.dumps(doc))
     out = tmp_path / "s.h5"
-    rc = main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand),
-               "--out", str(out), "--report", str(tmp_path / "report")])
+    rc = main(
+        [
+            "campaign",
+            str(setup),
+            "--stand",
+            "simulated",
+            "--stand-config",
+            str(stand),
+            "--out",
+            str(out),
+            "--report",
+            str(tmp_path / "report"),
+        ]
+    )
     captured = capsys.readouterr()
     assert rc == 1
     (line,) = [x for x in captured.err.splitlines() if x.startswith("vibid campaign: ")]
@@ -166,11 +216,14 @@ def test_an_aborted_campaign_is_not_retried_and_says_why_in_one_line(tmp_path, c
 def test_the_default_session_file_is_new_on_every_run(tmp_path, capsys):
     from vibid.cli.campaign import default_out
 
-    t = datetime.datetime(2026, 11, 23, 7, 5, 9, tzinfo=datetime.timezone.utc)
+    t = datetime.datetime(2026, 11, 23, 7, 5, 9, tzinfo=datetime.UTC)
     assert default_out("examples/strip_setup.json", now=t) == "runs/strip_setup-20261123-070509.h5"
     setup, _ = _write_inputs(tmp_path, "flow-default")
     assert main(["campaign", str(setup), "--stand", "simulated", "--resume"]) == 1
-    assert capsys.readouterr().err == "vibid campaign: error: --resume needs --out: the session file to continue\n"
+    assert (
+        capsys.readouterr().err
+        == "vibid campaign: error: --resume needs --out: the session file to continue\n"
+    )
 
 
 def test_the_quick_starts_files_are_a_campaign_of_the_papers_strip(capsys):
@@ -185,17 +238,33 @@ def test_the_quick_starts_files_are_a_campaign_of_the_papers_strip(capsys):
     setup = load_setup(str(examples / "strip_setup.json"))
     paper = example_setup()
     assert (setup.specimen, setup.sensors, setup.identification) == (
-        paper.specimen, paper.sensors, paper.identification)
+        paper.specimen,
+        paper.sensors,
+        paper.identification,
+    )
     assert setup.excitation.frequencies_hz == tuple(18.75 * k for k in range(1, 81))
     config = load_stand_config(str(examples / "simulated_stand.json"))
     assert config.simulated.effects == {"channel_delay": {"tau_s": 2e-5}}  # not in the setup
-    assert main(["campaign", str(examples / "strip_setup.json"), "--stand", "simulated",
-                 "--stand-config", str(examples / "simulated_stand.json"), "--dry-run"]) == 0
+    assert (
+        main(
+            [
+                "campaign",
+                str(examples / "strip_setup.json"),
+                "--stand",
+                "simulated",
+                "--stand-config",
+                str(examples / "simulated_stand.json"),
+                "--dry-run",
+            ]
+        )
+        == 0
+    )
     assert capsys.readouterr().out.splitlines()[-1].startswith("80 steps: ")
 
 
-def test_a_resume_refused_inside_the_flow_fails_it_in_one_line_without_a_traceback(tmp_path, capsys,
-                                                                                  caplog):
+def test_a_resume_refused_inside_the_flow_fails_it_in_one_line_without_a_traceback(
+    tmp_path, capsys, caplog
+):
     """The CLI checks a resume before the flow starts; called from Python, the flow refuses
     it itself: its run Failed with the refusal's one line (the state's result is the
     error, calling the flow raises it), no traceback in its log (issue 62)."""
@@ -204,21 +273,44 @@ def test_a_resume_refused_inside_the_flow_fails_it_in_one_line_without_a_traceba
 
     setup, stand = _write_inputs(tmp_path, "flow-refused")
     out = tmp_path / "s.h5"
-    assert main(["campaign", str(setup), "--stand", "simulated", "--stand-config", str(stand),
-                 "--out", str(out), "--record-only"]) == 0
+    assert (
+        main(
+            [
+                "campaign",
+                str(setup),
+                "--stand",
+                "simulated",
+                "--stand-config",
+                str(stand),
+                "--out",
+                str(out),
+                "--record-only",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     caplog.clear()
-    state = campaign_flow(str(setup), stand="simulated", stand_config=str(stand), out=str(out),
-                          resume=True, return_state=True)
+    state = campaign_flow(
+        str(setup),
+        stand="simulated",
+        stand_config=str(stand),
+        out=str(out),
+        resume=True,
+        return_state=True,
+    )
     assert state.is_failed()
     error = state.result(raise_on_failure=False)
     assert isinstance(error, CampaignError) and state.message == str(error)
-    assert str(error) == (f"{out}: the session is already complete (21 steps): nothing to "
-                          "resume (vibid replay identifies it)")
+    assert str(error) == (
+        f"{out}: the session is already complete (21 steps): nothing to "
+        "resume (vibid replay identifies it)"
+    )
     # its line in the run's log, and no record with a traceback (the console's text is the
     # harness's: a closed capture of an earlier test may add its own "Logging error")
     assert [r.getMessage() for r in caplog.records if r.levelname == "ERROR"] == [str(error)]
     assert not any(r.exc_info for r in caplog.records)
     with pytest.raises(CampaignError, match="already complete"):
-        campaign_flow(str(setup), stand="simulated", stand_config=str(stand), out=str(out),
-                      resume=True)
+        campaign_flow(
+            str(setup), stand="simulated", stand_config=str(stand), out=str(out), resume=True
+        )

@@ -28,8 +28,17 @@ def _write_png(path, color):
 
 
 def _steps(n):
-    return [StepProgress(index=i, n_steps=n, frequency_hz=50.0 + 10 * i, h_abs=1.0 + i,
-                         phase_deg=-20.0 * i, eta_s=float(n - i - 1)) for i in range(n)]
+    return [
+        StepProgress(
+            index=i,
+            n_steps=n,
+            frequency_hz=50.0 + 10 * i,
+            h_abs=1.0 + i,
+            phase_deg=-20.0 * i,
+            eta_s=float(n - i - 1),
+        )
+        for i in range(n)
+    ]
 
 
 class _Clock:
@@ -47,6 +56,7 @@ def _decoded_pngs(markdown):
 # -- part 2: the report's figures -----------------------------------------------------------
 def test_figures_markdown_embeds_the_report_figures_in_order(tmp_path):
     from vibid.flows.tasks import figures_markdown
+
     residuals = _write_png(tmp_path / "residuals.png", "C1")
     afc = _write_png(tmp_path / "afc.png", "C0")
     (tmp_path / "other.png").write_bytes(afc)  # not a report figure: left out
@@ -58,6 +68,7 @@ def test_figures_markdown_embeds_the_report_figures_in_order(tmp_path):
 
 def test_figures_markdown_links_a_too_large_figure(tmp_path, monkeypatch):
     from vibid.flows import tasks
+
     _write_png(tmp_path / "afc.png", "C0")
     monkeypatch.setattr(tasks, "MAX_EMBEDDED_PNG_BYTES", 10)
     text = tasks.figures_markdown(tmp_path)
@@ -69,8 +80,13 @@ def test_live_afc_publishes_every_update_without_a_throttle():
     from vibid.flows.live import LiveAfc
 
     published = []
-    live = LiveAfc("Steel strip", 5, min_interval_s=0.0, clock=_Clock(),
-                   publish=lambda key, md: published.append((key, md)))
+    live = LiveAfc(
+        "Steel strip",
+        5,
+        min_interval_s=0.0,
+        clock=_Clock(),
+        publish=lambda key, md: published.append((key, md)),
+    )
     for p in _steps(5):
         live.update(p)
     assert len(published) == 5
@@ -87,8 +103,9 @@ def test_live_afc_throttle_publishes_the_first_and_the_last_step():
 
     clock = _Clock()
     published = []
-    live = LiveAfc("s", 6, min_interval_s=1e6, clock=clock,
-                   publish=lambda key, md: published.append(md))
+    live = LiveAfc(
+        "s", 6, min_interval_s=1e6, clock=clock, publish=lambda key, md: published.append(md)
+    )
     for p in _steps(6):
         clock.t += 1.0
         live.update(p)
@@ -170,10 +187,17 @@ def test_live_afc_phase_is_unwrapped_as_in_the_report():
     from vibid.report.plots import H_UNIT
 
     tau = 4e-3  # a pure delay: the phase falls by 1.44 turns over the band
-    steps = [StepProgress(index=i, n_steps=9, frequency_hz=f, h_abs=1.0,
-                          phase_deg=float(np.degrees(np.angle(np.exp(-2j * np.pi * f * tau)))),
-                          eta_s=0.0)
-             for i, f in enumerate(np.linspace(50.0, 410.0, 9))]
+    steps = [
+        StepProgress(
+            index=i,
+            n_steps=9,
+            frequency_hz=f,
+            h_abs=1.0,
+            phase_deg=float(np.degrees(np.angle(np.exp(-2j * np.pi * f * tau)))),
+            eta_s=0.0,
+        )
+        for i, f in enumerate(np.linspace(50.0, 410.0, 9))
+    ]
 
     def fed():
         live = LiveAfc("s", 9, min_interval_s=1e6, clock=_Clock(), publish=lambda k, md: None)
@@ -204,20 +228,41 @@ def test_a_resumed_campaigns_live_afc_starts_from_the_steps_its_file_holds():
     from vibid.signal import StepRecord, afc_from_records
 
     fs, h = 25600.0, (2.0 + 1.0j, 3.0 - 1.0j, -1.0j)
-    afc = afc_from_records([StepRecord(f, fs, *synthetic_step(f, hk, sample_rate_hz=fs, n_samples=6400,
-                                                                noise_std_m_s2=(1e-4, 1e-4), rng=i),
-                                       index=i)
-                            for i, (f, hk) in enumerate(zip((50.0, 60.0, 70.0), h))])
+    afc = afc_from_records(
+        [
+            StepRecord(
+                f,
+                fs,
+                *synthetic_step(
+                    f, hk, sample_rate_hz=fs, n_samples=6400, noise_std_m_s2=(1e-4, 1e-4), rng=i
+                ),
+                index=i,
+            )
+            for i, (f, hk) in enumerate(zip((50.0, 60.0, 70.0), h))
+        ]
+    )
     published = []
-    live = LiveAfc("s", 5, min_interval_s=1e6, clock=_Clock(), publish=lambda k, md: published.append(md))
+    live = LiveAfc(
+        "s", 5, min_interval_s=1e6, clock=_Clock(), publish=lambda k, md: published.append(md)
+    )
     live.add_recorded(afc, stand_time_s=7.5)
     assert sorted(live.points) == [0, 1, 2]
     for i, hk in enumerate(h):
         f, mag, phase, std = live.points[i]
         assert mag == pytest.approx(abs(hk), rel=1e-3)
         assert phase == pytest.approx(np.degrees(np.angle(hk)), abs=0.1) and 0 < std < 1e-3
-    live.update(StepProgress(index=3, n_steps=5, frequency_hz=80.0, h_abs=1.0, phase_deg=0.0,
-                             eta_s=1.0, settle_s=0.5, record_s=0.25))
+    live.update(
+        StepProgress(
+            index=3,
+            n_steps=5,
+            frequency_hz=80.0,
+            h_abs=1.0,
+            phase_deg=0.0,
+            eta_s=1.0,
+            settle_s=0.5,
+            record_s=0.25,
+        )
+    )
     assert "steps done 4 of 5 (1 to go)" in published[-1]
     assert "stand time so far: 8.2 s" in published[-1]  # 7.5 + 0.5 + 0.25
     assert len(live.figure().axes[0].lines[0].get_xdata()) == 4

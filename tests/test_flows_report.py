@@ -51,17 +51,33 @@ def _units_in(label):
 def test_every_figure_names_the_unit_of_every_axis(tmp_path):
     f, H, fine, Hf = _synthetic_afc()
     figs = {
-        "afc": plots.afc_figure(f, H, np.full(f.size, 1e-3), model_frequency_hz=fine, model_H=Hf,
-                                natural_hz=[100.0],
-                                flagged=[plots.Flagged(12.0, 1.0 + 0j, "few_cycles")],
-                                values_text="D = 1 ± 0.1 N·m"),
-        "residuals": plots.residual_figure([
-            plots.StageResidual("declared model", f, 300 * np.sin(f), np.cos(f), 1e4,
-                                features=((100.0, "extra_pole 100 Hz"),),
-                                trend="phase falls linearly by 11° across the band"),
-            plots.StageResidual("+ channel_delay", f, np.sin(f), np.cos(f), 1.0)]),
-        "convergence": plots.convergence_figure([("declared model", [[1e3, 10, 1], [1e3, 5]]),
-                                                 ("+ channel_delay", [[1e2, 1]])]),
+        "afc": plots.afc_figure(
+            f,
+            H,
+            np.full(f.size, 1e-3),
+            model_frequency_hz=fine,
+            model_H=Hf,
+            natural_hz=[100.0],
+            flagged=[plots.Flagged(12.0, 1.0 + 0j, "few_cycles")],
+            values_text="D = 1 ± 0.1 N·m",
+        ),
+        "residuals": plots.residual_figure(
+            [
+                plots.StageResidual(
+                    "declared model",
+                    f,
+                    300 * np.sin(f),
+                    np.cos(f),
+                    1e4,
+                    features=((100.0, "extra_pole 100 Hz"),),
+                    trend="phase falls linearly by 11° across the band",
+                ),
+                plots.StageResidual("+ channel_delay", f, np.sin(f), np.cos(f), 1.0),
+            ]
+        ),
+        "convergence": plots.convergence_figure(
+            [("declared model", [[1e3, 10, 1], [1e3, 5]]), ("+ channel_delay", [[1e2, 1]])]
+        ),
     }
     for name, fig in figs.items():
         labels = plots.axis_labels(fig)
@@ -84,26 +100,52 @@ def test_every_figure_names_the_unit_of_every_axis(tmp_path):
 
 
 def _report(name="s", D=17.97, tau=None):
-    effects = [] if tau is None else [
-        {"name": "channel_delay", "parameters": {"tau_s": {"value": tau, "std": 1e-9}}}]
-    stages = [{"added": None, "chi2_reduced": 812.0, "rel_rms_residual": 0.07,
-               "parameters": {"D": D * 0.99, "nu": 0.3, "beta": 0.005}}]
+    effects = (
+        []
+        if tau is None
+        else [{"name": "channel_delay", "parameters": {"tau_s": {"value": tau, "std": 1e-9}}}]
+    )
+    stages = [
+        {
+            "added": None,
+            "chi2_reduced": 812.0,
+            "rel_rms_residual": 0.07,
+            "parameters": {"D": D * 0.99, "nu": 0.3, "beta": 0.005},
+        }
+    ]
     if tau is not None:
-        stages.append({"added": "channel_delay", "chi2_reduced": 1.04, "rel_rms_residual": 0.002,
-                       "parameters": {"D": D, "nu": 0.286, "beta": 0.003, "tau_s": tau}})
-    return {"format": "vibid.report", "format_version": 1, "session_id": f"id-{name}",
-            "declared_model": "isotropic", "model": "isotropic",
-            "afc": {"frequency_hz": [1.0], "re": [1.0], "im": [0.0], "std": [0.1]},
-            "parameters": {"D": {"value": D, "std": 0.01}, "nu": {"value": 0.286, "std": 0.004},
-                           "beta": {"value": 0.003, "std": 2e-5}},
-            "effects": effects, "loop": {"stages": stages, "unexplained_residual": False,
-                                         "rounds": [[]]}}
+        stages.append(
+            {
+                "added": "channel_delay",
+                "chi2_reduced": 1.04,
+                "rel_rms_residual": 0.002,
+                "parameters": {"D": D, "nu": 0.286, "beta": 0.003, "tau_s": tau},
+            }
+        )
+    return {
+        "format": "vibid.report",
+        "format_version": 1,
+        "session_id": f"id-{name}",
+        "declared_model": "isotropic",
+        "model": "isotropic",
+        "afc": {"frequency_hz": [1.0], "re": [1.0], "im": [0.0], "std": [0.1]},
+        "parameters": {
+            "D": {"value": D, "std": 0.01},
+            "nu": {"value": 0.286, "std": 0.004},
+            "beta": {"value": 0.003, "std": 2e-5},
+        },
+        "effects": effects,
+        "loop": {"stages": stages, "unexplained_residual": False, "rounds": [[]]},
+    }
 
 
 def test_batch_summary_has_one_row_per_session_and_reads_back_exactly():
     reports = [_report("a", 17.97, 2e-5), _report("b", 18.0123456789), None]
-    rows = [report.summary_row("a", reports[0]), report.summary_row("b", reports[1]),
-            report.summary_row("c", None, error="VibidError: broken file")]
+    rows = [
+        report.summary_row("a", reports[0]),
+        report.summary_row("b", reports[1]),
+        report.summary_row("c", None, error="VibidError: broken file"),
+    ]
     back = list(csv.DictReader(io.StringIO(report.summary_csv(rows))))
     assert [r["session"] for r in back] == ["a", "b", "c"]
     assert float(back[1]["D"]) == 18.0123456789  # repr: exact
@@ -130,13 +172,18 @@ def test_summary_markdown_speaks_of_the_effect_and_what_it_changed():
 
 def test_markdown_console_and_ui_table_show_the_json_values_alike():
     r = _report("a", 17.97, 2e-5)
-    r["engineering"] = {"E_Pa": {"value": 1.9800156e11, "std": 1.2e5},
-                        "nu": {"value": 0.2861180, "std": 1.3e-6}, "budget": {}}
+    r["engineering"] = {
+        "E_Pa": {"value": 1.9800156e11, "std": 1.2e5},
+        "nu": {"value": 0.2861180, "std": 1.3e-6},
+        "budget": {},
+    }
     md, console = report.summary_markdown(r), report.console_summary(r)
     table = {(row["quantity"], row["source"]): row for row in report.parameter_table(r)}
-    json_values = ([(n, p, "model") for n, p in r["parameters"].items()]
-                   + [(n, p, "channel_delay") for n, p in r["effects"][0]["parameters"].items()]
-                   + [(n, p, "engineering") for n, p in r["engineering"].items() if n != "budget"])
+    json_values = (
+        [(n, p, "model") for n, p in r["parameters"].items()]
+        + [(n, p, "channel_delay") for n, p in r["effects"][0]["parameters"].items()]
+        + [(n, p, "engineering") for n, p in r["engineering"].items() if n != "budget"]
+    )
     assert len(table) == len(json_values) == 6
     for name, p, source in json_values:
         said = values.with_std(p["value"], p["std"])  # from the JSON, not through the rows
@@ -152,15 +199,19 @@ def test_markdown_console_and_ui_table_show_the_json_values_alike():
 
 def test_the_budget_table_says_what_its_fit_and_discretisation_columns_hold():
     r = _report("a", 17.97, 2e-5)
-    r["engineering"] = {"E_Pa": {"value": 1.98e11, "std": 5e9},
-                        "budget": {"E_Pa": {"fit": 3e9, "discretisation": 4e9}}}
+    r["engineering"] = {
+        "E_Pa": {"value": 1.98e11, "std": 5e9},
+        "budget": {"E_Pa": {"fit": 3e9, "discretisation": 4e9}},
+    }
     r["identification"] = {"uncertainty_notes": ["E_Pa's uncertainty is mostly the mesh"]}
     md = report.summary_markdown(r)
     assert "| constant | fit | discretisation |" in md and "| E_Pa | 3e+09 | 4e+09 |" in md
     (legend,) = [t for t in md.splitlines() if t.startswith("- columns: ")]
-    assert legend == ("- columns: fit: the data's noise and the model's misfit; "
-                      "discretisation: the mesh's error, Richardson-extrapolated over three "
-                      "meshes (the shift of the estimate it causes)")
+    assert legend == (
+        "- columns: fit: the data's noise and the model's misfit; "
+        "discretisation: the mesh's error, Richardson-extrapolated over three "
+        "meshes (the shift of the estimate it causes)"
+    )
     # a budget of declared quantities alone needs no legend: their columns are setup fields
     r["engineering"]["budget"] = {"E_Pa": {"thickness_m": 5e9}}
     assert "- columns:" not in report.summary_markdown(r)
@@ -174,18 +225,26 @@ def test_the_report_says_how_the_discretisation_error_was_estimated():
     from vibid.identify.fit.result import DiscretisationInfo
     from vibid.report.document import discretisation_block
 
-    info = DiscretisationInfo.of(SimpleNamespace(
-        meshes=("20x4c3", "30x6c4", "45x9c5"),
-        extrapolation=SimpleNamespace(order=5.9, factor=1.11, limited=False)))
-    result = SimpleNamespace(discretisation=info, parameter_names=("D", "nu", "beta"),
-                             model_error_bias=np.array([-2e-3, 4e-4, float("nan")]))
+    info = DiscretisationInfo.of(
+        SimpleNamespace(
+            meshes=("20x4c3", "30x6c4", "45x9c5"),
+            extrapolation=SimpleNamespace(order=5.9, factor=1.11, limited=False),
+        )
+    )
+    result = SimpleNamespace(
+        discretisation=info,
+        parameter_names=("D", "nu", "beta"),
+        model_error_bias=np.array([-2e-3, 4e-4, float("nan")]),
+    )
     assert discretisation_block(result) == {
-        "meshes": ["20x4c3", "30x6c4", "45x9c5"], "order": 5.9, "factor": 1.11,
-        "limited": False, "bias": {"D": -2e-3, "nu": 4e-4, "beta": None}}
-    assert discretisation_block(SimpleNamespace(discretisation=None,
-                                                model_error_bias=None)) is None
-    assert discretisation_block(SimpleNamespace(discretisation=info,
-                                                model_error_bias=None)) is None
+        "meshes": ["20x4c3", "30x6c4", "45x9c5"],
+        "order": 5.9,
+        "factor": 1.11,
+        "limited": False,
+        "bias": {"D": -2e-3, "nu": 4e-4, "beta": None},
+    }
+    assert discretisation_block(SimpleNamespace(discretisation=None, model_error_bias=None)) is None
+    assert discretisation_block(SimpleNamespace(discretisation=info, model_error_bias=None)) is None
 
 
 def test_the_figure_list_drives_the_png_files_report_md_and_the_ui(tmp_path, monkeypatch):
@@ -201,10 +260,19 @@ def test_the_figure_list_drives_the_png_files_report_md_and_the_ui(tmp_path, mon
         fig.subplots().plot([0, 1], [0, source.report["parameters"]["D"]["value"]])
         return fig
 
-    monkeypatch.setattr(figures, "FIGURES", (
-        figures.ReportFigure("extra.png", "An extra figure", draw_extra),
-        figures.ReportFigure("never.png", "Never drawn", lambda _: None,
-                             absent="(No never figure: nothing to draw.)")))
+    monkeypatch.setattr(
+        figures,
+        "FIGURES",
+        (
+            figures.ReportFigure("extra.png", "An extra figure", draw_extra),
+            figures.ReportFigure(
+                "never.png",
+                "Never drawn",
+                lambda _: None,
+                absent="(No never figure: nothing to draw.)",
+            ),
+        ),
+    )
     data = SimpleNamespace(setup=SimpleNamespace(specimen=SimpleNamespace(name="strip")))
     r = _report("a", 17.97, 2e-5)
     paths = report.write_lab_report(tmp_path, data, None, r)
@@ -232,22 +300,43 @@ def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not
     r["loop"]["unexplained_residual"] = True
     r["identification"] = {"dof": 1000}
     tried = {"score": 1e5, "p_value": 0.0, "kept": False}
-    r["loop"]["rounds"] = [[
-        tried | {"candidate": "stand_resonance", "delta_chi2": 1.0e5, "verdict": "less_probable",
-                 "note": "compared: probability 0.01, against 0.98 for stopping here"},
-        tried | {"candidate": "fixture_resonance", "delta_chi2": 4.06e5,
-                 "verdict": "less_probable",
-                 "note": "compared: probability 0.01, against 0.98 for stopping here"},
-        tried | {"candidate": "anisotropy", "delta_chi2": None, "verdict": "no_mode_pattern",
-                 "note": "not refitted"},
-        # a report written by the earlier loop: its rule verdicts are no close call
-        tried | {"candidate": "clamp_compliance", "delta_chi2": 9e5, "verdict": "at_null",
-                 "note": "the refit takes it to its null value"},
-    ]]
+    r["loop"]["rounds"] = [
+        [
+            tried
+            | {
+                "candidate": "stand_resonance",
+                "delta_chi2": 1.0e5,
+                "verdict": "less_probable",
+                "note": "compared: probability 0.01, against 0.98 for stopping here",
+            },
+            tried
+            | {
+                "candidate": "fixture_resonance",
+                "delta_chi2": 4.06e5,
+                "verdict": "less_probable",
+                "note": "compared: probability 0.01, against 0.98 for stopping here",
+            },
+            tried
+            | {
+                "candidate": "anisotropy",
+                "delta_chi2": None,
+                "verdict": "no_mode_pattern",
+                "note": "not refitted",
+            },
+            # a report written by the earlier loop: its rule verdicts are no close call
+            tried
+            | {
+                "candidate": "clamp_compliance",
+                "delta_chi2": 9e5,
+                "verdict": "at_null",
+                "note": "the refit takes it to its null value",
+            },
+        ]
+    ]
     r["afc"]["frequency_hz"] = [150.0, 190.0, 200.0, 300.0]
     r["linearity"] = [{"left_out_hz": [178.1, 216.3], "note": "..."}]
     text = report.summary_markdown(r)
-    closest = text[text.index("What came closest"):text.index("## Fit quality")]
+    closest = text[text.index("What came closest") : text.index("## Fit quality")]
     assert closest.index("fixture_resonance") < closest.index("stand_resonance")
     assert "(χ² −4.06e+05, 50 % of the misfit): compared: probability 0.01" in closest
     assert "anisotropy" not in closest and "clamp_compliance" not in closest
@@ -258,11 +347,13 @@ def test_where_a_residual_remains_the_report_names_what_came_closest_and_why_not
 
 def test_the_residual_diagnosis_is_one_list_with_one_bullet_per_stage():
     r = _report("a", 17.97, 2e-5)
-    r["loop"]["diagnosis"] = [[{"kind": "trend", "f_hz": None,
-                                "note": "phase falls linearly by 11° across the band"}], []]
+    r["loop"]["diagnosis"] = [
+        [{"kind": "trend", "f_hz": None, "note": "phase falls linearly by 11° across the band"}],
+        [],
+    ]
     html = _html(report.summary_markdown(r))
     start = html.index("What the residual showed")
-    items = html[start:html.index("</ul>", start)]
+    items = html[start : html.index("</ul>", start)]
     # "- + channel_delay: ..." would be a list inside the list: two bullets
     assert items.count("<li>") == 2 and items.count("<ul>") == 1
     assert "channel_delay</strong>: nothing beyond the noise</li>" in items
@@ -317,8 +408,7 @@ def test_replay_command_rejects_bad_input_in_one_line(tmp_path, capsys):
     assert err.startswith("vibid replay: error:") and "junk.h5" in err and "\n" not in err
 
 
-def test_artifacts_that_cannot_be_published_are_one_warning_and_the_flow_goes_on(
-        monkeypatch):
+def test_artifacts_that_cannot_be_published_are_one_warning_and_the_flow_goes_on(monkeypatch):
     """The report is written before its Prefect artifacts: an artifact that cannot be made
     is one warning of the run's log, never the job's failure (issue 62)."""
     from types import SimpleNamespace
@@ -330,7 +420,10 @@ def test_artifacts_that_cannot_be_published_are_one_warning_and_the_flow_goes_on
 
     said = []
     monkeypatch.setattr(tasks, "_publish", broken)
-    monkeypatch.setattr(tasks, "run_logger", lambda: SimpleNamespace(
-        warning=lambda fmt, *args: said.append(fmt % args)))
+    monkeypatch.setattr(
+        tasks,
+        "run_logger",
+        lambda: SimpleNamespace(warning=lambda fmt, *args: said.append(fmt % args)),
+    )
     assert tasks.publish_artifacts({"session_id": "s"}, specimen="strip") is None
     assert said == ["the report's Prefect artifacts could not be published: KeyError: 'E_Pa'"]

@@ -31,12 +31,17 @@ def _alive(pid: int) -> bool:
         return False
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG) is Linux's")
+@pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG) is Linux's"
+)
 @pytest.mark.parametrize("tie", [True, False])
 def test_a_server_started_after_the_tie_dies_with_its_killed_parent(tie):
-    code = CHILD.replace("tied = tie_temporary_server()", "tied = tie_temporary_server()" if tie else "tied = False")
-    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
-                              start_new_session=True)
+    code = CHILD.replace(
+        "tied = tie_temporary_server()", "tied = tie_temporary_server()" if tie else "tied = False"
+    )
+    parent = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, start_new_session=True
+    )
     try:
         tied, pid = parent.stdout.readline().split()
         pid = int(pid)

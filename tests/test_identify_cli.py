@@ -24,8 +24,10 @@ FREQUENCIES_HZ = tuple(22.5 * k for k in range(1, 41))
 
 def _strict_json(text: str):
     """json.loads that refuses NaN and infinities (Python's json accepts them by default)."""
+
     def reject(constant):
         raise ValueError(f"not strict JSON: {constant}")
+
     return json.loads(text, parse_constant=reject)
 
 
@@ -39,8 +41,9 @@ def session(tmp_path_factory):
     from vibid.hardware_mocks.simulated_session import simulate_session
 
     s = example_setup()
-    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                              frequencies_hz=FREQUENCIES_HZ))
+    s = dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=FREQUENCIES_HZ)
+    )
     path = tmp_path_factory.mktemp("identify-cli") / "session.h5"
     # accuracy "fine" (the simulator's default): the virtual specimen is the full FE model on
     # a finer mesh than the identification's, so the truth is independent of the fitted model.
@@ -56,8 +59,19 @@ def identified(session):
     (exit code, report text, report path)."""
     path, _ = session
     report = path.parent / "report.json"
-    rc = main(["identify", str(path), "--json", str(report), "--no-progress",
-               "--restarts", "2", "--seed", "0"])
+    rc = main(
+        [
+            "identify",
+            str(path),
+            "--json",
+            str(report),
+            "--no-progress",
+            "--restarts",
+            "2",
+            "--seed",
+            "0",
+        ]
+    )
     return rc, report.read_text() if report.exists() else None, report
 
 
@@ -120,7 +134,9 @@ def test_identify_recovers_the_true_strip(identified):
     # one, and 5 std were needed).
     for name in TRUTH:
         z = (values[name] - TRUTH[name]) / stds[name]
-        assert abs(z) < 4, f"{name} = {values[name]} +- {stds[name]}: {z:.1f} std from {TRUTH[name]}"
+        assert abs(z) < 4, (
+            f"{name} = {values[name]} +- {stds[name]}: {z:.1f} std from {TRUTH[name]}"
+        )
 
     # Bounds that do not depend on the reported std (a pipeline that inflated its std would
     # pass the test above). They are loose against what a working pipeline gives (relative
@@ -152,9 +168,14 @@ def test_identify_recovers_the_true_strip(identified):
 
 
 def _good_root_attrs():
-    return {"format": "vibid.session", "format_version": np.int64(1),
-            "created_utc": "2024-01-01T00:00:00+00:00", "session_id": "no-steps",
-            "software": "test", "setup": example_setup().to_json(indent=None)}
+    return {
+        "format": "vibid.session",
+        "format_version": np.int64(1),
+        "created_utc": "2024-01-01T00:00:00+00:00",
+        "session_id": "no-steps",
+        "software": "test",
+        "setup": example_setup().to_json(indent=None),
+    }
 
 
 def _not_hdf5(path):
@@ -180,20 +201,38 @@ def _truncated(path):
     t = np.arange(n) / fs
     with SessionWriter(full, example_setup()) as w:
         for f in (10.0, 20.0, 30.0):
-            w.append(frequency_hz=f, sample_rate_hz=fs, base=np.sin(2 * np.pi * f * t),
-                     response=2 * np.sin(2 * np.pi * f * t + 0.1))
+            w.append(
+                frequency_hz=f,
+                sample_rate_hz=fs,
+                base=np.sin(2 * np.pi * f * t),
+                response=2 * np.sin(2 * np.pi * f * t + 0.1),
+            )
     data = full.read_bytes()
     path.write_bytes(data[: len(data) // 2])
 
 
-@pytest.mark.parametrize("make", [_not_hdf5, _empty_hdf5, _no_session_groups, _truncated],
-                         ids=["not-hdf5", "empty-hdf5", "no-session-groups", "truncated"])
+@pytest.mark.parametrize(
+    "make",
+    [_not_hdf5, _empty_hdf5, _no_session_groups, _truncated],
+    ids=["not-hdf5", "empty-hdf5", "no-session-groups", "truncated"],
+)
 def test_invalid_session_is_a_one_line_error(tmp_path, capsys, make):
     bad = tmp_path / "bad.h5"
     make(bad)
     report = tmp_path / "r.json"
-    rc = main(["identify", str(bad), "--json", str(report), "--no-progress",
-               "--restarts", "1", "--seed", "0"])
+    rc = main(
+        [
+            "identify",
+            str(bad),
+            "--json",
+            str(report),
+            "--no-progress",
+            "--restarts",
+            "1",
+            "--seed",
+            "0",
+        ]
+    )
     captured = capsys.readouterr()
     err = captured.err.strip()
     assert rc == 1

@@ -25,8 +25,9 @@ def _problem(effects=(), extra=None):
     values = TRUTH | (extra or {})
     fm = build_forward_model(setup, FREQS, effects=effects, theta0=values)
     box = fm.param.default_bounds(dict(setup.identification.bounds))
-    space = ParameterSpace.from_bounds(fm.parameter_names, box,
-                                       {q.name: q.kind for q in fm.param.parameters})
+    space = ParameterSpace.from_bounds(
+        fm.parameter_names, box, {q.name: q.kind for q in fm.param.parameters}
+    )
     theta = np.array([values[n] for n in fm.parameter_names])
     H = np.asarray(fm.afc(theta))
     rng = np.random.default_rng(0)
@@ -46,9 +47,11 @@ def _exercise(problem, theta):
 def test_candidates_of_one_size_compile_nothing_new():
     declared, theta = _problem()
     _exercise(declared, theta)  # compiles (or loads) the structure's functions
-    for effects, extra in ((("channel_delay",), {"tau_s": 0.0}),
-                           (("added_mass",), {"mass_kg": 1e-4}),
-                           (("frequency_dependent_loss",), {"alpha": 0.0})):
+    for effects, extra in (
+        (("channel_delay",), {"tau_s": 0.0}),
+        (("added_mass",), {"mass_kg": 1e-4}),
+        (("frequency_dependent_loss",), {"alpha": 0.0}),
+    ):
         candidate, th = _problem(effects, extra)
         assert candidate.model.kernel == declared.model.kernel  # one structure
         assert candidate.model.arrays["K"].shape == declared.model.arrays["K"].shape
@@ -57,9 +60,14 @@ def test_candidates_of_one_size_compile_nothing_new():
         assert prof.compilations == 0, effects
 
 
-@pytest.mark.parametrize("effects, extra", [((), {}),
-                                            (("clamp_compliance",), {"k_theta_N_per_rad": 2e4}),
-                                            (("sensor_position",), {"sensor_dy_m": 2e-3})])
+@pytest.mark.parametrize(
+    "effects, extra",
+    [
+        ((), {}),
+        (("clamp_compliance",), {"k_theta_N_per_rad": 2e4}),
+        (("sensor_position",), {"sensor_dy_m": 2e-3}),
+    ],
+)
 def test_structure_code_equals_the_models_own(effects, extra):
     """A model run through its structure's code (every other effect of the library present,
     zeroed) gives the AFC of the model's own code, to rounding."""
@@ -70,8 +78,9 @@ def test_structure_code_equals_the_models_own(effects, extra):
     problem, theta = _problem(effects, extra)
     fm = problem.model
     assert fm.kernel.model != fm.param  # the structure has more terms
-    own = ReducedKernel(fm.param)(padded_arrays(fm.basis, 2 * np.pi * FREQS, fm.param, fm.param),
-                                  jax.numpy.asarray(theta))
+    own = ReducedKernel(fm.param)(
+        padded_arrays(fm.basis, 2 * np.pi * FREQS, fm.param, fm.param), jax.numpy.asarray(theta)
+    )
     np.testing.assert_allclose(np.asarray(fm.afc(theta)), np.asarray(own), rtol=1e-12, atol=0)
 
 
@@ -92,8 +101,9 @@ def test_parameter_padding(p, padded):
 
 
 def test_space_coefficients_map_like_the_space():
-    space = ParameterSpace.from_bounds(("D", "nu", "tau_s"), {
-        "D": (1.0, 100.0), "nu": (0.0, 0.5), "tau_s": (-1e-4, 1e-4)})
+    space = ParameterSpace.from_bounds(
+        ("D", "nu", "tau_s"), {"D": (1.0, 100.0), "nu": (0.0, 0.5), "tau_s": (-1e-4, 1e-4)}
+    )
     u = np.array([[0.3, -0.7, 0.5], [-2.0, 3.0, -1.0]])
     got = np.asarray(from_u_coefficients(space.coefficients(5), np.pad(u, [(0, 0), (0, 2)])))
     np.testing.assert_allclose(got[:, :3], space.from_u(u), rtol=1e-14)
@@ -104,8 +114,9 @@ def test_modes_and_chi2_from_one_decomposition_equal_the_separate_calls():
     """The peak search's tie-break reads the modes and chi2 off one modal decomposition
     per member: the same numbers as the two calls it replaces (modes, chi2_batch), with
     an effect that rocks the base too (a second load vector)."""
-    problem, theta = _problem(("stand_resonance",), {"f_hz_1": 660.0, "q_1": 30.0,
-                                                     "theta_rad_per_m_1": 0.3})
+    problem, theta = _problem(
+        ("stand_resonance",), {"f_hz_1": 660.0, "q_1": 30.0, "theta_rad_per_m_1": 0.3}
+    )
     fm = problem.model
     thetas = np.stack([theta, theta * np.r_[1.05, 0.9, 2.0, np.ones(theta.size - 3)]])
     f_hz, height = fm.modes_batch(thetas)
@@ -124,12 +135,14 @@ def test_reverse_mode_gradient_equals_the_forward_jacobians(magnitude):
     """The trust region's chi2 and gradient (one reverse-mode pass) equal ``|r|²`` and
     ``2 Jᵀ r`` from the forward-mode Jacobian, and a central difference of chi2, away
     from the minimum (clamp and sensor offset moved: 6 parameters, padded to 8)."""
-    problem, theta = _problem(("clamp_compliance", "sensor_position"),
-                              {"k_theta_N_per_rad": 2e4, "sensor_dy_m": 2e-3})
+    problem, theta = _problem(
+        ("clamp_compliance", "sensor_position"), {"k_theta_N_per_rad": 2e4, "sensor_dy_m": 2e-3}
+    )
     if magnitude:
         d = problem.data
-        problem = LeastSquaresProblem(problem.model, fit_data(
-            FREQS, np.abs(d.H), d.std, magnitude=True), problem.space)
+        problem = LeastSquaresProblem(
+            problem.model, fit_data(FREQS, np.abs(d.H), d.std, magnitude=True), problem.space
+        )
     u = problem.space.to_u(theta) + np.linspace(-0.02, 0.03, theta.size)
     f, g = problem.value_and_grad(u)
     J = problem.jacobian(u)
@@ -137,8 +150,7 @@ def test_reverse_mode_gradient_equals_the_forward_jacobians(magnitude):
     np.testing.assert_allclose(f, r @ r, rtol=1e-12)
     np.testing.assert_allclose(g, 2 * J.T @ r, rtol=1e-9, atol=1e-9 * np.abs(g).max())
     h = 1e-6
-    fd = [(problem.chi2(u + h * e) - problem.chi2(u - h * e)) / (2 * h)
-          for e in np.eye(u.size)]
+    fd = [(problem.chi2(u + h * e) - problem.chi2(u - h * e)) / (2 * h) for e in np.eye(u.size)]
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6 * np.abs(g).max())
 
 

@@ -8,8 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vibid.identify.fit.compress import (TOL_STD, compressed, gauss_nodes, lagrange_matrix,
-                                         project)
+from vibid.identify.fit.compress import TOL_STD, compressed, gauss_nodes, lagrange_matrix, project
 
 DATA = Path(__file__).parent / "data"
 
@@ -26,8 +25,12 @@ def test_gauss_nodes_make_the_lagrange_polynomials_orthogonal():
         # a quadrature exact to degree 2q - 1: the moments of the measure
         t = (f - 200.0) / 60.0
         tn = (nodes - 200.0) / 60.0
-        assert np.allclose([W @ tn**k for k in range(2 * q)],
-                           [w @ t**k for k in range(2 * q)], rtol=1e-10, atol=1e-6)
+        assert np.allclose(
+            [W @ tn**k for k in range(2 * q)],
+            [w @ t**k for k in range(2 * q)],
+            rtol=1e-10,
+            atol=1e-6,
+        )
 
 
 def test_the_projection_keeps_chi2_of_every_interpolant():
@@ -61,8 +64,7 @@ def titanium_problem(magnitude: bool = False):
     model = plate_model("isotropic")
     start = {"D": 300.0, "nu": -0.65, "beta": 0.0195}
     box = model.default_bounds(dict(setup.identification.bounds))
-    space = ParameterSpace.from_bounds(model.names, box,
-                                       {q.name: q.kind for q in model.parameters})
+    space = ParameterSpace.from_bounds(model.names, box, {q.name: q.kind for q in model.parameters})
     fm = build_forward_model(setup, f, model=model, theta0=start)
     problem = LeastSquaresProblem(fm, fit_data(f, re + 1j * im, std, magnitude=magnitude), space)
     return problem, space.to_u(np.array([start[n] for n in model.names]))

@@ -14,8 +14,8 @@ which the std must cover on its own.
 
 import numpy as np
 import pytest
-from loop_data import TRUTH, F, fine_afc, strip_on
 
+from loop_data import TRUTH, F, fine_afc, strip_on
 from vibid.identify import build_forward_model
 from vibid.identify.fit import identify
 
@@ -47,8 +47,11 @@ def test_the_extrapolated_error_meets_a_converged_mesh(converged):
     assert 4.0 < err.extrapolation.order < 8.0 and not err.extrapolation.limited
     assert off(err.d) < 0.09
     assert off(err.finer) > 0.1  # what the estimate missed before
-    assert err.meshes == ("argyris 20x4 +3 corner levels", "argyris 30x6 +4 corner levels",
-                          "argyris 45x9 +5 corner levels")
+    assert err.meshes == (
+        "argyris 20x4 +3 corner levels",
+        "argyris 30x6 +4 corner levels",
+        "argyris 45x9 +5 corner levels",
+    )
 
 
 @pytest.mark.parametrize("magnitude", [False, True], ids=["complex", "magnitude"])

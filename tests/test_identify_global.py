@@ -4,8 +4,8 @@ import json
 
 import numpy as np
 import pytest
-from ritz_toy import RitzPlateModel
 
+from ritz_toy import RitzPlateModel
 from vibid.errors import VibidError
 from vibid.identify.fit import identify
 from vibid.report import build_report
@@ -38,8 +38,9 @@ def test_nan_points_are_dropped_with_a_warning(strip_1000):
     setup, f, fm, H = strip_1000
     Hb = H.copy()
     Hb[[5, 40, 77]] = np.nan
-    res = identify(setup, f, Hb, forward_model=fm, method="local",
-                   start={"D": 20.0, "nu": 0.3, "beta": 0.01})
+    res = identify(
+        setup, f, Hb, forward_model=fm, method="local", start={"D": 20.0, "nu": 0.3, "beta": 0.01}
+    )
     assert any("3 of 101 AFC points are not finite" in w for w in res.warnings)
     assert np.all(np.isfinite(res.values)) and res.used.sum() == 98
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
@@ -65,16 +66,32 @@ def test_all_nan_is_a_clear_error(strip_1000):
 def test_bounds_that_exclude_the_truth_are_reported(strip_1000):
     setup, f, fm, H = strip_1000
     bounds = {"D": (30.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
-    res = identify(setup, f, H, forward_model=fm, bounds=bounds, method="local",
-                   start={"D": 30.5, "nu": 0.29, "beta": 0.003})
+    res = identify(
+        setup,
+        f,
+        H,
+        forward_model=fm,
+        bounds=bounds,
+        method="local",
+        start={"D": 30.5, "nu": 0.29, "beta": 0.003},
+    )
     assert np.all(np.isfinite(res.values))
-    assert any(w.startswith("D = ") and "prior bounds" in w and "widen them" in w
-               for w in res.warnings)
+    assert any(
+        w.startswith("D = ") and "prior bounds" in w and "widen them" in w for w in res.warnings
+    )
     # with a known noise that the fit does not reach (a 5 % gain the model lacks), the
     # bound may be right and the parameter stand in for what the model lacks: widening
     # them is no advice
-    res = identify(setup, f, 1.05 * H, 1e-3 * np.abs(H), forward_model=fm, bounds=bounds,
-                   method="local", start={"D": 30.5, "nu": 0.29, "beta": 0.003})
+    res = identify(
+        setup,
+        f,
+        1.05 * H,
+        1e-3 * np.abs(H),
+        forward_model=fm,
+        bounds=bounds,
+        method="local",
+        start={"D": 30.5, "nu": 0.29, "beta": 0.003},
+    )
     (w,) = [w for w in res.warnings if w.startswith("D = ")]
     assert "may stand in for what the model lacks" in w and "widen them and" not in w
 
@@ -84,8 +101,15 @@ def test_noise_known_gives_chi2_near_one(strip_1000):
     sd = 0.01 * np.abs(H).max()
     rng = np.random.default_rng(3)
     Hn = H + sd * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
-    res = identify(setup, f, Hn, np.full(f.size, sd), forward_model=fm, method="local",
-                   start=dict(zip(("D", "nu", "beta"), TRUE)))
+    res = identify(
+        setup,
+        f,
+        Hn,
+        np.full(f.size, sd),
+        forward_model=fm,
+        method="local",
+        start=dict(zip(("D", "nu", "beta"), TRUE)),
+    )
     assert res.noise_known
     # chi2 of 2n - p degrees of freedom: mean 1, sd sqrt(2 / dof)
     assert abs(res.chi2_reduced - 1) < 4 * np.sqrt(2 / res.dof)
@@ -95,7 +119,9 @@ def test_noise_known_gives_chi2_near_one(strip_1000):
     assert set(report["parameters"]) == {"D", "nu", "beta"}
     assert report["parameters"]["D"]["std"] == pytest.approx(res.std[0])
     (stage,) = report["loop"]["stages"]
-    assert stage["added"] is None and stage["chi2_reduced"] == pytest.approx(res.chi2_reduced_reported)
+    assert stage["added"] is None and stage["chi2_reduced"] == pytest.approx(
+        res.chi2_reduced_reported
+    )
     assert report["effects"] == [] and report["loop"]["unexplained_residual"] is False
 
 
@@ -104,8 +130,15 @@ def test_wrong_model_leaves_unexplained_residual(strip_1000):
     setup, f, fm, H = strip_1000
     sd = 0.002 * np.abs(H).max()
     Hd = H * np.exp(-2j * np.pi * f * 2e-4)
-    res = identify(setup, f, Hd, np.full(f.size, sd), forward_model=fm, method="local",
-                   start=dict(zip(("D", "nu", "beta"), TRUE)))
+    res = identify(
+        setup,
+        f,
+        Hd,
+        np.full(f.size, sd),
+        forward_model=fm,
+        method="local",
+        start=dict(zip(("D", "nu", "beta"), TRUE)),
+    )
     report = build_report(res)
     assert report["loop"]["unexplained_residual"] is True
     assert any("does not fit the data to their noise level" in w for w in res.warnings)
@@ -181,8 +214,10 @@ def _adaptive_strip_afc():
     from vibid.signal.imported import read_afc
 
     here = Path(__file__).parent
-    return (load_setup(here.parent / "examples" / "strip_setup.json"),
-            read_afc(str(here / "data" / "adaptive_strip_afc.csv")))
+    return (
+        load_setup(here.parent / "examples" / "strip_setup.json"),
+        read_afc(str(here / "data" / "adaptive_strip_afc.csv")),
+    )
 
 
 @pytest.mark.slow

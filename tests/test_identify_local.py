@@ -6,12 +6,12 @@ vibid's FE forward model); start from the paper's (+20 % D, +5 % nu, x100 beta).
 
 import numpy as np
 import pytest
-from ritz_toy import RitzPlateModel
 
+from ritz_toy import RitzPlateModel
 from vibid.identify.fit import identify
-from vibid.identify.fit.result import Status
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.problem import LeastSquaresProblem
+from vibid.identify.fit.result import Status
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.trust_region import gauss_newton, solve_subproblem, trust_region
 from vibid.setup_model import example_setup
@@ -34,8 +34,10 @@ def test_subproblem_is_the_constrained_minimum(seed):
     q = rng.standard_normal((20000, 3))
     q *= (radius * rng.random((20000, 1)) ** (1 / 3)) / np.linalg.norm(q, axis=1, keepdims=True)
     sphere = q / np.linalg.norm(q, axis=1, keepdims=True) * radius
-    best = min(np.min(np.einsum("ij,j->i", s, g) + 0.5 * np.einsum("ij,jk,ik->i", s, B, s))
-               for s in (q, sphere))
+    best = min(
+        np.min(np.einsum("ij,j->i", s, g) + 0.5 * np.einsum("ij,jk,ik->i", s, B, s))
+        for s in (q, sphere)
+    )
     assert m(p) <= best + 1e-9
 
 
@@ -61,8 +63,11 @@ def toy_problem():
 def test_paper_start_recovers_all_three(toy_problem, method):
     problem = toy_problem[0]
     u0 = problem.space.to_u(PAPER_START)
-    r = gauss_newton(problem, u0) if method == "lm" else trust_region(
-        problem, u0, hessian=method, max_iter=1000)
+    r = (
+        gauss_newton(problem, u0)
+        if method == "lm"
+        else trust_region(problem, u0, hessian=method, max_iter=1000)
+    )
     assert r.status is Status.CONVERGED, r.message
     np.testing.assert_allclose(r.theta, TRUE, rtol=1e-6)
     losses = [h.loss for h in r.history]
@@ -99,8 +104,14 @@ def test_non_convergence_is_reported(toy_problem):
 
 def test_identify_local_from_paper_start(toy_problem):
     _, setup, f, H, fm = toy_problem
-    res = identify(setup, f, H, forward_model=fm, method="local",
-                   start=dict(zip(("D", "nu", "beta"), PAPER_START)))
+    res = identify(
+        setup,
+        f,
+        H,
+        forward_model=fm,
+        method="local",
+        start=dict(zip(("D", "nu", "beta"), PAPER_START)),
+    )
     assert res.converged
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
     assert np.all(np.isfinite(res.std))
@@ -122,8 +133,15 @@ def test_paper_start_on_the_fe_strip(fe_strip_600):
     FE model, fit with the reduced one)."""
     setup, f, fm = fe_strip_600
     H = np.asarray(fm.afc_full(TRUE))
-    res = identify(setup, f, H, forward_model=fm, method="local", refresh=False,
-                   start=dict(zip(("D", "nu", "beta"), PAPER_START)))
+    res = identify(
+        setup,
+        f,
+        H,
+        forward_model=fm,
+        method="local",
+        refresh=False,
+        start=dict(zip(("D", "nu", "beta"), PAPER_START)),
+    )
     assert res.converged, res.message
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
 
@@ -144,8 +162,15 @@ def test_one_peak_band_converges_along_the_curved_valley():
     H = np.asarray(RitzPlateModel(setup, f, n_y=3).afc(TRUE))
     space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
     problem = LeastSquaresProblem(fm, fit_data(f, H), space)
-    ref = least_squares(problem.residuals, space.to_u(TRUE), jac=problem.jacobian, method="lm",
-                        xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    ref = least_squares(
+        problem.residuals,
+        space.to_u(TRUE),
+        jac=problem.jacobian,
+        method="lm",
+        xtol=1e-15,
+        ftol=1e-15,
+        gtol=1e-15,
+    )
     theta_ref, chi2_ref = space.theta(ref.x), 2 * ref.cost
     assert 0 < chi2_ref < 1e-10  # tiny, not zero
     r = trust_region(problem, space.to_u(TRUE * np.array([1.1, 1.3, 1.0])), max_iter=100)

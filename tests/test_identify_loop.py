@@ -5,8 +5,8 @@ data get nothing added; and the whole path session -> AFC -> loop -> report."""
 import json
 
 import pytest
-from loop_data import RESTARTS, F, TRUTH, data, declared_fit, strip_on
 
+from loop_data import RESTARTS, TRUTH, F, data, declared_fit, strip_on
 from vibid.identify.loop import close_loop
 
 _setup = strip_on
@@ -18,8 +18,11 @@ _data = data
 def _truth_within(result, sigmas=3.0):
     for name, value in TRUTH.items():
         i = result.parameter_names.index(name)
-        assert abs(result.values[i] - value) < sigmas * result.std[i], (name, result.values[i],
-                                                                       result.std[i])
+        assert abs(result.values[i] - value) < sigmas * result.std[i], (
+            name,
+            result.values[i],
+            result.std[i],
+        )
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
@@ -31,25 +34,29 @@ def test_clean_data_get_nothing_added(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, value", [
-    ("channel_delay", {"tau_s": 2e-5}),                   # 20 us between the channels
-    ("clamp_compliance", {"k_theta_N_per_rad": 1.6e4}),   # first frequency about 2 % low
-    ("sensor_gain", {"gain": 1.02}),                      # a 2 % calibration error
-    ("added_mass", {"mass_kg": 3e-4}),                    # 30 % of the sensor's mass
-    ("frequency_dependent_loss", {"alpha": 0.3}),
-])
+@pytest.mark.parametrize(
+    "effect, value",
+    [
+        ("channel_delay", {"tau_s": 2e-5}),  # 20 us between the channels
+        ("clamp_compliance", {"k_theta_N_per_rad": 1.6e4}),  # first frequency about 2 % low
+        ("sensor_gain", {"gain": 1.02}),  # a 2 % calibration error
+        ("added_mass", {"mass_kg": 3e-4}),  # 30 % of the sensor's mass
+        ("frequency_dependent_loss", {"alpha": 0.3}),
+    ],
+)
 def test_an_undeclared_effect_is_found_and_the_declared_parameters_return(effect, value):
     H, sd = _data(value, 7)
     # the declared fit (what close_loop fits first) of the delay's data is shared with
     # test_identify_loop_cases' failing refit
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
-                      declared=declared_fit(value, 7))
+    loop = close_loop(
+        _setup(), F, H, sd, seed=0, restarts=RESTARTS, declared=declared_fit(value, 7)
+    )
     before, after = loop.stages[0].result, loop.final
     assert loop.effects == (effect,)
     assert not loop.unexplained_residual and loop.stages[-1].fits_noise
     assert before.chi2_reduced > 5 and after.chi2_reduced < 1.5  # the error before and after
     _truth_within(after)
-    (name, v), = value.items()
+    ((name, v),) = value.items()
     i = after.parameter_names.index(name)
     assert abs(after.values[i] - v) < 3 * after.std[i]
     scores = {s.name: s for s in loop.rounds[0]}
@@ -66,16 +73,44 @@ def test_the_session_path_reports_the_loop(tmp_path):
     setup_path = tmp_path / "setup.json"
     setup_path.write_text(_setup(freqs).to_json())
     path = tmp_path / "session.h5"
-    assert main(["simulate", str(setup_path), "--out", str(path), "--params", "D=17.97",
-                 "nu=0.286", "beta=0.003", "--effect", "channel_delay:tau_s=3e-5",
-                 "--seed", "2"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                str(setup_path),
+                "--out",
+                str(path),
+                "--params",
+                "D=17.97",
+                "nu=0.286",
+                "beta=0.003",
+                "--effect",
+                "channel_delay:tau_s=3e-5",
+                "--seed",
+                "2",
+            ]
+        )
+        == 0
+    )
     with read_session(path) as r:  # the effect is in the data, not in the declared setup
         assert "tau_s" not in r.setup.to_json()
     truth = json.loads((tmp_path / "session.truth.json").read_text())
     assert truth["parameters"]["tau_s"] == 3e-5
     report = tmp_path / "report.json"
-    assert main(["identify", str(path), "--json", str(report), "--no-progress",
-                 "--restarts", str(RESTARTS)]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(path),
+                "--json",
+                str(report),
+                "--no-progress",
+                "--restarts",
+                str(RESTARTS),
+            ]
+        )
+        == 0
+    )
     doc = json.loads(report.read_text())
     assert [e["name"] for e in doc["effects"]] == ["channel_delay"]
     tau = doc["effects"][0]["parameters"]["tau_s"]
@@ -87,8 +122,21 @@ def test_the_session_path_reports_the_loop(tmp_path):
     assert set(doc["parameters"]) == {"D", "nu", "beta"}
     assert {r["candidate"] for r in doc["loop"]["rounds"][0]} >= {"channel_delay", "anisotropy"}
     # --no-loop: the declared model alone
-    assert main(["identify", str(path), "--json", str(report), "--no-progress",
-                 "--restarts", str(RESTARTS), "--no-loop"]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(path),
+                "--json",
+                str(report),
+                "--no-progress",
+                "--restarts",
+                str(RESTARTS),
+                "--no-loop",
+            ]
+        )
+        == 0
+    )
     doc = json.loads(report.read_text())
     assert doc["effects"] == [] and len(doc["loop"]["stages"]) == 1
     assert doc["loop"]["unexplained_residual"] is True

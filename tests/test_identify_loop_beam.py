@@ -5,14 +5,16 @@ it could be mistaken for, a free length and a tall sensor among every candidate
 (test_identify_loop_diagnosed.py runs the stand resonance and the clamp's loss among every
 candidate)."""
 
-import beam_sessions as bs
 import pytest
 
+import beam_sessions as bs
 from vibid.identify.loop import close_loop
 
 CASES = {
-    "stand_resonance": ({"f_hz_1": 660.0, "q_1": 30.0, "theta_rad_per_m_1": 0.3},
-                        ["stand_resonance", "channel_delay", "sensor_gain"]),
+    "stand_resonance": (
+        {"f_hz_1": 660.0, "q_1": 30.0, "theta_rad_per_m_1": 0.3},
+        ["stand_resonance", "channel_delay", "sensor_gain"],
+    ),
     "free_length": ({"dL_m": 2e-3}, None),  # every candidate
 }
 

@@ -8,9 +8,9 @@ on a plate)."""
 
 import math
 
-import beam_sessions as bs
 import pytest
 
+import beam_sessions as bs
 from vibid.identify.loop import close_loop
 from vibid.identify.loop.verdicts import CLOSE_CALLS
 
@@ -36,8 +36,9 @@ def test_an_effect_alone_is_named_on_beam_data(effect):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("pair", [("sensor_gain", "added_mass"),
-                                  ("channel_delay", "frequency_dependent_loss")])
+@pytest.mark.parametrize(
+    "pair", [("sensor_gain", "added_mass"), ("channel_delay", "frequency_dependent_loss")]
+)
 def test_two_effects_at_once_are_both_named_on_beam_data(pair):
     effects = CASES[pair[0]] | CASES[pair[1]]
     H, sd = bs.data(effects, seed=2)
@@ -49,11 +50,15 @@ def test_two_effects_at_once_are_both_named_on_beam_data(pair):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 63's evidence takes the crosstalk for an orthotropic strip (D22 = D11/49, below "
-    "its prior's D/30): the evidence is Laplace's at an estimate outside the prior, whose "
-    "mass inside the box it counts only marginally; the fit must find the posterior's mode "
-    "inside the box (its own work, in the closing note)"))
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue 63's evidence takes the crosstalk for an orthotropic strip (D22 = D11/49, below "
+        "its prior's D/30): the evidence is Laplace's at an estimate outside the prior, whose "
+        "mass inside the box it counts only marginally; the fit must find the posterior's mode "
+        "inside the box (its own work, in the closing note)"
+    ),
+)
 def test_an_effect_outside_the_library_leaves_the_constants_in_place():
     """A crosstalk of 2 % of the base channel into the response channel (the measured ratio
     plus 0.02) is no effect of the library. The loop claims no fit: unexplained_residual,
@@ -72,6 +77,9 @@ def test_an_effect_outside_the_library_leaves_the_constants_in_place():
     closest = loop.closest()
     assert closest is not None and not closest.kept and closest.delta_chi2 > 0
     assert closest.verdict in CLOSE_CALLS
-    assert all(s.delta_chi2 <= closest.delta_chi2 for s in loop.rounds[-1]
-               if s.verdict in CLOSE_CALLS and math.isfinite(s.delta_chi2))
+    assert all(
+        s.delta_chi2 <= closest.delta_chi2
+        for s in loop.rounds[-1]
+        if s.verdict in CLOSE_CALLS and math.isfinite(s.delta_chi2)
+    )
     assert f"closest: {closest.name} (chi2 -" in loop.summary()

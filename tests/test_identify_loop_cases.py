@@ -8,9 +8,9 @@ import json
 
 import numpy as np
 import pytest
-from loop_data import RESTARTS, F, TRUTH, data, declared_fit, noisy, strip_on
-from plate_helpers import strip_setup
 
+from loop_data import RESTARTS, TRUTH, F, data, declared_fit, noisy, strip_on
+from plate_helpers import strip_setup
 from vibid.hardware_mocks.simulated_session import true_afc
 from vibid.identify.loop import close_loop
 from vibid.identify.model.assembly import Geometry, model_matrices
@@ -25,8 +25,11 @@ _noisy = noisy
 def _within(result, truth, sigmas=3.0):
     for name, value in truth.items():
         i = result.parameter_names.index(name)
-        assert abs(result.values[i] - value) < sigmas * result.std[i], (name, result.values[i],
-                                                                       result.std[i])
+        assert abs(result.values[i] - value) < sigmas * result.std[i], (
+            name,
+            result.values[i],
+            result.std[i],
+        )
 
 
 def _no_nan(doc):
@@ -72,15 +75,26 @@ def test_an_orthotropic_plate_declared_isotropic_is_found():
 def _thick_strip():
     """A titanium strip as thick as shared/data/real-titanium's (h/L = 0.03)."""
     s = strip_setup()
-    spec = dataclasses.replace(s.specimen, name="thick Ti strip", length_m=0.0996,
-                               width_m=0.020, thickness_m=0.003, density_kg_m3=4550.0)
-    sensor = dataclasses.replace(s.sensors.response, x_m=0.0956, y_m=0.0155, mass_kg=0.0017,
-                                 radius_m=0.0038)
-    ident = dataclasses.replace(s.identification, bounds={"D": [100.0, 1000.0],
-                                                          "nu": [0.0, 0.5],
-                                                          "beta": [1e-4, 0.05]})
-    return dataclasses.replace(s, specimen=spec, sensors=dataclasses.replace(
-        s.sensors, response=sensor), identification=ident)
+    spec = dataclasses.replace(
+        s.specimen,
+        name="thick Ti strip",
+        length_m=0.0996,
+        width_m=0.020,
+        thickness_m=0.003,
+        density_kg_m3=4550.0,
+    )
+    sensor = dataclasses.replace(
+        s.sensors.response, x_m=0.0956, y_m=0.0155, mass_kg=0.0017, radius_m=0.0038
+    )
+    ident = dataclasses.replace(
+        s.identification, bounds={"D": [100.0, 1000.0], "nu": [0.0, 0.5], "beta": [1e-4, 0.05]}
+    )
+    return dataclasses.replace(
+        s,
+        specimen=spec,
+        sensors=dataclasses.replace(s.sensors, response=sensor),
+        identification=ident,
+    )
 
 
 @pytest.mark.slow
@@ -122,8 +136,11 @@ def test_viscous_afc_reduces_to_the_plain_model_without_damping():
     # every third step across the band: the identity holds frequency by frequency, and
     # each frequency is a full solve of the fine model
     f = F[::3]
-    np.testing.assert_allclose(_viscous_afc(_setup(f), TRUTH, f, 0.0),
-                               true_afc(_setup(f), TRUTH, f, accuracy="fine"), rtol=1e-10)
+    np.testing.assert_allclose(
+        _viscous_afc(_setup(f), TRUTH, f, 0.0),
+        true_afc(_setup(f), TRUTH, f, accuracy="fine"),
+        rtol=1e-10,
+    )
 
 
 @pytest.mark.slow
@@ -158,10 +175,12 @@ def test_too_few_points_for_every_candidate_is_reported_not_fitted():
 
     f = np.array([70.0, 500.0])
     setup = _setup(f)
-    H, sd = _noisy(true_afc(setup, TRUTH | {"tau_s": 1e-4}, f, accuracy="fine"), 2, rel=1e-4,
-                   floor=1e-6)
-    loop = close_loop(setup, f, H, sd, seed=0, restarts=RESTARTS,
-                      candidates=["anisotropy", "channel_delay"])
+    H, sd = _noisy(
+        true_afc(setup, TRUTH | {"tau_s": 1e-4}, f, accuracy="fine"), 2, rel=1e-4, floor=1e-6
+    )
+    loop = close_loop(
+        setup, f, H, sd, seed=0, restarts=RESTARTS, candidates=["anisotropy", "channel_delay"]
+    )
     if loop.stages[0].fits_noise:
         pytest.fail("the declared model fitted a 1e-4 rad delay on two points to the noise")
     notes = {s.name: s.note for s in loop.rounds[0]}
@@ -187,8 +206,9 @@ def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
 
     monkeypatch.setattr(refit_module, "refit", refit)
     # the declared fit is no refit: the same as test_identify_loop's, computed once
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
-                      declared=declared_fit({"tau_s": 2e-5}, 7))
+    loop = close_loop(
+        _setup(), F, H, sd, seed=0, restarts=RESTARTS, declared=declared_fit({"tau_s": 2e-5}, 7)
+    )
     first = {s.name: s for s in loop.rounds[0]}
     assert "simulated solver failure" in first["channel_delay"].note
     assert not first["channel_delay"].kept and "channel_delay" not in loop.effects
@@ -213,16 +233,25 @@ def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(mo
     def identify(*a, **k):
         r = real(*a, **k)
         if k.get("method") == "local":  # the local refit: a runaway with a tiny chi2
-            return dataclasses.replace(r, chi2=1e-3 * r.dof, chi2_reduced=1e-3,
-                                       status=Status.MAX_ITERATIONS)
+            return dataclasses.replace(
+                r, chi2=1e-3 * r.dof, chi2_reduced=1e-3, status=Status.MAX_ITERATIONS
+            )
         searched.append(k)
         return r
 
     monkeypatch.setattr(loop_module, "identify", identify)
     setup = _setup()
     declared = declared_fit({"tau_s": 2e-5}, 7)
-    loop_module.refit(setup, fit_data(F, H, sd), declared, EffectCandidate("channel_delay"),
-                      dict(setup.identification.bounds), None, "newton", search=True)
+    loop_module.refit(
+        setup,
+        fit_data(F, H, sd),
+        declared,
+        EffectCandidate("channel_delay"),
+        dict(setup.identification.bounds),
+        None,
+        "newton",
+        search=True,
+    )
     assert searched, "the non-converged refit spared the global search"
 
 
@@ -248,9 +277,17 @@ def test_the_loop_searches_no_effect_globally_and_keeps_no_runaway(monkeypatch):
         return r
 
     monkeypatch.setattr(loop_module, "identify", identify)
-    loop = close_loop(_setup(), F, H, sd, seed=0, restarts=RESTARTS,
-                      declared=declared_fit({"tau_s": 2e-5}, 7), candidates=["channel_delay"],
-                      max_rounds=1)
+    loop = close_loop(
+        _setup(),
+        F,
+        H,
+        sd,
+        seed=0,
+        restarts=RESTARTS,
+        declared=declared_fit({"tau_s": 2e-5}, 7),
+        candidates=["channel_delay"],
+        max_rounds=1,
+    )
     assert not searched
     assert loop.effects == ()
     assert all(stage.result.converged for stage in loop.stages)  # no runaway is kept

@@ -7,9 +7,9 @@ untouched."""
 
 import dataclasses
 
-import beam_sessions as bs
 import pytest
 
+import beam_sessions as bs
 from vibid.identify.loop import close_loop
 from vibid.report import build_report
 
@@ -20,8 +20,12 @@ def _nu_boxed(setup):
     """``setup`` with the declared box of nu the lab's knowledge of its material (near 0,
     as the beam's): an elastic clamp softens every mode of a beam, which a free nu mimics
     (the declared fit bends nu to 0.19 and the clamp's score drops below its test)."""
-    return dataclasses.replace(setup, identification=dataclasses.replace(
-        setup.identification, bounds=dict(setup.identification.bounds) | {"nu": (-0.05, 0.05)}))
+    return dataclasses.replace(
+        setup,
+        identification=dataclasses.replace(
+            setup.identification, bounds=dict(setup.identification.bounds) | {"nu": (-0.05, 0.05)}
+        ),
+    )
 
 
 def test_clean_beam_data_get_nothing_added():

@@ -6,11 +6,11 @@ which the declared model, its sensor on the torsion's node line, cannot show."""
 
 import dataclasses
 
-import beam_sessions as bs
 import pytest
+
+import beam_sessions as bs
 import ritz_plate as rs
 from loop_data import noisy
-
 from vibid.identify.loop import close_loop
 
 TRUTH = {"D": 17.97, "nu": 0.0, "beta": 0.003}
@@ -38,8 +38,12 @@ def test_a_sensor_off_the_centre_line_is_named_alone_and_the_truth_comes_back():
     line: 3 mm to either side gives the same AFC, and the sign is not the data's to tell."""
     H, sd = noisy(rs.afc(bs.F, TRUTH["D"], TRUTH["nu"], TRUTH["beta"], ys=0.010 + DY_M), 0)
     setup = bs.setup()
-    setup = dataclasses.replace(setup, identification=dataclasses.replace(
-        setup.identification, bounds=dict(setup.identification.bounds) | {"nu": (-0.05, 0.05)}))
+    setup = dataclasses.replace(
+        setup,
+        identification=dataclasses.replace(
+            setup.identification, bounds=dict(setup.identification.bounds) | {"nu": (-0.05, 0.05)}
+        ),
+    )
     loop = close_loop(setup, bs.F, H, sd, seed=0, restarts=1)
     assert loop.stages[0].result.parameters["nu"] < -0.05
     _sensor_position_alone_with_the_truth(loop)

@@ -9,10 +9,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+
 import timoshenko_reference as tim
 from loop_data import noisy
 from plate_helpers import plate_setup
-
 from vibid.identify.loop import close_loop
 from vibid.setup_model import Identification
 
@@ -24,20 +24,30 @@ F = np.linspace(50.0, 4500.0, 90)
 
 
 def _setup():
-    s = plate_setup(L, W, H, density=RHO, x_m=X_S, y_m=W / 2, mass_kg=MASS_KG,
-                    radius_m=RADIUS_M)
+    s = plate_setup(L, W, H, density=RHO, x_m=X_S, y_m=W / 2, mass_kg=MASS_KG, radius_m=RADIUS_M)
     return dataclasses.replace(
-        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(map(float, F))),
-        identification=Identification("isotropic", {"D": (D / 5, D * 5), "nu": (-0.3, 0.5),
-                                                    "beta": (1e-4, 0.1)}))
+        s,
+        excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(map(float, F))),
+        identification=Identification(
+            "isotropic", {"D": (D / 5, D * 5), "nu": (-0.3, 0.5), "beta": (1e-4, 0.1)}
+        ),
+    )
 
 
 def _session(seed=0):
     """(H, std): the Timoshenko beam, its sensor a rigid body of the disc's inertia."""
     c = 1 + 1j * BETA
-    H_beam = tim.afc(2 * np.pi * F, L=L, EI=D * W * c, kGA=KAPPA * E / 2 * W * H * c,
-                     rhoA=RHO * H * W, rhoI=RHO * H**3 / 12 * W, x_s=X_S, m=MASS_KG,
-                     J=MASS_KG * (RADIUS_M**2 / 4 + H**2 / 12))
+    H_beam = tim.afc(
+        2 * np.pi * F,
+        L=L,
+        EI=D * W * c,
+        kGA=KAPPA * E / 2 * W * H * c,
+        rhoA=RHO * H * W,
+        rhoI=RHO * H**3 / 12 * W,
+        x_s=X_S,
+        m=MASS_KG,
+        J=MASS_KG * (RADIUS_M**2 / 4 + H**2 / 12),
+    )
     return noisy(H_beam, seed)
 
 

@@ -11,8 +11,8 @@ import json
 
 import numpy as np
 import pytest
-from ritz_toy import RitzPlateModel
 
+from ritz_toy import RitzPlateModel
 from vibid.identify.fit import identify
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.problem import LeastSquaresProblem
@@ -43,8 +43,17 @@ def _noisy(H0, sd, rng):
 def test_chi2_is_on_the_magnitudes_with_n_minus_p_degrees_of_freedom(toy):
     setup, fm, H0, sd = toy
     H = _noisy(H0, sd, np.random.default_rng(5)) * np.exp(-2j * np.pi * F_HZ * 3e-5)
-    r = identify(setup, F_HZ, H, sd, forward_model=fm, method="local", start=TRUE,
-                 magnitude=True, refresh=False)
+    r = identify(
+        setup,
+        F_HZ,
+        H,
+        sd,
+        forward_model=fm,
+        method="local",
+        start=TRUE,
+        magnitude=True,
+        refresh=False,
+    )
     assert r.converged and r.magnitude
     assert r.dof == F_HZ.size - 3
     by_hand = np.sum(((np.abs(np.asarray(fm.afc(r.values))) - np.abs(H)) / sd) ** 2)
@@ -60,11 +69,22 @@ def test_monte_carlo_spread_is_the_magnitude_fits_fisher_std(toy):
     """The spread of magnitude-only estimates over noise draws is the reported std, and
     the ratio of the two fits' spreads is the reported magnitude_only_std_ratio."""
     setup, fm, H0, sd = toy
-    reported = identify(setup, F_HZ, H0, sd, forward_model=fm, method="local", start=TRUE,
-                        magnitude=True, refresh=False)
+    reported = identify(
+        setup,
+        F_HZ,
+        H0,
+        sd,
+        forward_model=fm,
+        method="local",
+        start=TRUE,
+        magnitude=True,
+        refresh=False,
+    )
     space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
-    problems = {mag: LeastSquaresProblem(fm, fit_data(F_HZ, H0, sd, magnitude=mag), space)
-                for mag in (True, False)}
+    problems = {
+        mag: LeastSquaresProblem(fm, fit_data(F_HZ, H0, sd, magnitude=mag), space)
+        for mag in (True, False)
+    }
     rng = np.random.default_rng(11)
     est = {True: [], False: []}
     for _ in range(DRAWS):
@@ -91,8 +111,7 @@ def test_an_undeclared_delay_needs_no_effect_on_the_magnitude(tmp_path):
     the closed loop adds nothing (a delay cannot be seen in |H| and is not tried) and D, ν,
     β come back within 3 std; the complex fit of the same data does not fit them."""
     from afc_files import write_afc_csv
-    from loop_data import F, TRUTH, data, declared_fit, strip_on
-
+    from loop_data import TRUTH, F, data, declared_fit, strip_on
     from vibid.cli import main
     from vibid.identify.fit.noise import explains
 
@@ -101,8 +120,24 @@ def test_an_undeclared_delay_needs_no_effect_on_the_magnitude(tmp_path):
     setup = tmp_path / "setup.json"
     setup.write_text(strip_on().to_json())
     out = tmp_path / "report.json"
-    assert main(["identify", "--afc", str(csv), "--setup", str(setup), "--magnitude-only",
-                 "--json", str(out), "--no-progress", "--restarts", "1"]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                "--afc",
+                str(csv),
+                "--setup",
+                str(setup),
+                "--magnitude-only",
+                "--json",
+                str(out),
+                "--no-progress",
+                "--restarts",
+                "1",
+            ]
+        )
+        == 0
+    )
     doc = json.loads(out.read_text())
     ident = doc["identification"]
     assert ident["data"] == "magnitude"

@@ -7,8 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from vibid.identify.model.model_error import (MIN_ORDER, convergence_order, richardson,
-                                              split_model_error)
+from vibid.identify.model.model_error import (
+    MIN_ORDER,
+    convergence_order,
+    richardson,
+    split_model_error,
+)
 
 
 def _setup(rng, n=40, p=3):
@@ -80,7 +84,8 @@ def test_an_exact_power_law_is_extrapolated_to_its_limit(p):
     np.testing.assert_allclose(ext.factor * (Hf - H), H_inf - H, rtol=1e-8, atol=1e-14)
     # the finer step alone misses the finer mesh's own error, (2/3)^p of the model's
     assert np.linalg.norm(Hf - H - (H_inf - H)) == pytest.approx(
-        (2 / 3) ** p * np.linalg.norm(H_inf - H), rel=1e-8)
+        (2 / 3) ** p * np.linalg.norm(H_inf - H), rel=1e-8
+    )
 
 
 def test_unequal_steps_solve_the_order():
@@ -101,8 +106,10 @@ def test_no_convergence_is_bounded_by_the_slowest_order_trusted():
     rng = np.random.default_rng(4)
     H = rng.standard_normal(20) + 2.0 + 0j
     step = 1e-3 * rng.standard_normal(20)
-    for ext in (richardson(H - step, H, H + step, 2 / 3, 1.5),
-                richardson(None, H, H + step, 2 / 3, 1.0)):
+    for ext in (
+        richardson(H - step, H, H + step, 2 / 3, 1.5),
+        richardson(None, H, H + step, 2 / 3, 1.0),
+    ):
         assert ext.limited and ext.order == MIN_ORDER
         assert ext.factor == pytest.approx(1 / (1 - (2 / 3) ** MIN_ORDER))
     ext = richardson(H - step, H, H, 2 / 3, 1.5)

@@ -12,13 +12,13 @@ reference; with the top left out the fit is the linear structure's, within its s
 
 import math
 
+import numpy as np
+import pytest
+
 import beam_reference as beam
 import beam_sessions as bs
 import modal_slip
-import numpy as np
-import pytest
 from loop_data import noisy
-
 from vibid.identify.fit import identify
 from vibid.identify.linearity import linear_part
 
@@ -27,9 +27,15 @@ F = np.arange(40.0, 600.0, 0.05)  # two bending modes, 20 points per Hz
 
 def _beam_kw():
     r = bs.setup().sensors.response
-    return dict(L=bs.L, EI=bs.TRUTH["D"] * bs.W * (1 + 1j * bs.TRUTH["beta"]),
-                rhoA=bs.RHO * bs.H_M * bs.W, rhoI=bs.RHO * bs.H_M**3 / 12 * bs.W, x_s=r.x_m,
-                m=r.mass_kg, J=r.mass_kg * (r.radius_m**2 / 4 + bs.H_M**2 / 12))
+    return dict(
+        L=bs.L,
+        EI=bs.TRUTH["D"] * bs.W * (1 + 1j * bs.TRUTH["beta"]),
+        rhoA=bs.RHO * bs.H_M * bs.W,
+        rhoI=bs.RHO * bs.H_M**3 / 12 * bs.W,
+        x_s=r.x_m,
+        m=r.mass_kg,
+        J=r.mass_kg * (r.radius_m**2 / 4 + bs.H_M**2 / 12),
+    )
 
 
 def _f1_hz():
@@ -76,7 +82,8 @@ def test_a_fit_of_the_linear_part_is_the_linear_structures_and_the_whole_band_is
 
     def off(result, name):  # in combined std of result and reference
         return abs(result.parameters[name] - reference.parameters[name]) / math.hypot(
-            result.parameter_std[name], reference.parameter_std[name])
+            result.parameter_std[name], reference.parameter_std[name]
+        )
 
     for name in ("D", "nu", "beta"):
         assert off(part, name) < 2.0, name
@@ -122,13 +129,34 @@ def test_vibid_identify_writes_a_readable_report_that_shows_the_band_left_out(af
 
     _, (H, sd) = afcs
     csv = tmp_path / "afc.csv"
-    np.savetxt(csv, np.column_stack([F, H.real, H.imag, sd]), delimiter=",",
-               header="frequency_hz,re,im,std", comments="")
+    np.savetxt(
+        csv,
+        np.column_stack([F, H.real, H.imag, sd]),
+        delimiter=",",
+        header="frequency_hz,re,im,std",
+        comments="",
+    )
     setup = dataclasses.replace(bs.setup(), excitation=None)  # the AFC was measured elsewhere
     (tmp_path / "setup.json").write_text(json.dumps(setup.to_dict()))
     out = tmp_path / "report"
-    assert main(["identify", "--afc", str(csv), "--setup", str(tmp_path / "setup.json"),
-                 "--no-loop", "--restarts", "1", "--no-progress", "--report", str(out)]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                "--afc",
+                str(csv),
+                "--setup",
+                str(tmp_path / "setup.json"),
+                "--no-loop",
+                "--restarts",
+                "1",
+                "--no-progress",
+                "--report",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = (out / "report.md").read_text()
     assert "Hz, is left out of the fit)" in text and "left out of the fit: " in text
     assert (out / "afc.png").stat().st_size > 10_000

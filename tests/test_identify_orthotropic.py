@@ -20,14 +20,28 @@ def plate_setup(freqs):
     s = example_setup()
     return dataclasses.replace(
         s,
-        specimen=dataclasses.replace(s.specimen, name="orthotropic 150x100x2", length_m=0.150,
-                                     width_m=0.100, thickness_m=0.002, density_kg_m3=1550.0),
-        sensors=dataclasses.replace(s.sensors, response=dataclasses.replace(
-            s.sensors.response, x_m=0.130, y_m=0.070)),
+        specimen=dataclasses.replace(
+            s.specimen,
+            name="orthotropic 150x100x2",
+            length_m=0.150,
+            width_m=0.100,
+            thickness_m=0.002,
+            density_kg_m3=1550.0,
+        ),
+        sensors=dataclasses.replace(
+            s.sensors, response=dataclasses.replace(s.sensors.response, x_m=0.130, y_m=0.070)
+        ),
         excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(freqs)),
-        identification=Identification("orthotropic", {
-            "D11": (5.0, 500.0), "D12": (0.0, 10.0), "D22": (0.5, 50.0), "D66": (0.3, 30.0),
-            "beta": (1e-4, 0.1)}),
+        identification=Identification(
+            "orthotropic",
+            {
+                "D11": (5.0, 500.0),
+                "D12": (0.0, 10.0),
+                "D22": (0.5, 50.0),
+                "D66": (0.3, 30.0),
+                "beta": (1e-4, 0.1),
+            },
+        ),
     )
 
 

@@ -8,8 +8,9 @@ from vibid.identify.fit.space import ParameterSpace, make_transform
 
 
 def test_prior_box_maps_to_unit_box_and_back():
-    space = ParameterSpace.from_bounds(("D", "nu", "beta"),
-                                       {"D": (1.0, 100.0), "nu": (-0.5, 0.4), "beta": (1e-4, 0.1)})
+    space = ParameterSpace.from_bounds(
+        ("D", "nu", "beta"), {"D": (1.0, 100.0), "nu": (-0.5, 0.4), "beta": (1e-4, 0.1)}
+    )
     lo = space.to_u([1.0, -0.5, 1e-4])
     hi = space.to_u([100.0, 0.4, 0.1])
     np.testing.assert_allclose(lo, -1.0, atol=1e-12)
@@ -29,12 +30,15 @@ def test_nu_stays_physical_for_any_u():
 
 
 def test_dtheta_du_matches_finite_difference():
-    space = ParameterSpace.from_bounds(("D11", "D12", "nu"),
-                                       {"D11": (1.0, 50.0), "D12": (-2.0, 5.0), "nu": (0.0, 0.5)})
+    space = ParameterSpace.from_bounds(
+        ("D11", "D12", "nu"), {"D11": (1.0, 50.0), "D12": (-2.0, 5.0), "nu": (0.0, 0.5)}
+    )
     u = np.array([0.3, -0.2, 0.1])
     h = 1e-6
-    fd = [(space.theta(u + h * e)[i] - space.theta(u - h * e)[i]) / (2 * h)
-          for i, e in enumerate(np.eye(3))]
+    fd = [
+        (space.theta(u + h * e)[i] - space.theta(u - h * e)[i]) / (2 * h)
+        for i, e in enumerate(np.eye(3))
+    ]
     np.testing.assert_allclose(space.dtheta_du(u), fd, rtol=1e-7)
 
 
@@ -50,8 +54,9 @@ def test_impossible_bounds_are_refused(name, lo, hi):
 
 
 def test_out_of_bounds_names():
-    space = ParameterSpace.from_bounds(("D", "nu", "beta"),
-                                       {"D": (30.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)})
+    space = ParameterSpace.from_bounds(
+        ("D", "nu", "beta"), {"D": (30.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
+    )
     assert space.out_of_bounds([17.97, 0.286, 0.003]) == ["D"]
 
 

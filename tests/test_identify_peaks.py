@@ -60,7 +60,8 @@ def test_score_is_zero_at_a_match_and_penalises_misses_and_spurious_modes():
     assert float(peak_score(off, strong, p)[0]) == pytest.approx(2 * np.log(1.01) ** 2, rel=1e-9)
     extra = np.array([[*p.frequency_hz, 300.0]])  # a strong mode in the band with no peak
     assert float(peak_score(extra, strong, p)[0]) == pytest.approx(
-        np.min(np.log(300.0 / p.frequency_hz) ** 2), rel=1e-9)  # the nearest peak, 456.7 Hz
+        np.min(np.log(300.0 / p.frequency_hz) ** 2), rel=1e-9
+    )  # the nearest peak, 456.7 Hz
     weak = np.array([[100.0, 100.0, 1e-6]])  # the same mode, too weak to be seen: no penalty
     assert float(peak_score(extra, weak, p)[0]) == pytest.approx(0.0, abs=1e-20)
 
@@ -91,7 +92,8 @@ def test_a_narrow_mode_between_two_steps_is_not_a_peak_the_data_lack():
     assert shown[0, 1] == pytest.approx(a * r2 / np.hypot(1 - r2, beta), rel=0.03)
     assert shown[0, 1] < 0.5 * p.height.min()
     assert float(peak_score(modes, heights, p)[0]) == pytest.approx(
-        np.log(f0 / p.frequency_hz[0]) ** 2, rel=1e-9)  # counted as spurious
+        np.log(f0 / p.frequency_hz[0]) ** 2, rel=1e-9
+    )  # counted as spurious
     assert float(peak_score(modes, shown, p)[0]) == pytest.approx(0.0, abs=1e-20)
     assert peaks_matched(modes[0], shown[0], p)
     assert not peaks_matched(modes[0], heights[0], p)
@@ -123,14 +125,14 @@ def test_a_search_on_the_peaks_alone_ends_in_chi2s_estimate_or_says_it_does_not_
     neighbouring basin: then its chi2 says so (the loop searches chi2 as well); otherwise it
     is chi2's search's estimate."""
     from loop_data import F, data, strip_on
-
     from vibid.identify.fit import identify
     from vibid.identify.fit.noise import fits_noise
 
     H, sd = data({}, 1)
     plain = identify(strip_on(), F, H, sd, restarts=1, seed=0)
-    first = identify(strip_on(), F, H, sd, restarts=1, seed=0,
-                     peaks_only={"D": 10.0, "nu": 0.1, "beta": 0.02})
+    first = identify(
+        strip_on(), F, H, sd, restarts=1, seed=0, peaks_only={"D": 10.0, "nu": 0.1, "beta": 0.02}
+    )
     assert first.global_result.messages[0].startswith("peak matching")  # no chi2 search
     assert plain.global_result.messages[0].startswith("global search")
     assert fits_noise(plain.chi2, plain.dof, True)

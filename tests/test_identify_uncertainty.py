@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from ritz_toy import RitzPlateModel
 
-from vibid.identify.fit.local import LOCAL_METHODS
+from ritz_toy import RitzPlateModel
 from vibid.identify.fit.data import fit_data
+from vibid.identify.fit.local import LOCAL_METHODS
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.uncertainty import fisher_uncertainty
@@ -57,8 +57,11 @@ def test_monte_carlo_scatter_matches_reported_std():
         assert r.converged, r.message
         est.append(r.theta)
         chi2r = r.loss / problem.dof
-        rep.append(fisher_uncertainty(problem.jacobian_theta(r.theta), space.names,
-                                      chi2_reduced=chi2r, noise_known=True).std)
+        rep.append(
+            fisher_uncertainty(
+                problem.jacobian_theta(r.theta), space.names, chi2_reduced=chi2r, noise_known=True
+            ).std
+        )
     est, rep = np.array(est), np.array(rep)
     scatter = est.std(axis=0, ddof=1)
     reported = rep.mean(axis=0)

@@ -24,8 +24,16 @@ class _Quadratic:
 
 
 def _run(u, loss=1.0):
-    return LocalResult("test", np.asarray(u, float), np.asarray(u, float), loss,
-                       Status.CONVERGED, "converged", 1, 1)
+    return LocalResult(
+        "test",
+        np.asarray(u, float),
+        np.asarray(u, float),
+        loss,
+        Status.CONVERGED,
+        "converged",
+        1,
+        1,
+    )
 
 
 def test_starts_lie_along_the_weakest_direction_at_the_given_lengths_inside_the_box():
@@ -61,8 +69,9 @@ def test_the_walk_finds_a_lower_minimum_than_the_global_search():
 
     s = example_setup()
     f = np.linspace(0, 1500, 201)
-    setup = dataclasses.replace(s, excitation=dataclasses.replace(
-        s.excitation, frequencies_hz=tuple(f[1:])))
+    setup = dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(f[1:]))
+    )
     fm = build_forward_model(setup, f)
     truth = np.array([17.97, 0.286, 0.003])
     H = np.asarray(fm.afc_full(truth))
@@ -79,8 +88,9 @@ def test_the_walk_finds_a_lower_minimum_than_the_global_search():
 
 
 def test_the_prior_box_decides_between_minima_the_data_do_not():
-    space = ParameterSpace.from_bounds(("D", "nu", "beta"), {
-        "D": [1.0, 100.0], "nu": [0.0, 0.5], "beta": [1e-4, 0.1]})
+    space = ParameterSpace.from_bounds(
+        ("D", "nu", "beta"), {"D": [1.0, 100.0], "nu": [0.0, 0.5], "beta": [1e-4, 0.1]}
+    )
     # the noise is known: chi2 differences count in units of the noise variance (1)
     outside = _run([16.9, -0.07, 0.0032], loss=376.5)
     inside = _run([17.2, 0.168, 0.0032], loss=377.1)

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from modal_slip import stepped_sine
 
+from modal_slip import stepped_sine
 from vibid.identify.linearity import linear_part, resonance_linearity
 
 F_HZ = np.arange(150.0, 260.0, 0.122)  # the titanium AFC's FFT grid near its first mode
@@ -104,7 +104,8 @@ def test_a_joint_that_slips_at_large_motion_is_read_from_the_flanks(kappa):
 def test_a_coarse_grid_is_not_tested():
     coarse = F_HZ[::40]  # 4.9 Hz steps: no point inside a 2 Hz half-power band
     H = np.interp(coarse, F_HZ, _with_friction(0.0).real) + 1j * np.interp(
-        coarse, F_HZ, _with_friction(0.0).imag)
+        coarse, F_HZ, _with_friction(0.0).imag
+    )
     assert resonance_linearity(coarse, H, [197.0]) == []
 
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from vibid.identify.loop.diagnosis import Feature
 from vibid.identify.loop import rounds
+from vibid.identify.loop.diagnosis import Feature
 from vibid.identify.loop.evidence import Noise, log_evidence, probabilities
 from vibid.identify.loop.policy import Policy
 from vibid.identify.loop.verdicts import Judgement, Score, Verdict
@@ -37,11 +37,20 @@ def _line_fit(a_true, b_true, sigma, n=40, seed=0):
 
 def _result(theta, C, chi2, box):
     """A stand-in fit of parameters a, b (linear priors over ``box``)."""
-    model = SimpleNamespace(default_bounds=lambda b: {**box, **b},
-                            parameters=(SimpleNamespace(name="a", kind=("linear",)),
-                                        SimpleNamespace(name="b", kind=("linear",))))
-    return SimpleNamespace(values=np.asarray(theta), covariance=np.asarray(C), chi2=chi2,
-                           parameter_names=("a", "b"), plate_model=model)
+    model = SimpleNamespace(
+        default_bounds=lambda b: {**box, **b},
+        parameters=(
+            SimpleNamespace(name="a", kind=("linear",)),
+            SimpleNamespace(name="b", kind=("linear",)),
+        ),
+    )
+    return SimpleNamespace(
+        values=np.asarray(theta),
+        covariance=np.asarray(C),
+        chi2=chi2,
+        parameter_names=("a", "b"),
+        plate_model=model,
+    )
 
 
 def _exact_log_evidence(data, sigma, box, n):
@@ -107,10 +116,11 @@ def _refit(gain, log_z):
 
 
 def test_the_most_probable_fitted_explanation_is_chosen_and_listed_first():
-    scores = [Score(n, 1e3, 1, 0.0, 0.1, log_evidence=z, estimated=True)
-              for n, z in (("a", 0.0), ("b", 0.0), ("c", 50.0))]
-    judged = {"a": _refit(1e3, 10.0), "b": _refit(2e3, 12.0),
-              "c": Judgement(Verdict.NOT_REFITTED)}
+    scores = [
+        Score(n, 1e3, 1, 0.0, 0.1, log_evidence=z, estimated=True)
+        for n, z in (("a", 0.0), ("b", 0.0), ("c", 50.0))
+    ]
+    judged = {"a": _refit(1e3, 10.0), "b": _refit(2e3, 12.0), "c": Judgement(Verdict.NOT_REFITTED)}
     out, chosen, shares = rounds.compare(scores, judged, 0.0, Policy())
     assert chosen == "b"  # c's estimate is higher, but only a fit is a model
     assert [a["added"] for a in shares] == ["b", "a", None]  # the fits and stopping
@@ -119,8 +129,7 @@ def test_the_most_probable_fitted_explanation_is_chosen_and_listed_first():
     assert shares[0]["probability"] == pytest.approx(1 / (1 + math.exp(-2) + 3 * math.exp(-12)))
     assert {s.name: s.estimated for s in out}["c"] is True
     verdicts = {s.name: s.verdict for s in out}
-    assert verdicts == {"a": Verdict.LESS_PROBABLE, "b": Verdict.CHOSEN,
-                        "c": Verdict.NOT_REFITTED}
+    assert verdicts == {"a": Verdict.LESS_PROBABLE, "b": Verdict.CHOSEN, "c": Verdict.NOT_REFITTED}
     # against a round where stopping is more probable than every fit
     out, chosen, shares = rounds.compare(scores, {"a": _refit(1.0, -3.0)}, 0.0, Policy())
     assert chosen is None and shares[0]["added"] is None
@@ -138,9 +147,8 @@ def test_a_resonance_is_proposed_at_every_pole_whatever_the_diagnosis_read_it_as
     peaks = (Place(670.0, 30.0, "residual_peak"), Place(2100.0, 30.0, "residual_peak"))
     places = EffectCandidate("stand_resonance").placements(diagnosis, peaks)
     assert [round(c.at.f_hz) for c in places] == [1300, 664, 2100]
-    assert EffectCandidate("stand_resonance").placements(None, ())  == ()
-    assert EffectCandidate("sensor_gain").placements(None, ()) == (
-        EffectCandidate("sensor_gain"),)
+    assert EffectCandidate("stand_resonance").placements(None, ()) == ()
+    assert EffectCandidate("sensor_gain").placements(None, ()) == (EffectCandidate("sensor_gain"),)
 
 
 def test_a_resonance_placed_at_a_pole_is_refitted_within_its_span():
@@ -179,8 +187,9 @@ def _round(monkeypatch, gains, fits_noise=()):
     monkeypatch.setenv("VIBID_THREADS", "1")
     calls = []
 
-    def refit(setup, data, res, cand, box, diagnosis, local, search=False, extended=None,
-              policy=None):
+    def refit(
+        setup, data, res, cand, box, diagnosis, local, search=False, extended=None, policy=None
+    ):
         calls.append((cand.name, search))
         return SimpleNamespace(gain=gains[cand.name], result=cand.name, searched=search)
 
@@ -190,37 +199,54 @@ def _round(monkeypatch, gains, fits_noise=()):
     monkeypatch.setattr(rounds.refits, "refit", refit)
     monkeypatch.setattr(rounds, "weigh", weigh)
     monkeypatch.setattr(rounds, "outside_prior", lambda res, box: [])
-    monkeypatch.setattr(rounds.Stage, "of", classmethod(
-        lambda cls, added, result: SimpleNamespace(fits_noise=result in fits_noise)))
-    cands = {n: SimpleNamespace(name=n, label=n, moves_basin=n == "anisotropy",
-                                modes_needed=lambda m: 0,
-                                extend=lambda m: SimpleNamespace(names=("D", "nu", "x")))
-             for n in gains}
-    scores = [Score(n, 1e9, 1, 0.0, 0.1, log_evidence=1e9 if n == "anisotropy" else 1e8 - k)
-              for k, n in enumerate(gains)]
+    monkeypatch.setattr(
+        rounds.Stage,
+        "of",
+        classmethod(lambda cls, added, result: SimpleNamespace(fits_noise=result in fits_noise)),
+    )
+    cands = {
+        n: SimpleNamespace(
+            name=n,
+            label=n,
+            moves_basin=n == "anisotropy",
+            modes_needed=lambda m: 0,
+            extend=lambda m: SimpleNamespace(names=("D", "nu", "x")),
+        )
+        for n in gains
+    }
+    scores = [
+        Score(n, 1e9, 1, 0.0, 0.1, log_evidence=1e9 if n == "anisotropy" else 1e8 - k)
+        for k, n in enumerate(gains)
+    ]
     res = SimpleNamespace(chi2=CHI2, dof=DOF, plate_model=None, parameter_names=("D", "nu"))
-    state = SimpleNamespace(current=SimpleNamespace(result=res, diagnosis=None), box={},
-                            prior={})
-    inputs = SimpleNamespace(setup=None, data=SimpleNamespace(n_residuals=2 * DOF),
-                             local="newton", left_out_hz=(), policy=Policy())
+    state = SimpleNamespace(current=SimpleNamespace(result=res, diagnosis=None), box={}, prior={})
+    inputs = SimpleNamespace(
+        setup=None,
+        data=SimpleNamespace(n_residuals=2 * DOF),
+        local="newton",
+        left_out_hz=(),
+        policy=Policy(),
+    )
     judged = rounds.fit_and_weigh(inputs, state, cands, scores, {}, Noise(2 * DOF))
     return calls, judged
 
 
-def test_a_new_material_is_searched_at_once_where_the_effects_leave_most_of_the_misfit(
-        monkeypatch):
+def test_a_new_material_is_searched_at_once_where_the_effects_leave_most_of_the_misfit(monkeypatch):
     """The effects' refits explain under half the misfit, so the material, though its
     approximate evidence is the highest, comes last and is searched over its box."""
-    gains = {"anisotropy": CHI2 - 3.5e4, "stand_resonance": 0.18 * CHI2,
-             "sensor_position": 0.13 * CHI2}
+    gains = {
+        "anisotropy": CHI2 - 3.5e4,
+        "stand_resonance": 0.18 * CHI2,
+        "sensor_position": 0.13 * CHI2,
+    }
     calls, judged = _round(monkeypatch, gains)
-    assert calls == [("stand_resonance", False), ("sensor_position", False),
-                     ("anisotropy", True)]
+    assert calls == [("stand_resonance", False), ("sensor_position", False), ("anisotropy", True)]
     assert judged["anisotropy"].fit.searched
 
 
 def test_a_new_material_is_refitted_locally_where_an_effect_explains_most_of_the_misfit(
-        monkeypatch):
+    monkeypatch,
+):
     gains = {"anisotropy": 0.3 * CHI2, "clamp_compliance": 0.8 * CHI2}
     calls, _ = _round(monkeypatch, gains)
     assert calls == [("clamp_compliance", False), ("anisotropy", False)]
@@ -254,5 +280,3 @@ def test_refits_weigh_their_own_model_error_only_where_it_changes_chi2():
     assert not model_error_weighs_in(fit(9175.0, 8963.0))
     assert model_error_weighs_in(fit(27.3, 2.0))
     assert model_error_weighs_in(fit(1.12, 1.0))  # 12 %: near the noise it weighs in
-
-

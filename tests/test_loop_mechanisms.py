@@ -15,10 +15,10 @@ import dataclasses
 import math
 
 import numpy as np
-import population_model as pm
 import pytest
-from plate_helpers import plate_setup
 
+import population_model as pm
+from plate_helpers import plate_setup
 from vibid.identify.loop import close_loop
 from vibid.setup_model import Identification
 
@@ -31,13 +31,14 @@ THIN_TRUTH = TRUTH | {"D": TRUTH["D"] / 8}
 
 
 def _setup(freqs, p=PLATE):
-    s = plate_setup(p.L, p.B, p.h, p.rho, x_m=p.xs, y_m=p.ys, mass_kg=p.mass,
-                    radius_m=p.radius)
+    s = plate_setup(p.L, p.B, p.h, p.rho, x_m=p.xs, y_m=p.ys, mass_kg=p.mass, radius_m=p.radius)
     return dataclasses.replace(
-        s, excitation=dataclasses.replace(s.excitation,
-                                          frequencies_hz=tuple(map(float, freqs))),
-        identification=Identification("isotropic", {"D": (2.0, 100.0), "nu": (0.0, 0.5),
-                                                    "beta": (1e-4, 0.1)}))
+        s,
+        excitation=dataclasses.replace(s.excitation, frequencies_hz=tuple(map(float, freqs))),
+        identification=Identification(
+            "isotropic", {"D": (2.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
+        ),
+    )
 
 
 def _data(f, effects, seed, plate=PLATE, truth=TRUTH):
@@ -50,8 +51,9 @@ def _data(f, effects, seed, plate=PLATE, truth=TRUTH):
 def test_a_lossless_clamp_is_a_clamp_compliance_alone():
     f = np.linspace(9.0, 450.0, 90)  # three modes: 35, 246, 404 Hz
     k = 40 * THIN_TRUTH["D"] / THIN.L  # k L / D = 40: mode 1 3 % below the rigid clamp's
-    H, std = _data(f, {"k_theta_N_per_rad": k, "beta_clamp": 0.0}, seed=5, plate=THIN,
-                   truth=THIN_TRUTH)
+    H, std = _data(
+        f, {"k_theta_N_per_rad": k, "beta_clamp": 0.0}, seed=5, plate=THIN, truth=THIN_TRUTH
+    )
     # the declared model cannot explain it (this model's own refit: chi2_red 20)
     chi, _ = pm.refit(f, H, std, THIN, "isotropic", THIN_TRUTH, order=(16, 7))
     assert chi > 3
@@ -62,7 +64,9 @@ def test_a_lossless_clamp_is_a_clamp_compliance_alone():
     if "clamp_loss" in loop.effects:
         r = loop.final
         assert abs(r.parameters["beta_clamp"]) <= 2 * r.parameter_std["beta_clamp"], (
-            r.parameters["beta_clamp"], r.parameter_std["beta_clamp"])
+            r.parameters["beta_clamp"],
+            r.parameter_std["beta_clamp"],
+        )
 
 
 def _antiresonance(f_lo, f_hi):
@@ -79,8 +83,9 @@ def test_a_stand_resonance_beside_an_antiresonance_is_named_at_its_frequency():
     f0 = 1.015 * f_anti  # 1.5 % above the antiresonance
     # the rotation's peak: 0.12 m/m of base translation at the sensor (chi2_red ~7 alone)
     eff = {"f_hz_1": f0, "q_1": 25.0, "theta_rad_per_m_1": 0.12 / (25.0 * PLATE.xs)}
-    f = np.sort(np.concatenate([np.linspace(20.0, 1600.0, 80),
-                                f0 * (1 + np.linspace(-0.06, 0.06, 13))]))
+    f = np.sort(
+        np.concatenate([np.linspace(20.0, 1600.0, 80), f0 * (1 + np.linspace(-0.06, 0.06, 13))])
+    )
     H, std = _data(f, eff, seed=6)
     chi, _ = pm.refit(f, H, std, PLATE, "isotropic", TRUTH, order=(16, 7))
     assert chi > 3

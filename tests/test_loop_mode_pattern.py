@@ -13,8 +13,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from loop_data import F, TRUTH, RESTARTS, data, strip_on
 
+from loop_data import RESTARTS, TRUTH, F, data, strip_on
 from vibid.identify.loop import close_loop
 from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
 from vibid.identify.loop.rounds import plate_modes_in_band
@@ -33,9 +33,13 @@ def _beam_modes_hz(setup) -> list[float]:
     out = []
     for lam in (1.8751, 4.6941, 7.8548, 10.9955):
         x = sen.x_m / L
-        phi = (math.cosh(lam * x) - math.cos(lam * x)
-               - (math.cosh(lam) + math.cos(lam)) / (math.sinh(lam) + math.sin(lam))
-               * (math.sinh(lam * x) - math.sin(lam * x)))
+        phi = (
+            math.cosh(lam * x)
+            - math.cos(lam * x)
+            - (math.cosh(lam) + math.cos(lam))
+            / (math.sinh(lam) + math.sin(lam))
+            * (math.sinh(lam * x) - math.sin(lam * x))
+        )
         # the mode's modal mass m L / 4 (normalised so phi(L) = 2), plus the sensor's
         f0 = lam**2 / (2 * math.pi * L**2) * math.sqrt(D * b / m)
         out.append(f0 * math.sqrt(m * L / (m * L + sen.mass_kg * phi**2)))
@@ -66,8 +70,16 @@ def test_a_band_of_two_modes_does_not_ask_for_a_new_material():
     and its round says why."""
     H, sd = data({"tau_s": 2e-5}, 7)
     used = (F >= 100.0) & (F <= 1000.0)
-    loop = close_loop(strip_on(), F, H, sd, used=used, seed=0, restarts=RESTARTS,
-                      candidates=["anisotropy", "channel_delay"])
+    loop = close_loop(
+        strip_on(),
+        F,
+        H,
+        sd,
+        used=used,
+        seed=0,
+        restarts=RESTARTS,
+        candidates=["anisotropy", "channel_delay"],
+    )
     first = {s.name: s for s in loop.rounds[0]}
     assert first["anisotropy"].verdict is Verdict.NO_MODE_PATTERN
     assert "holds 2 of the plate's modes" in first["anisotropy"].note

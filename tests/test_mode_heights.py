@@ -4,10 +4,10 @@ sensor on the centre line bends as that beam, and no torsion is excited or seen.
 
 import math
 
-import beam_reference as beam
-import beam_sessions as bs
 import numpy as np
 
+import beam_reference as beam
+import beam_sessions as bs
 from vibid.identify.model.forward import natural_mode_heights
 from vibid.identify.model.modal import seen
 

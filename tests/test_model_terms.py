@@ -3,8 +3,8 @@ an inertia term lowers the frequencies (library effects frequency_dependent_loss
 added_mass; their AFCs are checked in test_effects_library.py)."""
 
 import numpy as np
-from plate_helpers import PAPER_THETA, strip_setup
 
+from plate_helpers import PAPER_THETA, strip_setup
 from vibid.identify import natural_frequencies
 
 STRIP = dict(zip(("D", "nu", "beta"), PAPER_THETA))

@@ -15,14 +15,16 @@ import re
 
 import numpy as np
 import pytest
-from test_identify_compiled import _problem  # the paper strip, 120 frequencies
 
+from test_identify_compiled import _problem  # the paper strip, 120 frequencies
 from vibid.identify.compiled import kernel_functions
 from vibid.identify.model.structure import embed
 
-CALL = re.compile(r'custom_call_target="(?P<target>lapack_\w+)".*?'
-                  r"operand_layout_constraints=\{(?P<operands>.*?)\}, "
-                  r'.*?num_batch_dims="(?P<n>\d+)"')
+CALL = re.compile(
+    r'custom_call_target="(?P<target>lapack_\w+)".*?'
+    r"operand_layout_constraints=\{(?P<operands>.*?)\}, "
+    r'.*?num_batch_dims="(?P<n>\d+)"'
+)
 SHAPE = re.compile(r"\b[a-z]+\d*\[(?P<dims>[\d,]*)\]")
 
 
@@ -38,7 +40,7 @@ def lapack_batches(hlo: str) -> list[tuple[str, int, str]]:
             continue
         first = SHAPE.search(m["operands"])
         dims = [int(d) for d in first["dims"].split(",") if d]
-        calls.append((m["target"], int(np.prod(dims[:int(m["n"])])), m["operands"]))
+        calls.append((m["target"], int(np.prod(dims[: int(m["n"])])), m["operands"]))
     return calls
 
 
@@ -62,13 +64,24 @@ def _compiled(jitted, *args) -> str:
     return jitted.lower(*args).compile().as_text()
 
 
-@pytest.mark.parametrize("effects, extra, proportional", [
-    ((), {}, True),
-    (("clamp_compliance", "clamp_loss"), {"k_theta_N_per_rad": 2e4, "beta_clamp": 0.05}, False),
-    (("clamp_compliance", "clamp_loss", "stand_resonance"),
-     {"k_theta_N_per_rad": 2e4, "beta_clamp": 0.05, "f_hz_1": 700.0, "q_1": 30.0,
-      "theta_rad_per_m_1": 0.05}, False),
-])
+@pytest.mark.parametrize(
+    "effects, extra, proportional",
+    [
+        ((), {}, True),
+        (("clamp_compliance", "clamp_loss"), {"k_theta_N_per_rad": 2e4, "beta_clamp": 0.05}, False),
+        (
+            ("clamp_compliance", "clamp_loss", "stand_resonance"),
+            {
+                "k_theta_N_per_rad": 2e4,
+                "beta_clamp": 0.05,
+                "f_hz_1": 700.0,
+                "q_1": 30.0,
+                "theta_rad_per_m_1": 0.05,
+            },
+            False,
+        ),
+    ],
+)
 def test_every_lapack_call_of_the_fit_sees_one_matrix(effects, extra, proportional):
     from vibid.identify.runtime import configure
 

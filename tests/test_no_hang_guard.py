@@ -24,15 +24,46 @@ def test_a_loop_on_the_direct_path_ends(tmp_path):
     (tmp_path / "setup.json").write_text(json.dumps(setup))
     env = dict(os.environ, VIBID_THREADS="2")
     session = tmp_path / "s.h5"
-    subprocess.run([sys.executable, "-m", "vibid", "simulate", str(tmp_path / "setup.json"),
-                    "--out", str(session), "--effect",
-                    "clamp_compliance:k_theta_N_per_rad=16000", "clamp_loss:beta_clamp=0.05",
-                    "--seed", "3"], check=True, capture_output=True, env=env, timeout=LIMIT_S)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "vibid",
+            "simulate",
+            str(tmp_path / "setup.json"),
+            "--out",
+            str(session),
+            "--effect",
+            "clamp_compliance:k_theta_N_per_rad=16000",
+            "clamp_loss:beta_clamp=0.05",
+            "--seed",
+            "3",
+        ],
+        check=True,
+        capture_output=True,
+        env=env,
+        timeout=LIMIT_S,
+    )
     done = subprocess.run(
-        [sys.executable, "-m", "vibid", "--stall-timeout", "300", "identify", str(session),
-         "--json", str(tmp_path / "r.json"), "--candidates",
-         "clamp_compliance,clamp_loss,channel_delay"],
-        capture_output=True, text=True, env=env, timeout=LIMIT_S, check=False)
+        [
+            sys.executable,
+            "-m",
+            "vibid",
+            "--stall-timeout",
+            "300",
+            "identify",
+            str(session),
+            "--json",
+            str(tmp_path / "r.json"),
+            "--candidates",
+            "clamp_compliance,clamp_loss,channel_delay",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=LIMIT_S,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr[-1500:]
     report = json.loads((tmp_path / "r.json").read_text())
     assert len(report["loop"]["stages"]) >= 2  # the loop ran a round and added an effect

@@ -77,9 +77,16 @@ def test_a_parameter_that_explains_nothing_gains_about_the_misfit_scale_times_ch
     for _ in range(400):
         r = np.sqrt(birge) * _ar1(rng, 0.9, n)
         gain = (shape @ r) ** 2 / (shape @ shape)
-        result = SimpleNamespace(used=np.ones(n, bool), frequency_hz=(100.0 + 800.0 * x)[order],
-                                 model_afc=r[order], H=np.zeros(n), weights=np.ones(n),
-                                 magnitude=True, noise_known=True, chi2_reduced=r @ r / n)
+        result = SimpleNamespace(
+            used=np.ones(n, bool),
+            frequency_hz=(100.0 + 800.0 * x)[order],
+            model_afc=r[order],
+            H=np.zeros(n),
+            weights=np.ones(n),
+            magnitude=True,
+            noise_known=True,
+            chi2_reduced=r @ r / n,
+        )
         b, tau = misfit_scale(result)
         taus.append(tau)
         white += gain > q
@@ -129,17 +136,26 @@ def test_a_narrow_change_sees_fewer_neighbours_of_a_smooth_misfit():
     along, gains, passed, smooth_tau = [], [], 0, []
     for _ in range(200):
         r = np.sqrt(birge) * _ar1(rng, rho, n)
-        result = SimpleNamespace(used=np.ones(n, bool), frequency_hz=100.0 + x,
-                                 model_afc=r, H=np.zeros(n), weights=np.ones(n),
-                                 magnitude=True, noise_known=True, chi2_reduced=r @ r / n)
+        result = SimpleNamespace(
+            used=np.ones(n, bool),
+            frequency_hz=100.0 + x,
+            model_afc=r,
+            H=np.zeros(n),
+            weights=np.ones(n),
+            magnitude=True,
+            noise_known=True,
+            chi2_reduced=r @ r / n,
+        )
         b, _ = misfit_scale(result)
         t = correlation_along(result, SimpleNamespace(model_afc=r + narrow))
         gain = (narrow @ r) ** 2 / (narrow @ narrow)
         along.append(t)
         gains.append(gain / b)
         passed += gain > q * b * t
-        smooth_tau.append(correlation_along(result, SimpleNamespace(model_afc=r + smooth))
-                          / misfit_scale(result)[1])
+        smooth_tau.append(
+            correlation_along(result, SimpleNamespace(model_afc=r + smooth))
+            / misfit_scale(result)[1]
+        )
     assert np.mean(along) == pytest.approx(exact, rel=0.15)
     assert np.mean(gains) == pytest.approx(exact, rel=0.2)  # what the judge's units assume
     assert passed / 200 <= 0.03

@@ -29,8 +29,7 @@ def test_setup_layer_imports_no_numerical_core():
         "m.split('.')[0] in ('jax', 'jaxlib', 'numpy', 'scipy'))\n"
         "print(' '.join(bad))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
 
 
@@ -52,8 +51,9 @@ def test_every_effect_term_takes_its_parameters_from_the_catalogue():
         declared = getattr(term, "all_parameters", term.parameters)
         expected = EFFECT_PARAMETERS_BY_EFFECT[name]
         if name in MULTI_INSTANCE:  # the term's names carry its instance's suffix
-            assert declared == tuple(dataclasses.replace(q, name=instance_name(q.name, term.instance))
-                                     for q in expected)
+            assert declared == tuple(
+                dataclasses.replace(q, name=instance_name(q.name, term.instance)) for q in expected
+            )
         else:
             assert declared == expected
             assert all(a is b for a, b in zip(declared, expected))
@@ -113,8 +113,19 @@ def test_every_material_takes_its_parameters_from_the_catalogue():
                 assert known_effect_parameter(q.name) is None
     assert Material("isotropic").names == ("D", "nu", "beta")
     assert Material("monoclinic", True).names == (
-        "D11", "D12", "D22", "D66", "D16", "D26",
-        "beta11", "beta12", "beta22", "beta66", "beta16", "beta26")
+        "D11",
+        "D12",
+        "D22",
+        "D66",
+        "D16",
+        "D26",
+        "beta11",
+        "beta12",
+        "beta22",
+        "beta66",
+        "beta16",
+        "beta26",
+    )
     assert known_parameter("D12").kind == ("linear",) and known_parameter("D12").rule is None
     assert known_parameter("D").rule == "positive"
 
@@ -223,8 +234,9 @@ def test_a_single_value_respects_its_parameters_rule_and_the_specimens_scale():
     from vibid.parameters import specimen_scale
     from vibid.setup_model import example_setup
 
-    nu, k, mass, dl, dy = (known_parameter(n) for n in ("nu", "k_theta_N_per_rad", "mass_kg",
-                                                        "dL_m", "sensor_dy_m"))
+    nu, k, mass, dl, dy = (
+        known_parameter(n) for n in ("nu", "k_theta_N_per_rad", "mass_kg", "dL_m", "sensor_dy_m")
+    )
     assert nu.value_problem(0.3) is None and nu.value_problem(-0.999) is None
     assert "must lie in (-1, 0.5)" in nu.value_problem(0.5)
     assert "must lie in (-1, 0.5)" in nu.value_problem(-1.0)
@@ -236,6 +248,16 @@ def test_a_single_value_respects_its_parameters_rule_and_the_specimens_scale():
     assert mass.value_problem(1e6) is None  # no scale: no limit
     assert "outweighs the specimen" in mass.value_problem(0.02, scale)
     assert mass.value_problem(0.015, scale) is None
-    assert "leaves no free length" in dl.value_problem(-0.1, scale) and dl.value_problem(-0.09, scale) is None
-    assert "off the plate" in dy.value_problem(0.0051, scale) and dy.value_problem(-0.015, scale) is None
-    assert known_parameter("q_2").value_problem(-5.0).startswith("q_2 (a quality factor) must be positive")
+    assert (
+        "leaves no free length" in dl.value_problem(-0.1, scale)
+        and dl.value_problem(-0.09, scale) is None
+    )
+    assert (
+        "off the plate" in dy.value_problem(0.0051, scale)
+        and dy.value_problem(-0.015, scale) is None
+    )
+    assert (
+        known_parameter("q_2")
+        .value_problem(-5.0)
+        .startswith("q_2 (a quality factor) must be positive")
+    )

@@ -56,8 +56,9 @@ def _run(tmp_path) -> tuple[int, np.ndarray]:
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
     script = tmp_path / "hessian.py"
     script.write_text(HESSIAN.format(tests=os.path.dirname(__file__)))
-    out = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True,
-                         timeout=600)
+    out = subprocess.run(
+        [sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=600
+    )
     assert out.returncode == 0, out.stderr
     count, kept, plain = out.stdout.splitlines()[-3:]
     kept, plain = (np.array([float(v) for v in line.split()]) for line in (kept, plain))
@@ -137,7 +138,8 @@ def test_a_damaged_artefact_is_traced_again_and_rewritten(folder):
 
 
 def test_without_an_identity_a_folder_or_vibids_source_the_function_is_traced_as_usual(
-        tmp_path, monkeypatch):
+    tmp_path, monkeypatch
+):
     monkeypatch.setattr(persist, "folder", lambda: None)
     f, traces = _counted()
     Persisted(f, "toy", "v1")(np.eye(2), np.ones(2))

@@ -29,8 +29,11 @@ def test_targets_and_priors_parse_relative_and_absolute_with_one_line_errors():
     assert (nu.value, nu.relative, nu.std_of(0.3)) == (0.002, False, 0.002)
     priors = parse_prior(["D=17±30%", "nu=0.3+-0.05"], NAMES)
     assert priors["D"].std == pytest.approx(5.1) and priors["nu"].std == 0.05
-    for bad, match in ((["E=1%"], "E is not a parameter"), (["D=0%"], "must be positive"),
-                       (["D~1"], "expected NAME=VALUE")):
+    for bad, match in (
+        (["E=1%"], "E is not a parameter"),
+        (["D=0%"], "must be positive"),
+        (["D~1"], "expected NAME=VALUE"),
+    ):
         with pytest.raises(VibidError, match=match):
             parse_targets(bad, NAMES)
     with pytest.raises(VibidError, match="expected NAME=MEAN±STD"):
@@ -53,14 +56,26 @@ def test_noise_model_matches_a_monte_carlo_of_the_signal_stage():
     """s = σ_n sqrt(2/N) sqrt(1 + |H|²) per part: 200 records of the stand's nuisances (DC,
     drift, harmonics, clock offset) fitted by the signal stage; their scatter of Re H and Im H."""
     fs, f, n, noise, h = 25600.0, 210.0, 6400, 0.01, 3.0 - 4.0j
-    steps = [SimpleNamespace(frequency_hz=f, sample_rate_hz=fs, index=i, status="ok",
-                             base=b, response=r)
-             for i, (b, r) in enumerate(
-                 synthetic_step(f, h, sample_rate_hz=fs, n_samples=n, base_amplitude_m_s2=5.0,
-                                base_phase_rad=0.3 * i, clock_offset_ppm=40.0,
-                                dc_m_s2=(0.01, -0.02), drift_m_s2_per_s=(0.001, 0.002),
-                                harmonics_db=(-40.0,), noise_std_m_s2=(0.05, 0.05), rng=i)
-                 for i in range(200))]
+    steps = [
+        SimpleNamespace(frequency_hz=f, sample_rate_hz=fs, index=i, status="ok", base=b, response=r)
+        for i, (b, r) in enumerate(
+            synthetic_step(
+                f,
+                h,
+                sample_rate_hz=fs,
+                n_samples=n,
+                base_amplitude_m_s2=5.0,
+                base_phase_rad=0.3 * i,
+                clock_offset_ppm=40.0,
+                dc_m_s2=(0.01, -0.02),
+                drift_m_s2_per_s=(0.001, 0.002),
+                harmonics_db=(-40.0,),
+                noise_std_m_s2=(0.05, 0.05),
+                rng=i,
+            )
+            for i in range(200)
+        )
+    ]
     H = np.array([p.h for p in afc_from_records(steps).points])
     predicted = noise_std(h, n / fs, fs, noise)  # σ_n / A = 0.05 / 5
     scatter = math.sqrt(0.5 * (np.var(H.real, ddof=1) + np.var(H.imag, ddof=1)))
@@ -89,12 +104,33 @@ def strip(tmp_path_factory):
 
     configure()
     d = tmp_path_factory.mktemp("plan")
-    setup = replace(example_setup(), excitation=Excitation(tuple(7.5 * k for k in range(1, 41)), 0.5))
+    setup = replace(
+        example_setup(), excitation=Excitation(tuple(7.5 * k for k in range(1, 41)), 0.5)
+    )
     (d / "setup.json").write_text(setup.to_json())
-    assert main(["simulate", str(d / "setup.json"), "--out", str(d / "s.h5"), "--params",
-                 "D=17.97", "nu=0.286", "beta=0.003", "--noise", "4e-4"]) == 0
-    assert main(["identify", str(d / "s.h5"), "--no-loop", "--no-progress",
-                 "--json", str(d / "r.json")]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                str(d / "setup.json"),
+                "--out",
+                str(d / "s.h5"),
+                "--params",
+                "D=17.97",
+                "nu=0.286",
+                "beta=0.003",
+                "--noise",
+                "4e-4",
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            ["identify", str(d / "s.h5"), "--no-loop", "--no-progress", "--json", str(d / "r.json")]
+        )
+        == 0
+    )
     return setup, json.loads((d / "r.json").read_text()), d
 
 
@@ -107,13 +143,16 @@ def test_predicted_uncertainty_is_the_identifications(strip):
 
     setup, report, _ = strip
     f = np.asarray(setup.excitation.frequencies_hz)
-    info = information(setup, NAMES, np.array([[17.97, 0.286, 0.003]]), (7.5, 300.0),
-                       noise=4e-4, extra_hz=f)
+    info = information(
+        setup, NAMES, np.array([[17.97, 0.286, 0.003]]), (7.5, 300.0), noise=4e-4, extra_hz=f
+    )
     n = info.frequency_hz.size - f.size
-    predicted = data_std(info, n + np.arange(f.size), np.full(f.size, StandConditions().record_s))[0]
+    predicted = data_std(info, n + np.arange(f.size), np.full(f.size, StandConditions().record_s))[
+        0
+    ]
     reported = np.sqrt(np.diag(report["identification"]["covariance"]))
-    assert predicted[:2] == pytest.approx(reported[:2], rel=0.05)   # D, nu
-    assert predicted[2] == pytest.approx(reported[2], rel=0.5)      # beta: its model error's sign
+    assert predicted[:2] == pytest.approx(reported[:2], rel=0.05)  # D, nu
+    assert predicted[2] == pytest.approx(reported[2], rel=0.5)  # beta: its model error's sign
 
 
 def test_vibid_plan_writes_a_setup_the_campaign_plays_and_says_what_it_predicts(strip, capsys):
@@ -123,8 +162,22 @@ def test_vibid_plan_writes_a_setup_the_campaign_plays_and_says_what_it_predicts(
 
     _, _, d = strip
     out = d / "planned.json"
-    args = ["plan", str(d / "setup.json"), "--target", "D=0.01%", "--prior", "D=20±30%",
-            "nu=0.3±0.05", "beta=0.003±50%", "--noise", "4e-4", "--draws", "8", "--out", str(out)]
+    args = [
+        "plan",
+        str(d / "setup.json"),
+        "--target",
+        "D=0.01%",
+        "--prior",
+        "D=20±30%",
+        "nu=0.3±0.05",
+        "beta=0.003±50%",
+        "--noise",
+        "4e-4",
+        "--draws",
+        "8",
+        "--out",
+        str(out),
+    ]
     assert main(args) == 0
     text = capsys.readouterr().out
     assert "plan " in text and "setup's sweep" in text and "std D (median / 90 %)" in text
@@ -137,6 +190,19 @@ def test_vibid_plan_writes_a_setup_the_campaign_plays_and_says_what_it_predicts(
     assert [c.settle_s for c in commands] == list(planned.excitation.settle_s)
     assert main(["plan", str(d / "setup.json"), "--target", "E=1%", "--out", str(out)]) == 1
     assert "E is not a parameter" in capsys.readouterr().err
-    assert main(["plan", str(d / "setup.json"), "--target", "D=1%", "--band", "5-200",
-                 "--out", str(out)]) == 1
+    assert (
+        main(
+            [
+                "plan",
+                str(d / "setup.json"),
+                "--target",
+                "D=1%",
+                "--band",
+                "5-200",
+                "--out",
+                str(out),
+            ]
+        )
+        == 1
+    )
     assert capsys.readouterr().err.strip().endswith("expected LOW:HIGH in Hz, e.g. 5:2000")

@@ -6,11 +6,11 @@ hold)."""
 
 import dataclasses
 
-import beam_sessions as bs
 import numpy as np
 import pytest
-import ritz_plate as rs
 
+import beam_sessions as bs
+import ritz_plate as rs
 from vibid.identify.model.forward import build_forward_model, natural_frequencies, plate_model
 
 TRUTH = {"D": 17.97, "nu": 0.0, "beta": 0.003}

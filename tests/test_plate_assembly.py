@@ -7,12 +7,12 @@ import pytest
 import scipy.sparse.linalg as spla
 from skfem import Basis, MeshTri
 
+from plate_helpers import strip_setup
 from vibid.identify.model.assembly import Geometry, assemble_plate
 from vibid.identify.model.disc import assemble_disc, disc_quadrature
 from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import MODULI, bending_66, translational_inertia
 from vibid.identify.model.mesh import Discretisation, plate_mesh
-from plate_helpers import strip_setup
 
 GEOM = Geometry.from_setup(strip_setup())
 DISC = Discretisation("argyris", 20, 4, 2)
@@ -42,17 +42,20 @@ def test_stiffness_and_mass_positive_definite(mats):
     assert lam_m[0] > 0
 
 
-@pytest.mark.parametrize("name, field, energy", [
-    # w = x^2: kappa = (2, 0, 0) -> only D11, energy 4 L W
-    ("D11", lambda x: x[0] ** 2, lambda L, W: 4 * L * W),
-    # w = x^2 y: kappa = (2y, 0, 4x): D16 form 2 * (2y)(2x) * 2 = 16 x y
-    ("D16", lambda x: x[0] ** 2 * x[1], lambda L, W: 16 * (L**2 / 2) * (W**2 / 2)),
-    # w = x^2 y: (2 w_xy)^2 = 16 x^2
-    ("D66", lambda x: x[0] ** 2 * x[1], lambda L, W: 16 * L**3 / 3 * W),
-    # w = x^2 y^2: w_xx w_yy = 4 y^2 x^2, D12 form 2 w_xx w_yy = 8 x^2 y^2
-    ("D12", lambda x: x[0] ** 2 * x[1] ** 2, lambda L, W: 8 * L**3 / 3 * W**3 / 3),
-    ("D22", lambda x: x[0] ** 2 * x[1] ** 2, lambda L, W: 4 * L**5 / 5 * W),
-])
+@pytest.mark.parametrize(
+    "name, field, energy",
+    [
+        # w = x^2: kappa = (2, 0, 0) -> only D11, energy 4 L W
+        ("D11", lambda x: x[0] ** 2, lambda L, W: 4 * L * W),
+        # w = x^2 y: kappa = (2y, 0, 4x): D16 form 2 * (2y)(2x) * 2 = 16 x y
+        ("D16", lambda x: x[0] ** 2 * x[1], lambda L, W: 16 * (L**2 / 2) * (W**2 / 2)),
+        # w = x^2 y: (2 w_xy)^2 = 16 x^2
+        ("D66", lambda x: x[0] ** 2 * x[1], lambda L, W: 16 * L**3 / 3 * W),
+        # w = x^2 y^2: w_xx w_yy = 4 y^2 x^2, D12 form 2 w_xx w_yy = 8 x^2 y^2
+        ("D12", lambda x: x[0] ** 2 * x[1] ** 2, lambda L, W: 8 * L**3 / 3 * W**3 / 3),
+        ("D22", lambda x: x[0] ** 2 * x[1] ** 2, lambda L, W: 4 * L**5 / 5 * W),
+    ],
+)
 def test_moment_convention_energies(mats, name, field, energy):
     """κ(w)ᵀ K_α κ(w) for clamped polynomial fields against their integrals by hand."""
     from vibid.identify.model.assembly import plate_basis
@@ -71,8 +74,15 @@ def test_rigid_translation_carries_plate_and_sensor_mass(mats):
     assert mats.probe_rigid == pytest.approx(1.0, abs=1e-10)
 
 
-@pytest.mark.parametrize("disc", [Discretisation("argyris", 7, 3, 0), Discretisation("argyris", 30, 6, 4),
-                                  Discretisation("morley", 57, 11, 0), Discretisation("argyris", 40, 8, 0)])
+@pytest.mark.parametrize(
+    "disc",
+    [
+        Discretisation("argyris", 7, 3, 0),
+        Discretisation("argyris", 30, 6, 4),
+        Discretisation("morley", 57, 11, 0),
+        Discretisation("argyris", 40, 8, 0),
+    ],
+)
 @pytest.mark.parametrize("centre", [(0.09, 0.015), (0.0913, 0.0147), (0.001, 0.001)])
 def test_disc_area_exact_on_any_mesh(disc, centre):
     mesh = plate_mesh(0.1, 0.02, disc)
@@ -154,16 +164,20 @@ def test_shared_pattern_sums_match_scipys_term_by_term():
     from vibid.identify.model.assembly import SharedPattern
 
     rng = np.random.default_rng(3)
-    mats = {("K", f"k{i}"): sp.random(40, 40, density=0.1, random_state=i, format="csr")
-            for i in range(3)} | {("M", "m"): sp.identity(40, format="csr")}
+    mats = {
+        ("K", f"k{i}"): sp.random(40, 40, density=0.1, random_state=i, format="csr")
+        for i in range(3)
+    } | {("M", "m"): sp.identity(40, format="csr")}
     pattern = SharedPattern.of(mats)
     c = {"k0": 2.0 + 0.5j, "k1": -1.5, "k2": 0.25j}
-    m = {"m": -(2 * math.pi * 30.0) ** 2}
+    m = {"m": -((2 * math.pi * 30.0) ** 2)}
     got = pattern.matrix(pattern.data("K", c) + pattern.data("M", m))
     want = sum(v * mats["K", k] for k, v in c.items()) + m["m"] * mats["M", "m"]
     assert got.format == "csc" and got.shape == (40, 40)
     assert abs(got - want).max() <= 1e-14 * abs(want).max()
     assert abs(pattern.matrix(pattern.data("M", {"m": 1.0})) - mats["M", "m"]).max() == 0.0
-    assert abs(pattern.matrix(pattern.data("K", {"k1": 3.0})) - 3.0 * mats["K", "k1"]).max() <= 1e-15
+    assert (
+        abs(pattern.matrix(pattern.data("K", {"k1": 3.0})) - 3.0 * mats["K", "k1"]).max() <= 1e-15
+    )
     x = rng.standard_normal(40)
     assert np.allclose(got @ x, want @ x, rtol=1e-13, atol=1e-13)

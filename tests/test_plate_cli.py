@@ -17,8 +17,22 @@ def setup_file(tmp_path):
 
 def test_modes_table_and_json(setup_file, tmp_path, capsys):
     out = tmp_path / "modes.json"
-    rc = main(["modes", str(setup_file), "--params", "D=17.97", "nu=0.286", "beta=0.003",
-               "--n", "3", "--accuracy", "fast", "--json", str(out)])
+    rc = main(
+        [
+            "modes",
+            str(setup_file),
+            "--params",
+            "D=17.97",
+            "nu=0.286",
+            "beta=0.003",
+            "--n",
+            "3",
+            "--accuracy",
+            "fast",
+            "--json",
+            str(out),
+        ]
+    )
     assert rc == 0
     doc = json.loads(out.read_text())
     assert set(doc) == {"frequency_hz", "decay_1_per_s"}
@@ -29,12 +43,15 @@ def test_modes_table_and_json(setup_file, tmp_path, capsys):
     assert "74.94" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("params, message", [
-    (["D=17.97", "nu=0.3"], "match no model"),
-    (["D=abc", "nu=0.3", "beta=0.01"], "must be a number"),
-    (["D17", "nu=0.3", "beta=0.01"], "NAME=VALUE"),
-    (["D=-1", "nu=0.3", "beta=0.01"], "must be positive"),
-])
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        (["D=17.97", "nu=0.3"], "match no model"),
+        (["D=abc", "nu=0.3", "beta=0.01"], "must be a number"),
+        (["D17", "nu=0.3", "beta=0.01"], "NAME=VALUE"),
+        (["D=-1", "nu=0.3", "beta=0.01"], "must be positive"),
+    ],
+)
 def test_modes_bad_input_one_line(setup_file, capsys, params, message):
     assert main(["modes", str(setup_file), "--params", *params]) == 1
     err = capsys.readouterr().err
@@ -46,17 +63,29 @@ def test_modes_missing_file(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("params, message", [
-    (["D=17.97", "nu=0.286", "beta=0.003", "D=18"], "--params: D is given twice"),
-    (["D=17.97", "nu=0.7", "beta=0.003"], "--params: nu (Poisson's ratio) must lie in (-1, 0.5), got 0.7"),
-    (["D=-5", "nu=0.3", "beta=0.003"], "--params: D (a stiffness) must be positive, got -5"),
-    (["D=17.97", "nu=0.3", "beta=-0.01"], "--params: beta (the loss factor) cannot be negative, got -0.01"),
-    (["D=1e999", "nu=0.3", "beta=0.003"], "--params: D must be a finite number, got '1e999'"),
-    (["D=17.97", "nu=0.3", "beta=0.003", "mass_kg=1"], ("--params: mass_kg (the added mass) 1.0 kg "
-                                                       "outweighs the specimen")),
-])
-def test_modes_refuses_params_as_simulate_does(setup_file, tmp_path, capsys, monkeypatch, params,
-                                               message):
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        (["D=17.97", "nu=0.286", "beta=0.003", "D=18"], "--params: D is given twice"),
+        (
+            ["D=17.97", "nu=0.7", "beta=0.003"],
+            "--params: nu (Poisson's ratio) must lie in (-1, 0.5), got 0.7",
+        ),
+        (["D=-5", "nu=0.3", "beta=0.003"], "--params: D (a stiffness) must be positive, got -5"),
+        (
+            ["D=17.97", "nu=0.3", "beta=-0.01"],
+            "--params: beta (the loss factor) cannot be negative, got -0.01",
+        ),
+        (["D=1e999", "nu=0.3", "beta=0.003"], "--params: D must be a finite number, got '1e999'"),
+        (
+            ["D=17.97", "nu=0.3", "beta=0.003", "mass_kg=1"],
+            ("--params: mass_kg (the added mass) 1.0 kg outweighs the specimen"),
+        ),
+    ],
+)
+def test_modes_refuses_params_as_simulate_does(
+    setup_file, tmp_path, capsys, monkeypatch, params, message
+):
     """issue 62: `vibid modes` reads --params with `vibid simulate`'s readers: a name given
     twice is refused (never the last one silently), and so is a value its parameter's rule
     or the declared specimen rules out, in the same one line, before any model is built."""

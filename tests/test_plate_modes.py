@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from plate_helpers import PAPER_THETA, plate_setup, strip_setup
 from vibid.identify import natural_frequencies
 from vibid.identify.model.modal import frequencies_and_decays
-from plate_helpers import PAPER_THETA, plate_setup, strip_setup
 
 RHO = 7920.0
 THIN = 1e-4  # m: rotary inertia ~ (h/a)^2, negligible
@@ -24,8 +24,9 @@ def test_square_cantilever_matches_ritz():
 
 
 def _beam_ratio(width_m, nu=0.3, D=1.0, L=0.1):
-    s = plate_setup(L, width_m, THIN, RHO, x_m=0.09, y_m=width_m / 2, mass_kg=0.0,
-                    radius_m=width_m / 4)
+    s = plate_setup(
+        L, width_m, THIN, RHO, x_m=0.09, y_m=width_m / 2, mass_kg=0.0, radius_m=width_m / 4
+    )
     f, _ = natural_frequencies(s, {"D": D, "nu": nu, "beta": 0.0}, 3, accuracy="fast")
     beta_l = np.array([1.8751, 4.6941, 7.8548])
     beam = beta_l**2 / L**2 * math.sqrt(D * (1 - nu**2) / (RHO * THIN)) / (2 * math.pi)
@@ -69,8 +70,9 @@ def test_per_modulus_losses_complex_eigenproblem():
 def test_sensor_without_mass_adds_nothing():
     params = dict(zip(("D", "nu", "beta"), PAPER_THETA))
     a, _ = natural_frequencies(strip_setup(mass_kg=0.0), params, 4, accuracy="fast")
-    b, _ = natural_frequencies(strip_setup(mass_kg=0.0, x_m=0.05, radius_m=0.004), params, 4,
-                               accuracy="fast")
+    b, _ = natural_frequencies(
+        strip_setup(mass_kg=0.0, x_m=0.05, radius_m=0.004), params, 4, accuracy="fast"
+    )
     np.testing.assert_allclose(a, b, rtol=1e-9)
     c, _ = natural_frequencies(strip_setup(), params, 4, accuracy="fast")
     assert c[0] < a[0] * 0.97  # the 1 g sensor on a 16 g strip lowers the first mode

@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vibid.identify import build_forward_model
 from plate_helpers import PAPER_THETA, strip_model, strip_setup
+from vibid.identify import build_forward_model
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +46,9 @@ def test_static_limit_and_phase_convention(local):
     setup = strip_setup()
     f1 = local.natural_frequencies(PAPER_THETA, 1)[0][0]
     freqs = np.array([1e-3, 0.5, f1, 1.2 * f1])
-    model = build_forward_model(setup, freqs, theta0=dict(zip(("D", "nu", "beta"), PAPER_THETA)),
-                                accuracy="fast")
+    model = build_forward_model(
+        setup, freqs, theta0=dict(zip(("D", "nu", "beta"), PAPER_THETA)), accuracy="fast"
+    )
     H = np.asarray(model.afc(PAPER_THETA))
     assert abs(H[0] - 1) < 1e-9
     # quasi-static: 1 + ω² × (static deflection per unit acceleration) > 1, tiny phase
@@ -92,18 +93,28 @@ def test_parameterisations_agree():
     setup = strip_setup()
     freqs = np.linspace(10, 1500, 40)
     D, nu, beta = PAPER_THETA
-    iso = build_forward_model(setup, freqs, theta0={"D": D, "nu": nu, "beta": beta}, accuracy="fast")
+    iso = build_forward_model(
+        setup, freqs, theta0={"D": D, "nu": nu, "beta": beta}, accuracy="fast"
+    )
     ortho_p = {"D11": D, "D12": nu * D, "D22": D, "D66": (1 - nu) * D / 2, "beta": beta}
     ortho = build_forward_model(setup, freqs, model="orthotropic", theta0=ortho_p, accuracy="fast")
-    mono = build_forward_model(setup, freqs, model="monoclinic",
-                               theta0=dict(ortho_p, D16=0.0, D26=0.0), accuracy="fast")
-    pml = build_forward_model(setup, freqs, theta0={"D": D, "nu": nu, "beta11": beta, "beta12": beta,
-                                                    "beta66": beta}, per_modulus_loss=True, accuracy="fast")
+    mono = build_forward_model(
+        setup, freqs, model="monoclinic", theta0=dict(ortho_p, D16=0.0, D26=0.0), accuracy="fast"
+    )
+    pml = build_forward_model(
+        setup,
+        freqs,
+        theta0={"D": D, "nu": nu, "beta11": beta, "beta12": beta, "beta66": beta},
+        per_modulus_loss=True,
+        accuracy="fast",
+    )
     H = np.asarray(iso.afc(PAPER_THETA))
     scale = np.abs(H).max()
-    for m, th in ((ortho, [D, nu * D, D, (1 - nu) * D / 2, beta]),
-                  (mono, [D, nu * D, D, (1 - nu) * D / 2, 0.0, 0.0, beta]),
-                  (pml, [D, nu, beta, beta, beta])):
+    for m, th in (
+        (ortho, [D, nu * D, D, (1 - nu) * D / 2, beta]),
+        (mono, [D, nu * D, D, (1 - nu) * D / 2, 0.0, 0.0, beta]),
+        (pml, [D, nu, beta, beta, beta]),
+    ):
         assert np.abs(np.asarray(m.afc(np.array(th))) - H).max() < 1e-6 * scale, m.parameter_names
     # unequal losses: direct path against the full model (the basis holds real modes, so
     # strongly non-proportional damping costs a little accuracy)
@@ -185,18 +196,42 @@ def test_coefficient_derivatives_by_complex_step_equal_autodiff(material):
         model = model.with_effect(term)
     model = model.for_geometry(SimpleNamespace(length_m=0.1))  # the free length's stretch
     rng = np.random.default_rng(3)
-    theta = np.array([{"nu": 0.3, "beta": 0.01, "sensor_dy_m": 2e-3, "G13_Pa": 4e10,
-                       "mass_kg": 3e-4, "tau_s": 2e-5, "k_theta_N_per_rad": 1.6e4,
-                       "dL_m": 2e-3, "height_m": 3e-3, "beta_clamp": 0.05,
-                       "f_hz_1": 660.0, "q_1": 30.0, "theta_rad_per_m_1": 0.3}.get(n, 1.0)
-                      * rng.uniform(0.8, 1.2) * (18.0 if n.startswith("D") else 1.0)
-                      for n in model.names])
+    theta = np.array(
+        [
+            {
+                "nu": 0.3,
+                "beta": 0.01,
+                "sensor_dy_m": 2e-3,
+                "G13_Pa": 4e10,
+                "mass_kg": 3e-4,
+                "tau_s": 2e-5,
+                "k_theta_N_per_rad": 1.6e4,
+                "dL_m": 2e-3,
+                "height_m": 3e-3,
+                "beta_clamp": 0.05,
+                "f_hz_1": 660.0,
+                "q_1": 30.0,
+                "theta_rad_per_m_1": 0.3,
+            }.get(n, 1.0)
+            * rng.uniform(0.8, 1.2)
+            * (18.0 if n.startswith("D") else 1.0)
+            for n in model.names
+        ]
+    )
     Js, Jm = _coefficient_jacobians(model, theta)
     th = jnp.asarray(theta)
-    np.testing.assert_allclose(Js, jax.jacfwd(lambda t: model.moduli(t, jnp))(th),
-                               rtol=1e-13, atol=1e-13 * np.abs(Js).max())
-    np.testing.assert_allclose(Jm, jax.jacfwd(lambda t: model.inertia(t, jnp))(th),
-                               rtol=1e-13, atol=1e-13 * np.abs(Jm).max())
+    np.testing.assert_allclose(
+        Js,
+        jax.jacfwd(lambda t: model.moduli(t, jnp))(th),
+        rtol=1e-13,
+        atol=1e-13 * np.abs(Js).max(),
+    )
+    np.testing.assert_allclose(
+        Jm,
+        jax.jacfwd(lambda t: model.inertia(t, jnp))(th),
+        rtol=1e-13,
+        atol=1e-13 * np.abs(Jm).max(),
+    )
     assert np.count_nonzero(Jm) >= 3  # the added mass, the shear's and the moved sensor's
     # at the moved sensor's null (dy = 0) its cubic law's derivative is exactly 0, as
     # autodiff's: a rounding residue there would add a spurious column to the basis
@@ -217,8 +252,9 @@ def test_the_modes_below_the_cut_off_are_those_of_one_large_solve():
     from vibid.identify.model.modal import arpack_start
 
     setup = plate_setup(0.15, 0.10, 0.002)
-    model = build_forward_model(setup, np.linspace(50.0, 3200.0, 20),
-                                theta0={"D": 50.0, "nu": 0.3, "beta": 0.01})
+    model = build_forward_model(
+        setup, np.linspace(50.0, 3200.0, 20), theta0={"D": 50.0, "nu": 0.3, "beta": 0.01}
+    )
     s, m = reduced._coefficients(model.param, model.theta0)
     K = model.mats.stiffness_matrix(dict(zip(model.mats.stiffness, s))).tocsc()
     M = model.mats.inertia_matrix(dict(zip(model.mats.inertia, m))).tocsc()
@@ -231,5 +267,5 @@ def test_the_modes_below_the_cut_off_are_those_of_one_large_solve():
     assert n == np.searchsorted(f_ref, 9000.0) + 1 == 46
     np.testing.assert_allclose(f_hz, f_ref[:n], rtol=1e-9)
     # the shapes span the same space (M-orthonormal): each reference shape is in it
-    coeff = Phi.T @ (M @ Psi[:, :n - 1])
+    coeff = Phi.T @ (M @ Psi[:, : n - 1])
     np.testing.assert_allclose(np.sum(coeff**2, axis=0), 1.0, atol=1e-8)

@@ -21,12 +21,12 @@ family converging.
 import numpy as np
 import pytest
 
+from plate_helpers import PAPER_THETA, strip_model, strip_setup
 from vibid.identify.model.assembly import Geometry, assemble_plate
 from vibid.identify.model.forward import coarser_discretisation, finer_discretisation
 from vibid.identify.model.full import afc_full
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import complex_eigenvalues, frequencies_and_decays
-from plate_helpers import PAPER_THETA, strip_model, strip_setup
 
 GEOM = Geometry.from_setup(strip_setup())
 
@@ -95,8 +95,9 @@ def test_the_refinement_family_converges_from_above_at_about_h6():
     d0 = Discretisation("argyris", 30, 6, 4)
     coarse, fine = coarser_discretisation(d0), finer_discretisation(d0)
     assert finer_discretisation(coarse) == d0
-    fc, f0, f1, ref = (_frequencies(d, 4) for d in (coarse, d0, fine,
-                                                      Discretisation("argyris", 60, 12, 6)))
+    fc, f0, f1, ref = (
+        _frequencies(d, 4) for d in (coarse, d0, fine, Discretisation("argyris", 60, 12, 6))
+    )
     assert np.all((fc > f0) & (f0 > f1) & (f1 > ref))
     q = (f0 - f1) / (fc - f0)  # (2/3)^p for cells 2/3 as large per level
     order = np.log(q) / np.log(2 / 3)

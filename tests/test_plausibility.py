@@ -18,8 +18,12 @@ def _iso(E=200 * GPa, nu=0.29, E_std=None, nu_std=None):
 
 
 def test_isotropic_poisson_ratio_at_or_above_a_half_is_a_violation():
-    r = plausibility("isotropic", {"D": 18.3, "nu": 0.52, "beta": 2e-3},
-                     {"D": 0.2, "nu": 0.004, "beta": 1e-4}, _iso(nu=0.52))
+    r = plausibility(
+        "isotropic",
+        {"D": 18.3, "nu": 0.52, "beta": 2e-3},
+        {"D": 0.2, "nu": 0.004, "beta": 1e-4},
+        _iso(nu=0.52),
+    )
     assert len(r.violations) == 1
     assert "ν = 0.52 ± 0.004" in r.violations[0] and "−1 < ν < 0.5" in r.violations[0]
     assert "5.0 std above 0.5" in r.violations[0]  # (0.52 - 0.5) / 0.004
@@ -53,8 +57,12 @@ def test_monoclinic_coupling_terms_enter_the_matrix():
 
 
 def test_negative_loss_factor_is_a_violation():
-    r = plausibility("isotropic", {"D": 18.3, "nu": 0.29, "beta": -0.001, "beta_clamp": 0.01},
-                     {"beta": 0.0002}, _iso())
+    r = plausibility(
+        "isotropic",
+        {"D": 18.3, "nu": 0.29, "beta": -0.001, "beta_clamp": 0.01},
+        {"beta": 0.0002},
+        _iso(),
+    )
     assert len(r.violations) == 1
     assert r.violations[0].startswith("beta = -0.001 ± 0.0002 < 0 (5.0 std below 0)")
 
@@ -69,29 +77,39 @@ def test_non_positive_modulus_is_a_violation_unless_already_explained():
 
 def test_titanium_by_name_below_its_range():
     # (100 - 90) GPa / 2 GPa = 5.0 std below titanium's 100–125 GPa
-    r = plausibility("isotropic", {"D": 8.0, "nu": 0.32, "beta": 1e-3}, {"D": 0.2},
-                     _iso(E=90 * GPa, nu=0.32, E_std=2 * GPa, nu_std=0.02),
-                     specimen_name="titanium-strip")
+    r = plausibility(
+        "isotropic",
+        {"D": 8.0, "nu": 0.32, "beta": 1e-3},
+        {"D": 0.2},
+        _iso(E=90 * GPa, nu=0.32, E_std=2 * GPa, nu_std=0.02),
+        specimen_name="titanium-strip",
+    )
     assert r.material_class == "titanium"
     assert r.outside_handbook == (
         "E = 90.0 ± 2.0 GPa lies below titanium's handbook range 100–125 GPa (by 5.0 std)",
         # G = E / 2(1 + ν) = 34.1 GPa, without a std here
-        "G = 34.1 GPa lies below titanium's handbook range 36–49 GPa")
+        "G = 34.1 GPa lies below titanium's handbook range 36–49 GPa",
+    )
     assert "ν = 0.320 ± 0.020 lies in titanium's range 0.28–0.38" in r.inside_handbook
     assert not r.violations and r.warnings() == list(r.outside_handbook)
 
 
 def test_outside_but_within_two_std_is_said_to_be_consistent():
-    r = plausibility("isotropic", {}, {}, {"E_Pa": _c(97 * GPa, 2 * GPa)},
-                     specimen_name="Ti strip")
+    r = plausibility("isotropic", {}, {}, {"E_Pa": _c(97 * GPa, 2 * GPa)}, specimen_name="Ti strip")
     assert r.outside_handbook == (
         "E = 97.0 ± 2.0 GPa lies below titanium's handbook range 100–125 GPa "
-        "(by 1.5 std: consistent with the range within its uncertainty)",)
+        "(by 1.5 std: consistent with the range within its uncertainty)",
+    )
 
 
 def test_titanium_inside_its_range_gives_no_warning():
-    r = plausibility("isotropic", {"D": 10.2, "nu": 0.31, "beta": 1e-3}, {},
-                     _iso(E=118 * GPa, nu=0.31), specimen_name="titanium-strip")
+    r = plausibility(
+        "isotropic",
+        {"D": 10.2, "nu": 0.31, "beta": 1e-3},
+        {},
+        _iso(E=118 * GPa, nu=0.31),
+        specimen_name="titanium-strip",
+    )
     assert r.warnings() == []
     assert [s.split(" =")[0] for s in r.inside_handbook] == ["E", "ν", "G"]  # G = 45.0 GPa
     assert "E = 118.0 GPa lies in titanium's range 100–125 GPa" in r.inside_handbook
@@ -99,30 +117,48 @@ def test_titanium_inside_its_range_gives_no_warning():
 
 def test_material_wins_over_the_name():
     c = _iso(E=70 * GPa, nu=0.33)
-    r = plausibility("isotropic", {"nu": 0.33}, {}, c, specimen_name="steel strip 100x20x1",
-                     material="Aluminum")
+    r = plausibility(
+        "isotropic", {"nu": 0.33}, {}, c, specimen_name="steel strip 100x20x1", material="Aluminum"
+    )
     assert r.material_class == "aluminium" and r.warnings() == []
     # an unknown material: no class, and no guess from the name either
-    r = plausibility("isotropic", {"nu": 0.33}, {}, c, specimen_name="steel strip",
-                     material="unobtainium")
+    r = plausibility(
+        "isotropic", {"nu": 0.33}, {}, c, specimen_name="steel strip", material="unobtainium"
+    )
     assert r.material_class is None and not r.inside_handbook and not r.outside_handbook
 
 
-@pytest.mark.parametrize("name, cls", [
-    ("metal panel", None), ("composite plate", None), ("strip 3", None),
-    ("Al 6061 strip", "aluminium"), ("aluminium-strip", "aluminium"),
-    ("steel strip 100x20x1", "steel"), ("INOX 304", "steel"), ("carbon steel strip", "steel"),
-    ("titanium-strip-1", "titanium"), ("Ti-6Al-4V plate", "titanium"), ("ti6al4v", "titanium"),
-    ("CFRP plate", "CFRP"), ("carbon-fibre laminate", "CFRP"), ("carbon/epoxy", "CFRP"),
-    ("steel-aluminium sandwich", None),
-])
+@pytest.mark.parametrize(
+    "name, cls",
+    [
+        ("metal panel", None),
+        ("composite plate", None),
+        ("strip 3", None),
+        ("Al 6061 strip", "aluminium"),
+        ("aluminium-strip", "aluminium"),
+        ("steel strip 100x20x1", "steel"),
+        ("INOX 304", "steel"),
+        ("carbon steel strip", "steel"),
+        ("titanium-strip-1", "titanium"),
+        ("Ti-6Al-4V plate", "titanium"),
+        ("ti6al4v", "titanium"),
+        ("CFRP plate", "CFRP"),
+        ("carbon-fibre laminate", "CFRP"),
+        ("carbon/epoxy", "CFRP"),
+        ("steel-aluminium sandwich", None),
+    ],
+)
 def test_class_from_whole_words_only(name, cls):
     assert material_class(name) == cls
 
 
 def test_orthotropic_cfrp_inside_its_ranges():
-    c = {"E1_Pa": _c(135 * GPa, 3 * GPa), "E2_Pa": _c(9.5 * GPa, 0.4 * GPa),
-         "G12_Pa": _c(5.2 * GPa, 0.3 * GPa), "nu12": _c(0.30, 0.03)}
+    c = {
+        "E1_Pa": _c(135 * GPa, 3 * GPa),
+        "E2_Pa": _c(9.5 * GPa, 0.4 * GPa),
+        "G12_Pa": _c(5.2 * GPa, 0.3 * GPa),
+        "nu12": _c(0.30, 0.03),
+    }
     p = {"D11": 12.6, "D12": 0.27, "D22": 0.89, "D66": 0.43, "beta": 4e-3}
     r = plausibility("orthotropic", p, {}, c, specimen_name="CFRP plate")
     assert r.material_class == "CFRP" and r.warnings() == []
@@ -131,8 +167,7 @@ def test_orthotropic_cfrp_inside_its_ranges():
 
 
 def test_a_metal_identified_orthotropic_is_compared_with_its_isotropic_ranges():
-    c = {"E1_Pa": _c(200 * GPa), "E2_Pa": _c(150 * GPa), "G12_Pa": _c(79 * GPa),
-         "nu12": _c(0.29)}
+    c = {"E1_Pa": _c(200 * GPa), "E2_Pa": _c(150 * GPa), "G12_Pa": _c(79 * GPa), "nu12": _c(0.29)}
     r = plausibility("orthotropic", {}, {}, c, material="stainless")
     assert r.outside_handbook == ("E2 = 150.0 GPa lies below steel's handbook range 180–215 GPa",)
     assert len(r.inside_handbook) == 3
@@ -140,8 +175,13 @@ def test_a_metal_identified_orthotropic_is_compared_with_its_isotropic_ranges():
 
 def test_none_values_are_skipped():
     c = {"E_Pa": _c(None), "nu": _c(0.30, None), "G_Pa": {"value": None}, "E2_Pa": None}
-    r = plausibility("isotropic", {"D": None, "nu": 0.30, "beta": float("nan")},
-                     {"nu": None}, c, specimen_name="steel strip")
+    r = plausibility(
+        "isotropic",
+        {"D": None, "nu": 0.30, "beta": float("nan")},
+        {"nu": None},
+        c,
+        specimen_name="steel strip",
+    )
     assert r.violations == () and r.outside_handbook == ()
     assert r.inside_handbook == ("ν = 0.300 lies in steel's range 0.25–0.33",)
 
@@ -166,12 +206,23 @@ def test_a_modulus_far_outside_says_what_the_declared_strip_would_need():
     def f1(E, L=strip.length_m, h=strip.thickness_m, rho=strip.density_kg_m3):
         return 1.8751**2 / (2 * math.pi) * math.sqrt(E * h**2 / (12 * rho)) / L**2
 
-    r = plausibility("isotropic", {}, {}, _iso(E=89.4 * GPa, nu=0.30, E_std=3.2 * GPa),
-                     specimen_name="titanium strip", specimen=strip)
+    r = plausibility(
+        "isotropic",
+        {},
+        {},
+        _iso(E=89.4 * GPa, nu=0.30, E_std=3.2 * GPa),
+        specimen_name="titanium strip",
+        specimen=strip,
+    )
     (said,) = [s for s in r.outside_handbook if s.startswith("E =")]
-    rho, L, L_mm, h, h_mm = map(float, re.search(
-        r"density ([-+][\d.]+) %, the free length ([-+][\d.]+) % \(([-+][\d.]+) mm\) or the "
-        r"thickness ([-+][\d.]+) % \(([-+][\d.]+) mm\)", said).groups())
+    rho, L, L_mm, h, h_mm = map(
+        float,
+        re.search(
+            r"density ([-+][\d.]+) %, the free length ([-+][\d.]+) % \(([-+][\d.]+) mm\) or the "
+            r"thickness ([-+][\d.]+) % \(([-+][\d.]+) mm\)",
+            said,
+        ).groups(),
+    )
     target = f1(89.4 * GPa)
     denser = strip.density_kg_m3 * (1 + rho / 100)
     assert f1(100 * GPa, rho=denser) == pytest.approx(target, rel=0.01)  # "+12 %": 2 digits
@@ -182,8 +233,14 @@ def test_a_modulus_far_outside_says_what_the_declared_strip_would_need():
     assert "clamp less rigid" in said  # a compliant clamp lowers the apparent E too
     assert "vibid identify --reference-E" in said  # and how a lab measures its free length
     # within 2 std of the range, or inside it, nothing is asked of the declaration
-    near = plausibility("isotropic", {}, {}, _iso(E=95 * GPa, nu=0.30, E_std=3.2 * GPa),
-                        specimen_name="titanium strip", specimen=strip)
+    near = plausibility(
+        "isotropic",
+        {},
+        {},
+        _iso(E=95 * GPa, nu=0.30, E_std=3.2 * GPa),
+        specimen_name="titanium strip",
+        specimen=strip,
+    )
     assert "would need" not in " ".join(near.outside_handbook)
 
 
@@ -195,18 +252,37 @@ def _cantilever_f1(E, *, L, h, rho, width, mass, x):
 
     n = 120
     le, I, A = L / n, width * h**3 / 12, width * h
-    k = E * I / le**3 * np.array([[12, 6 * le, -12, 6 * le],
-                                  [6 * le, 4 * le**2, -6 * le, 2 * le**2],
-                                  [-12, -6 * le, 12, -6 * le],
-                                  [6 * le, 2 * le**2, -6 * le, 4 * le**2]])
-    m = rho * A * le / 420 * np.array([[156, 22 * le, 54, -13 * le],
-                                       [22 * le, 4 * le**2, 13 * le, -3 * le**2],
-                                       [54, 13 * le, 156, -22 * le],
-                                       [-13 * le, -3 * le**2, -22 * le, 4 * le**2]])
+    k = (
+        E
+        * I
+        / le**3
+        * np.array(
+            [
+                [12, 6 * le, -12, 6 * le],
+                [6 * le, 4 * le**2, -6 * le, 2 * le**2],
+                [-12, -6 * le, 12, -6 * le],
+                [6 * le, 2 * le**2, -6 * le, 4 * le**2],
+            ]
+        )
+    )
+    m = (
+        rho
+        * A
+        * le
+        / 420
+        * np.array(
+            [
+                [156, 22 * le, 54, -13 * le],
+                [22 * le, 4 * le**2, 13 * le, -3 * le**2],
+                [54, 13 * le, 156, -22 * le],
+                [-13 * le, -3 * le**2, -22 * le, 4 * le**2],
+            ]
+        )
+    )
     K, M = np.zeros((2 * n + 2,) * 2), np.zeros((2 * n + 2,) * 2)
     for e in range(n):
-        K[2 * e:2 * e + 4, 2 * e:2 * e + 4] += k
-        M[2 * e:2 * e + 4, 2 * e:2 * e + 4] += m
+        K[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += k
+        M[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += m
     M[2 * round(x / L * n), 2 * round(x / L * n)] += mass
     w2 = eigh(K[2:, 2:], M[2:, 2:], eigvals_only=True, subset_by_index=[0, 0])[0]
     return np.sqrt(w2) / (2 * np.pi)
@@ -224,19 +300,37 @@ def test_what_the_declared_strip_would_need_counts_the_sensor_s_mass():
 
     from vibid.identify.plausibility import sensor_share
 
-    strip = SimpleNamespace(length_m=0.0996, width_m=0.02, thickness_m=0.003,
-                            density_kg_m3=4550.0)
+    strip = SimpleNamespace(length_m=0.0996, width_m=0.02, thickness_m=0.003, density_kg_m3=4550.0)
     sensor = SimpleNamespace(mass_kg=0.0017, x_m=0.0956)
     assert sensor_share(strip, sensor) == pytest.approx(0.18, abs=0.01)
     assert sensor_share(strip, None) == 0.0
-    r = plausibility("isotropic", {}, {}, _iso(E=89.4 * GPa, nu=0.30, E_std=3.2 * GPa),
-                     specimen_name="titanium strip", specimen=strip, sensor=sensor)
+    r = plausibility(
+        "isotropic",
+        {},
+        {},
+        _iso(E=89.4 * GPa, nu=0.30, E_std=3.2 * GPa),
+        specimen_name="titanium strip",
+        specimen=strip,
+        sensor=sensor,
+    )
     (said,) = [s for s in r.outside_handbook if s.startswith("E =")]
-    rho, L, h = map(float, re.search(r"density ([-+][\d.]+) %, the free length ([-+][\d.]+) "
-                                     r"% \(.*\) or the thickness ([-+][\d.]+) %", said).groups())
+    rho, L, h = map(
+        float,
+        re.search(
+            r"density ([-+][\d.]+) %, the free length ([-+][\d.]+) "
+            r"% \(.*\) or the thickness ([-+][\d.]+) %",
+            said,
+        ).groups(),
+    )
     assert (rho, L, h) == (15.0, 3.0, -5.0)
-    beam = dict(L=strip.length_m, h=strip.thickness_m, rho=strip.density_kg_m3,
-                width=strip.width_m, mass=sensor.mass_kg, x=sensor.x_m)
+    beam = dict(
+        L=strip.length_m,
+        h=strip.thickness_m,
+        rho=strip.density_kg_m3,
+        width=strip.width_m,
+        mass=sensor.mass_kg,
+        x=sensor.x_m,
+    )
 
     def changed(**kw):  # the sensor keeps its place relative to the free end's length
         kw = beam | kw

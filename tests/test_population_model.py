@@ -7,10 +7,11 @@ order's convergence in the band."""
 
 import math
 
-import beam_reference as beam
 import numpy as np
-import population_model as pm
 import pytest
+
+import beam_reference as beam
+import population_model as pm
 
 L, W, H_M, RHO = 0.100, 0.020, 0.001, 7920.0
 D = 17.97
@@ -21,8 +22,13 @@ ORDER = (16, 5)
 
 
 def _beam_kw(**kw):
-    return {"L": L, "EI": D * W * (1 + 0.003j), "rhoA": RHO * H_M * W,
-            "rhoI": RHO * H_M**3 / 12 * W, "x_s": 0.09} | kw
+    return {
+        "L": L,
+        "EI": D * W * (1 + 0.003j),
+        "rhoA": RHO * H_M * W,
+        "rhoI": RHO * H_M**3 / 12 * W,
+        "x_s": 0.09,
+    } | kw
 
 
 def test_cantilever_strip_frequencies_are_the_rayleigh_beams():
@@ -48,8 +54,7 @@ def test_clamp_spring_against_the_beams_root_spring():
     f = np.linspace(20.0, 2000.0, 40)
     k = 300.0  # N m/rad per metre
     for beta_c in (0.0, 0.05):
-        H = pm.afc(f, BARE, NU0, {"k_theta_N_per_rad": k, "beta_clamp": beta_c},
-                   order=ORDER)
+        H = pm.afc(f, BARE, NU0, {"k_theta_N_per_rad": k, "beta_clamp": beta_c}, order=ORDER)
         Hb = beam.afc(2 * math.pi * f, **_beam_kw(k_root=k * W * (1 + 1j * beta_c)))
         assert np.max(np.abs(H - Hb) / np.abs(Hb)) < 1e-6
     # the clamp spring's loss factor defaults to the plate's
@@ -65,8 +70,7 @@ def test_clamp_spring_rigid_limit_is_the_clamped_basis():
     rigid = pm.natural_frequencies_hz(plate, mat, n=5, order=(19, 7))
     errors = []
     for k in (1e5, 1e6, 1e7):  # beyond 1e8 the stiff spring's rounding shows
-        el = pm.natural_frequencies_hz(plate, mat, {"k_theta_N_per_rad": k}, n=5,
-                                       order=(20, 7))
+        el = pm.natural_frequencies_hz(plate, mat, {"k_theta_N_per_rad": k}, n=5, order=(20, 7))
         errors.append(np.max(np.abs(el / rigid - 1)))
     assert errors[0] > 8 * errors[1] > 64 * errors[2]  # as 1 / k
     assert errors[2] < 5e-5
@@ -121,12 +125,15 @@ def test_orthotropic_with_isotropic_moduli_is_the_isotropic_plate():
     iso = {"D": D0, "nu": nu, "beta": 0.002}
     ortho = {"D11": D0, "D22": D0, "D12": nu * D0, "D66": (1 - nu) * D0 / 2, "beta": 0.002}
     f = np.linspace(10.0, 800.0, 50)
-    np.testing.assert_allclose(pm.afc(f, plate, ortho, order=(10, 8)),
-                               pm.afc(f, plate, iso, order=(10, 8)), rtol=1e-12)
+    np.testing.assert_allclose(
+        pm.afc(f, plate, ortho, order=(10, 8)), pm.afc(f, plate, iso, order=(10, 8)), rtol=1e-12
+    )
     # and D22 matters: a softer D22 lowers frequencies
     soft = ortho | {"D22": D0 / 4}
-    assert np.all(pm.natural_frequencies_hz(plate, soft, n=4, order=(10, 8))
-                  <= pm.natural_frequencies_hz(plate, iso, n=4, order=(10, 8)) * (1 + 1e-12))
+    assert np.all(
+        pm.natural_frequencies_hz(plate, soft, n=4, order=(10, 8))
+        <= pm.natural_frequencies_hz(plate, iso, n=4, order=(10, 8)) * (1 + 1e-12)
+    )
 
 
 def test_direct_and_modal_paths_agree():
@@ -135,8 +142,13 @@ def test_direct_and_modal_paths_agree():
     mat = {"D": D, "nu": 0.3, "beta": 0.003}
     f = np.linspace(20.0, 2500.0, 40)
     a = pm.afc(f, plate, mat, {"k_theta_N_per_rad": 500.0}, order=(14, 6))
-    b = pm.afc(f, plate, mat, {"k_theta_N_per_rad": 500.0, "alpha": 0.0,
-                               "air_gamma_per_s": 0.0}, order=(14, 6))
+    b = pm.afc(
+        f,
+        plate,
+        mat,
+        {"k_theta_N_per_rad": 500.0, "alpha": 0.0, "air_gamma_per_s": 0.0},
+        order=(14, 6),
+    )
     np.testing.assert_allclose(a, b, rtol=1e-9)
 
 
@@ -154,12 +166,25 @@ def test_air_damping_loss_falls_as_one_over_f():
         assert loss == pytest.approx(gamma / (2 * math.pi * fn), rel=0.02)
 
 
-@pytest.mark.parametrize("plate, mat, order, higher, f_max", [
-    (pm.Plate(0.1, 0.02, 0.001, 7920.0, 0.09, 0.013, 1e-3, 2e-3),
-     {"D": D, "nu": 0.3, "beta": 0.003}, pm.STRIP_ORDER, (48, 19), 3000.0),
-    (pm.Plate(0.2, 0.15, 0.002, 2700.0, 0.18, 0.1, 2e-3, 3e-3),
-     {"D": 52.0, "nu": 0.33, "beta": 0.002}, pm.PLATE_ORDER, (38, 36), 700.0),
-])
+@pytest.mark.parametrize(
+    "plate, mat, order, higher, f_max",
+    [
+        (
+            pm.Plate(0.1, 0.02, 0.001, 7920.0, 0.09, 0.013, 1e-3, 2e-3),
+            {"D": D, "nu": 0.3, "beta": 0.003},
+            pm.STRIP_ORDER,
+            (48, 19),
+            3000.0,
+        ),
+        (
+            pm.Plate(0.2, 0.15, 0.002, 2700.0, 0.18, 0.1, 2e-3, 3e-3),
+            {"D": 52.0, "nu": 0.33, "beta": 0.002},
+            pm.PLATE_ORDER,
+            (38, 36),
+            700.0,
+        ),
+    ],
+)
 def test_truth_order_converges_the_band(plate, mat, order, higher, f_max):
     """The truth's Ritz order against a higher one. The band's frequencies agree within
     5e-6 (the convergence is algebraic, not spectral: the clamped edge meets the free ones

@@ -5,10 +5,10 @@ whose line lies inside its jaws), the sensor moving out with the free end."""
 
 import json
 
-import beam_sessions as bs
 import numpy as np
 import pytest
 
+import beam_sessions as bs
 from vibid.cli import main
 from vibid.identify.reference import Reference, calibrate_free_length
 from vibid.setup_model import Identification
@@ -28,11 +28,24 @@ def _identified(effects):
 
     configure()
     setup = bs.setup()
-    setup = type(setup)(**{**setup.__dict__, "identification": Identification(
-        "isotropic", {"D": (1.0, 100.0), "nu": (-0.005, 0.005), "beta": (1e-4, 0.1)})})
+    setup = type(setup)(
+        **{
+            **setup.__dict__,
+            "identification": Identification(
+                "isotropic", {"D": (1.0, 100.0), "nu": (-0.005, 0.005), "beta": (1e-4, 0.1)}
+            ),
+        }
+    )
     H, sd = bs.data(effects, seed=1)
-    return setup, identify(setup, bs.F, H, sd, method="local", start=dict(bs.TRUTH),
-                           kinds={"nu": ("logit", -0.005, 0.005)})
+    return setup, identify(
+        setup,
+        bs.F,
+        H,
+        sd,
+        method="local",
+        start=dict(bs.TRUTH),
+        kinds={"nu": ("logit", -0.005, 0.005)},
+    )
 
 
 def _E(result):
@@ -71,17 +84,22 @@ def test_the_references_own_uncertainty_enters_the_free_length(long_beam):
     uncertain = calibrate_free_length(setup, res, Reference(E_BEAM, 0.04 * E_BEAM))
     higher = calibrate_free_length(setup, res, Reference(1.04 * E_BEAM))
     step = higher.free_length_m - exact.free_length_m
-    assert step == pytest.approx(exact.free_length_m * (1.04 ** 0.25 - 1), rel=0.15)
+    assert step == pytest.approx(exact.free_length_m * (1.04**0.25 - 1), rel=0.15)
     part = np.sqrt(uncertain.free_length_std_m**2 - exact.free_length_std_m**2)
     assert part == pytest.approx(step, rel=0.05)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--reference-E=-5e9"], "the reference modulus must be a positive number of Pa"),
-    (["--reference-E", "198e9", "--reference-E-std", "nan"],
-     "the reference modulus's std must be 0 Pa or more"),
-    (["--reference-E-std", "3e9"], "--reference-E-std goes with --reference-E"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--reference-E=-5e9"], "the reference modulus must be a positive number of Pa"),
+        (
+            ["--reference-E", "198e9", "--reference-E-std", "nan"],
+            "the reference modulus's std must be 0 Pa or more",
+        ),
+        (["--reference-E-std", "3e9"], "--reference-E-std goes with --reference-E"),
+    ],
+)
 def test_a_bad_reference_is_one_line_before_any_fit(tmp_path, capsys, args, message):
     afc, setup = tmp_path / "afc.csv", tmp_path / "setup.json"
     afc.write_text("frequency_hz,re,im\n100,1,0\n200,1,0\n")
@@ -100,20 +118,22 @@ def test_the_report_and_the_console_carry_the_calibration(long_beam):
     from vibid.report import plausibility_lines
 
     setup, res = long_beam
-    block = reference_block(SimpleNamespace(setup=setup), SimpleNamespace(result=res),
-                            Reference(E_BEAM))
-    assert block["free_length_m"] - block["declared_length_m"] == pytest.approx(INSIDE_M,
-                                                                               abs=2e-5)
+    block = reference_block(
+        SimpleNamespace(setup=setup), SimpleNamespace(result=res), Reference(E_BEAM)
+    )
+    assert block["free_length_m"] - block["declared_length_m"] == pytest.approx(INSIDE_M, abs=2e-5)
     assert block["modulus_Pa"] == E_BEAM and block["converged"] is True
     assert plausibility_lines({"reference": block}) == [block["note"]]
-    assert reference_block(SimpleNamespace(setup=setup), SimpleNamespace(result=res),
-                           None) is None
+    assert reference_block(SimpleNamespace(setup=setup), SimpleNamespace(result=res), None) is None
     odd = SimpleNamespace(plate_model=SimpleNamespace(model="membrane"), parameters={})
-    said = reference_block(SimpleNamespace(setup=setup), SimpleNamespace(result=odd),
-                           Reference(E_BEAM))
-    assert said == {"note": "reference specimen: no modulus along the length was identified "
-                            "(membrane model): a reference specimen cannot calibrate the "
-                            "clamp"}
+    said = reference_block(
+        SimpleNamespace(setup=setup), SimpleNamespace(result=odd), Reference(E_BEAM)
+    )
+    assert said == {
+        "note": "reference specimen: no modulus along the length was identified "
+        "(membrane model): a reference specimen cannot calibrate the "
+        "clamp"
+    }
 
 
 def test_the_reported_std_covers_the_monte_carlo_spread():

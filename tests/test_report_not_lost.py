@@ -30,8 +30,7 @@ SETUP_JSON = "examples/strip_setup.json"
 def _at_null(values: dict) -> dict:
     """The orthotropic plate that is the isotropic one (the anisotropy's null)."""
     D, nu = values["D"], values["nu"]
-    return {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D,
-            "beta": values["beta"]}
+    return {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D, "beta": values["beta"]}
 
 
 def test_the_loop_box_holds_the_box_the_loop_gave_a_material_it_switched_to():
@@ -43,25 +42,39 @@ def test_the_loop_box_holds_the_box_the_loop_gave_a_material_it_switched_to():
     ortho = iso.with_material(Material("orthotropic"))
 
     def fit(model, values, chi2_red):
-        return SimpleNamespace(plate_model=model, parameters=values, dof=57,
-                               parameter_names=tuple(values), values=np.array(list(values.values())),
-                               chi2_reduced_reported=chi2_red)
+        return SimpleNamespace(
+            plate_model=model,
+            parameters=values,
+            dof=57,
+            parameter_names=tuple(values),
+            values=np.array(list(values.values())),
+            chi2_reduced_reported=chi2_red,
+        )
 
     declared = fit(iso, TRUE, 9.0)
     final = fit(ortho, _at_null(TRUE) | {"D22": 16.0}, 3.0)
     loop = SimpleNamespace(
-        unexplained_residual=True, final=final, alternatives=(),
-        stages=[SimpleNamespace(added=None, result=declared, diagnosis=None),
-                SimpleNamespace(added="anisotropy", result=final, diagnosis=None)])
+        unexplained_residual=True,
+        final=final,
+        alternatives=(),
+        stages=[
+            SimpleNamespace(added=None, result=declared, diagnosis=None),
+            SimpleNamespace(added="anisotropy", result=final, diagnosis=None),
+        ],
+    )
     lo, hi = s.identification.bounds["D"]
     box = loop_box(s, loop)
     assert box == dict(s.identification.bounds) | {
-        "D11": (lo, hi), "D22": (TRUE["D"] / 30, hi), "D66": (TRUE["D"] / 30, hi / 2),
-        "D12": (-hi / 2, hi / 2)}
+        "D11": (lo, hi),
+        "D22": (TRUE["D"] / 30, hi),
+        "D66": (TRUE["D"] / 30, hi / 2),
+        "D12": (-hi / 2, hi / 2),
+    }
     assert loop_box(s, None) == dict(s.identification.bounds)
     with pytest.raises(VibidError, match="no bounds given for D11, D12, D22, D66"):
-        model_spread(loop, "orthotropic", s.specimen.thickness_m,
-                     box=dict(s.identification.bounds))  # the field run's failure
+        model_spread(
+            loop, "orthotropic", s.specimen.thickness_m, box=dict(s.identification.bounds)
+        )  # the field run's failure
     spread = model_spread(loop, "orthotropic", s.specimen.thickness_m, box=box)
     assert set(spread) == {"E1_Pa", "E2_Pa", "G12_Pa", "nu12"}
     assert spread["E1_Pa"] == pytest.approx(0.0, abs=1e-6)  # one orthotropic model alone
@@ -91,10 +104,16 @@ def _orthotropic_copy(result):
     std = np.sqrt(np.diag(cov))
     values = _at_null(result.parameters)
     return dataclasses.replace(
-        result, model="orthotropic", parameter_names=tuple(values),
-        values=np.array(list(values.values())), std=std, covariance=cov,
-        correlation=cov / np.outer(std, std), model_error_bias=None,
-        plate_model=result.plate_model.with_material(Material("orthotropic")))
+        result,
+        model="orthotropic",
+        parameter_names=tuple(values),
+        values=np.array(list(values.values())),
+        std=std,
+        covariance=cov,
+        correlation=cov / np.outer(std, std),
+        model_error_bias=None,
+        plate_model=result.plate_model.with_material(Material("orthotropic")),
+    )
 
 
 def test_an_orthotropic_end_of_an_isotropic_setup_has_its_report_and_budget(strip):
@@ -129,17 +148,21 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
     f = np.linspace(20.0, 1500.0, 60)
     H = np.asarray(build_forward_model(setup, f, theta0=TRUE).afc(np.array(list(TRUE.values()))))
     afc = tmp_path / "afc.csv"
-    afc.write_text("frequency_hz,re,im,std\n" + "".join(
-        f"{fi:.17g},{h.real:.17g},{h.imag:.17g},{0.003 * abs(h) + 1e-4:.17g}\n"
-        for fi, h in zip(f, H)))
+    afc.write_text(
+        "frequency_hz,re,im,std\n"
+        + "".join(
+            f"{fi:.17g},{h.real:.17g},{h.imag:.17g},{0.003 * abs(h) + 1e-4:.17g}\n"
+            for fi, h in zip(f, H)
+        )
+    )
 
-    from vibid.identify import fit
-    from vibid.identify import budget, reference
+    from vibid.identify import budget, fit, reference
     from vibid.report import figures
 
     real = fit.identify
-    monkeypatch.setattr(fit, "identify", lambda *a, **k: real(
-        *a, **{**k, "method": "local", "start": TRUE}))  # the global search's minutes saved
+    monkeypatch.setattr(
+        fit, "identify", lambda *a, **k: real(*a, **{**k, "method": "local", "start": TRUE})
+    )  # the global search's minutes saved
 
     def no_bounds(*a, **k):
         raise VibidError("no bounds given for D11, D12, D22, D66")
@@ -151,8 +174,23 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
     monkeypatch.setattr(reference, "calibrate_free_length", broken)
     monkeypatch.setattr(figures, "fine_model", broken)
     out, folder = tmp_path / "r.json", tmp_path / "report"
-    rc = main(["identify", "--afc", str(afc), "--setup", SETUP_JSON, "--json", str(out),
-               "--report", str(folder), "--no-loop", "--no-progress", "--reference-E", "2e11"])
+    rc = main(
+        [
+            "identify",
+            "--afc",
+            str(afc),
+            "--setup",
+            SETUP_JSON,
+            "--json",
+            str(out),
+            "--report",
+            str(folder),
+            "--no-loop",
+            "--no-progress",
+            "--reference-E",
+            "2e11",
+        ]
+    )
     captured = capsys.readouterr()
     console = captured.out
     assert rc == 0, captured.err
@@ -161,7 +199,8 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
     assert report["not_done"] == [
         {"stage": "reference", "reason": "KeyError: 'D11'"},
         {"stage": "uncertainty budget", "reason": "no bounds given for D11, D12, D22, D66"},
-        {"stage": "figures", "reason": "afc.png: KeyError: 'D11'"}]
+        {"stage": "figures", "reason": "afc.png: KeyError: 'D11'"},
+    ]
     assert report["identification"]["converged"] is True
     assert report["parameters"]["D"]["value"] == pytest.approx(TRUE["D"], rel=1e-3)
     eng = report["engineering"]  # the constants stay, with the fit's std
@@ -169,8 +208,10 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
     assert "plausibility" in report and "reference" not in report
     said = [line for line in console.splitlines() if line.startswith("not done:")]
     assert said == not_done_lines(report) and len(said) == 3
-    assert ("not done: uncertainty budget (the engineering constants carry the fit's std "
-            "alone): no bounds given for D11, D12, D22, D66") in said
+    assert (
+        "not done: uncertainty budget (the engineering constants carry the fit's std "
+        "alone): no bounds given for D11, D12, D22, D66"
+    ) in said
     md = (folder / "report.md").read_text()
     assert all(line in md for line in said)
     assert (folder / "residuals.png").exists() and not (folder / "afc.png").exists()
@@ -199,14 +240,23 @@ def test_the_report_says_how_sure_the_loop_is(strip):
     from vibid.report.markdown import summary_markdown
 
     s, iso = strip
-    alts = ({"added": "stand_resonance", "criterion": 120.0, "probability": 0.97,
-             "f_hz": 664.0},
-            {"added": "clamp_loss", "criterion": 116.5, "probability": 0.02},
-            {"added": None, "criterion": 0.0, "probability": 0.01})
-    stop = ({"added": None, "criterion": 3.0, "probability": 0.9},
-            {"added": "sensor_gain", "criterion": 1.0, "probability": 0.1, "estimated": True})
-    loop = LoopResult((replace(Stage.of(None, iso), alternatives=alts),
-                       replace(Stage.of("stand_resonance", iso), alternatives=stop)), (), True)
+    alts = (
+        {"added": "stand_resonance", "criterion": 120.0, "probability": 0.97, "f_hz": 664.0},
+        {"added": "clamp_loss", "criterion": 116.5, "probability": 0.02},
+        {"added": None, "criterion": 0.0, "probability": 0.01},
+    )
+    stop = (
+        {"added": None, "criterion": 3.0, "probability": 0.9},
+        {"added": "sensor_gain", "criterion": 1.0, "probability": 0.1, "estimated": True},
+    )
+    loop = LoopResult(
+        (
+            replace(Stage.of(None, iso), alternatives=alts),
+            replace(Stage.of("stand_resonance", iso), alternatives=stop),
+        ),
+        (),
+        True,
+    )
     report = build_report(iso, loop=loop, setup=s)
     assert report["loop"]["criterion"]["name"] == "log_evidence"
     first, last = (st["alternatives"] for st in report["loop"]["stages"])
@@ -214,6 +264,8 @@ def test_the_report_says_how_sure_the_loop_is(strip):
     assert sum(a["probability"] for a in first) == pytest.approx(1.0)
     assert last[0]["added"] is None and last[1]["estimated"] is True
     text = summary_markdown(report)
-    assert "after the declared model: stand resonance at 664 Hz: 0.97; clamp loss: 0.02; " \
-           "stop here: 0.01" in text
+    assert (
+        "after the declared model: stand resonance at 664 Hz: 0.97; clamp loss: 0.02; "
+        "stop here: 0.01" in text
+    )
     assert "after + stand_resonance: stop here: 0.9; sensor gain: 0.1 (estimated)" in text

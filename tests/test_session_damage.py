@@ -27,13 +27,25 @@ N_VARIANTS = 240
 
 
 def _write(path) -> None:
-    with SessionWriter(path, example_setup(), session_id="damage-test",
-                       created_utc="2026-11-22T04:00:00+00:00") as w:
+    with SessionWriter(
+        path, example_setup(), session_id="damage-test", created_utc="2026-11-22T04:00:00+00:00"
+    ) as w:
         for k, f in enumerate(FREQUENCIES_HZ):
-            base, response = synthetic_step(f, 0.5 + 0.2j, sample_rate_hz=25600.0, n_samples=512,
-                                            noise_std_m_s2=(1e-3, 1e-3), rng=k)
-            w.append(frequency_hz=f, sample_rate_hz=25600.0, base=base, response=response,
-                     t0_utc="2026-11-22T04:00:00+00:00")
+            base, response = synthetic_step(
+                f,
+                0.5 + 0.2j,
+                sample_rate_hz=25600.0,
+                n_samples=512,
+                noise_std_m_s2=(1e-3, 1e-3),
+                rng=k,
+            )
+            w.append(
+                frequency_hz=f,
+                sample_rate_hz=25600.0,
+                base=base,
+                response=response,
+                t0_utc="2026-11-22T04:00:00+00:00",
+            )
 
 
 def _contents(path):
@@ -41,8 +53,14 @@ def _contents(path):
     with read_session(path) as s:
         steps = list(s.steps())
         samples = [(st.base, st.response) for st in steps]
-        rest = (s.setup, s.session_id, s.created_utc, s.software, s.run_status,
-                [(st.frequency_hz, st.sample_rate_hz, st.t0_utc, st.status) for st in steps])
+        rest = (
+            s.setup,
+            s.session_id,
+            s.created_utc,
+            s.software,
+            s.run_status,
+            [(st.frequency_hz, st.sample_rate_hz, st.t0_utc, st.status) for st in steps],
+        )
     return samples, rest
 
 
@@ -59,8 +77,13 @@ def original(tmp_path_factory):
                 chunks[f"/steps/{k:06d}/{name}"] = (info.byte_offset, info.size)
     btree_nodes = [m.start() for m in re.finditer(b"TREE", data)]
     assert len(btree_nodes) >= 2 * len(FREQUENCIES_HZ)  # a chunk index per record at least
-    return {"path": path, "data": data, "chunks": chunks, "btree_nodes": btree_nodes,
-            "contents": _contents(path)}
+    return {
+        "path": path,
+        "data": data,
+        "chunks": chunks,
+        "btree_nodes": btree_nodes,
+        "contents": _contents(path),
+    }
 
 
 def _variants(original, n, seed=20261122):
@@ -75,7 +98,7 @@ def _variants(original, n, seed=20261122):
         hit = None
         if kind == "zero":
             at, length = int(rng.integers(len(b))), int(rng.integers(1, 8192))
-            b[at:at + length] = bytes(len(b[at:at + length]))
+            b[at : at + length] = bytes(len(b[at : at + length]))
             desc = f"zero {length} bytes at {at}"
         elif kind == "truncate":
             at = int(rng.integers(len(b)))
@@ -86,7 +109,9 @@ def _variants(original, n, seed=20261122):
                 hit, (start, size) = chunk_items[int(rng.integers(len(chunk_items)))]
                 at = start + int(rng.integers(size))
             elif kind == "btree":
-                at = original["btree_nodes"][int(rng.integers(len(original["btree_nodes"])))] + int(rng.integers(48))
+                at = original["btree_nodes"][int(rng.integers(len(original["btree_nodes"])))] + int(
+                    rng.integers(48)
+                )
             elif kind == "superblock":
                 at = int(rng.integers(96))
             else:
@@ -97,7 +122,12 @@ def _variants(original, n, seed=20261122):
         if hit is None:  # a zeroed block or a flip that lands in a chunk counts as one too
             for name, (start, size) in chunk_items:
                 lo, hi = (at, at + length) if kind == "zero" else (at, at + 1)
-                if kind != "truncate" and lo < start + size and start < hi and bytes(b[start:start + size]) != data[start:start + size]:
+                if (
+                    kind != "truncate"
+                    and lo < start + size
+                    and start < hi
+                    and bytes(b[start : start + size]) != data[start : start + size]
+                ):
                     hit = name
         yield desc, bytes(b), hit
 
@@ -166,17 +196,24 @@ def test_the_commands_say_one_line_on_a_damaged_file(original, tmp_path, capsys)
     start, _ = original["chunks"]["/steps/000002/response"]
     middle = bytearray(original["data"])
     middle[start + 400] ^= 0x01
-    heap = bytearray(original["data"])  # a zeroed block over the root's global heap: hangs HDF5 2.0 if read
+    heap = bytearray(
+        original["data"]
+    )  # a zeroed block over the root's global heap: hangs HDF5 2.0 if read
     at = original["data"].find(b"GCOL")
-    heap[at + 1100:at + 1100 + 3000] = bytes(3000)
-    cases = {"middle.h5": (bytes(middle), "/steps/000002/response: checksum mismatch"),
-             "heap.h5": (bytes(heap), "/: global heap collection"),
-             "short.h5": (original["data"][: len(original["data"]) // 2], "/: HDF5 file is truncated")}
+    heap[at + 1100 : at + 1100 + 3000] = bytes(3000)
+    cases = {
+        "middle.h5": (bytes(middle), "/steps/000002/response: checksum mismatch"),
+        "heap.h5": (bytes(heap), "/: global heap collection"),
+        "short.h5": (original["data"][: len(original["data"]) // 2], "/: HDF5 file is truncated"),
+    }
     for name, (data, says) in cases.items():
         path = tmp_path / name
         path.write_bytes(data)
-        for argv, first in ((["validate", str(path)], "validate"), (["afc", str(path)], "afc"),
-                            (["identify", str(path), "--no-loop", "--no-progress"], "identify")):
+        for argv, first in (
+            (["validate", str(path)], "validate"),
+            (["afc", str(path)], "afc"),
+            (["identify", str(path), "--no-loop", "--no-progress"], "identify"),
+        ):
             assert main(argv) == 1
             out, err = capsys.readouterr()
             text = out if first == "validate" else err
@@ -195,10 +232,14 @@ def test_a_crash_or_a_hang_of_the_library_is_one_line(tmp_path):
 
     assert survives(len, "a file") is None
     crash = survives(ctypes.string_at, 0)  # reads address 0: a segmentation fault
-    assert str(crash) == ("/: the HDF5 library crashed reading the file's structure "
-                          "(signal 11; the file is damaged)")
+    assert str(crash) == (
+        "/: the HDF5 library crashed reading the file's structure (signal 11; the file is damaged)"
+    )
     hang = survives(time.sleep, 30, timeout_s=0.5)
-    assert str(hang) == "/: the HDF5 library did not finish reading the file's structure in 0.5 s (the file is damaged)"
+    assert (
+        str(hang)
+        == "/: the HDF5 library did not finish reading the file's structure in 0.5 s (the file is damaged)"
+    )
 
 
 def test_a_flipped_digit_in_the_setup_is_refused(original, tmp_path):
@@ -210,6 +251,7 @@ def test_a_flipped_digit_in_the_setup_is_refused(original, tmp_path):
     # the setup is a variable-length string in HDF5's global heap, which has no checksum in
     # any layout: the writer stores its SHA-256 beside it
     assert [str(p) for p in file_problems(path)] == [
-        "/@setup: the setup does not match its checksum (the file is damaged)"]
+        "/@setup: the setup does not match its checksum (the file is damaged)"
+    ]
     with pytest.raises(SessionFileError, match="does not match its checksum"):
         read_session(path)

@@ -1,6 +1,5 @@
 """Session writer/reader: round trip, live reading, and survival of a SIGKILL."""
 
-import json
 import os
 import signal
 import subprocess
@@ -30,8 +29,14 @@ def test_round_trip_gives_equal_setup_and_samples(tmp_path):
         for k, f in enumerate([5.0, 7.5, 1200.0]):
             base, resp = _records(rng, 1000 + k)
             status = "overload" if k == 1 else "ok"
-            w.append(frequency_hz=f, sample_rate_hz=25600.0, base=base, response=resp, status=status,
-                     t0_utc="2026-11-22T04:00:00+00:00")
+            w.append(
+                frequency_hz=f,
+                sample_rate_hz=25600.0,
+                base=base,
+                response=resp,
+                status=status,
+                t0_utc="2026-11-22T04:00:00+00:00",
+            )
             written.append((f, status, base, resp))
     assert file_problems(path) == []
     with read_session(path) as s:
@@ -51,8 +56,12 @@ def test_reader_sees_completed_steps_while_writer_is_open(tmp_path):
     path = tmp_path / "live.h5"
     w = SessionWriter(path, example_setup())
     for k in range(3):
-        w.append(frequency_hz=10.0 + k, sample_rate_hz=25600.0, base=rng.standard_normal(100),
-                 response=rng.standard_normal(100))
+        w.append(
+            frequency_hz=10.0 + k,
+            sample_rate_hz=25600.0,
+            base=rng.standard_normal(100),
+            response=rng.standard_normal(100),
+        )
         with read_session(path) as s:  # a reader between steps never blocks the writer
             assert len(s) == k + 1
             assert s.run_status == "interrupted"  # as the spec reads a file without run_status
@@ -66,8 +75,13 @@ def test_bad_step_is_refused_and_nothing_recorded_is_lost(tmp_path):
     with pytest.raises(VibidError, match="equal length"):
         w.append(frequency_hz=11.0, sample_rate_hz=25600.0, base=np.ones(10), response=np.ones(9))
     with pytest.raises(VibidError, match="status"):
-        w.append(frequency_hz=11.0, sample_rate_hz=25600.0, base=np.ones(10), response=np.ones(10),
-                 status="fine")
+        w.append(
+            frequency_hz=11.0,
+            sample_rate_hz=25600.0,
+            base=np.ones(10),
+            response=np.ones(10),
+            status="fine",
+        )
     with pytest.raises(VibidError, match="already exists"):
         SessionWriter(path, example_setup())
     with read_session(path) as s:
@@ -93,7 +107,9 @@ CHILD = textwrap.dedent(
 
 def test_sigkill_mid_session_leaves_every_completed_step_readable(tmp_path):
     path = tmp_path / "killed.h5"
-    child = subprocess.Popen([sys.executable, "-c", CHILD, str(path)], stdout=subprocess.PIPE, text=True)
+    child = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(path)], stdout=subprocess.PIPE, text=True
+    )
     try:
         completed = -1
         deadline = time.monotonic() + 120

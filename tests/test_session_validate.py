@@ -50,8 +50,10 @@ def test_conformant_file_from_independent_writer_is_accepted(tmp_path, capsys, s
     write_conformant(path, strings=strings)
     code, lines = validate(capsys, path)
     assert code == 0
-    assert lines == [f"{path}: valid session, 4 steps (4 ok), 10-40 Hz, declared model isotropic, run interrupted "
-                     "(stopped before closing the session, 4 of 200 steps recorded)"]
+    assert lines == [
+        f"{path}: valid session, 4 steps (4 ok), 10-40 Hz, declared model isotropic, run interrupted "
+        "(stopped before closing the session, 4 of 200 steps recorded)"
+    ]
 
 
 def _setup(mutate):
@@ -63,12 +65,14 @@ def _setup(mutate):
 def _set_attr(path, name, value):
     def corrupt(f):
         f[path].attrs[name] = value
+
     return corrupt
 
 
 def _del_attr(path, name):
     def corrupt(f):
         del f[path].attrs[name]
+
     return corrupt
 
 
@@ -76,6 +80,7 @@ def _replace_dataset(step, name, data):
     def corrupt(f):
         del f[f"steps/{step}/{name}"]
         f[f"steps/{step}"].create_dataset(name, data=data)
+
     return corrupt
 
 
@@ -86,6 +91,7 @@ def _setup_attr(mutate):
 def _rename(src, dst):
     def corrupt(f):
         f.move(src, dst)
+
     return corrupt
 
 
@@ -95,6 +101,7 @@ def _nan_at(step, name, value):
         a = d[()]
         a[17] = value
         d[...] = a
+
     return corrupt
 
 
@@ -113,48 +120,176 @@ def _del(d, keys):
 # (id, corruption, expected line fragment: location and message)
 CASES = [
     ("no-format", _del_attr("/", "format"), "/@format: missing root attribute"),
-    ("wrong-format", _set_attr("/", "format", "vibid.report"), "/@format: is 'vibid.report', expected 'vibid.session'"),
+    (
+        "wrong-format",
+        _set_attr("/", "format", "vibid.report"),
+        "/@format: is 'vibid.report', expected 'vibid.session'",
+    ),
     ("format-not-str", _set_attr("/", "format", 7), "/@format: must be a string"),
     ("no-version", _del_attr("/", "format_version"), "/@format_version: missing root attribute"),
-    ("version-2", _set_attr("/", "format_version", 2), "/@format_version: version 2 is not supported; this vibid reads version 1"),
-    ("version-str", _set_attr("/", "format_version", "1"), "/@format_version: must be an integer, got the string '1'"),
-    ("version-float", _set_attr("/", "format_version", 1.0), "/@format_version: must be an integer"),
+    (
+        "version-2",
+        _set_attr("/", "format_version", 2),
+        "/@format_version: version 2 is not supported; this vibid reads version 1",
+    ),
+    (
+        "version-str",
+        _set_attr("/", "format_version", "1"),
+        "/@format_version: must be an integer, got the string '1'",
+    ),
+    (
+        "version-float",
+        _set_attr("/", "format_version", 1.0),
+        "/@format_version: must be an integer",
+    ),
     ("no-created", _del_attr("/", "created_utc"), "/@created_utc: missing root attribute"),
-    ("bad-created", _set_attr("/", "created_utc", "yesterday"), "/@created_utc: 'yesterday' is not an ISO 8601 time"),
+    (
+        "bad-created",
+        _set_attr("/", "created_utc", "yesterday"),
+        "/@created_utc: 'yesterday' is not an ISO 8601 time",
+    ),
     ("no-session-id", _del_attr("/", "session_id"), "/@session_id: missing root attribute"),
     ("empty-session-id", _set_attr("/", "session_id", ""), "/@session_id: is empty"),
     ("no-software", _del_attr("/", "software"), "/@software: missing root attribute"),
     ("no-setup", _del_attr("/", "setup"), "/@setup: missing root attribute"),
     ("setup-not-json", _set_attr("/", "setup", "{specimen: 1"), "/@setup: not valid JSON"),
     ("setup-array", _set_attr("/", "setup", np.arange(3)), "/@setup: must be a JSON string"),
-    ("setup-no-specimen", _setup_attr(lambda d: _del(d, ["specimen"])), "/@setup.specimen: missing"),
-    ("setup-length-str", _setup_attr(lambda d: _set(d, ["specimen", "length_m"], "100 mm")), "/@setup.specimen.length_m: expected a number, got a string"),
-    ("setup-negative-length", _setup_attr(lambda d: _set(d, ["specimen", "length_m"], -0.1)), "/@setup.specimen.length_m: must be a positive number, got -0.1"),
-    ("setup-zero-density", _setup_attr(lambda d: _set(d, ["specimen", "density_kg_m3"], 0)), "/@setup.specimen.density_kg_m3: must be a positive number, got 0.0"),
-    ("setup-sensor-outside", _setup_attr(lambda d: _set(d, ["sensors", "response", "x_m"], 0.0995)), "/@setup.sensors.response: the sensor disc"),
-    ("setup-negative-mass", _setup_attr(lambda d: _set(d, ["sensors", "response", "mass_kg"], -0.001)), "/@setup.sensors.response.mass_kg: must be zero or positive"),
-    ("setup-bounds-reversed", _setup_attr(lambda d: _set(d, ["identification", "bounds", "D"], [100.0, 1.0])), "/@setup.identification.bounds.D: low 100.0 must be below high 1.0"),
-    ("setup-unknown-model", _setup_attr(lambda d: _set(d, ["identification", "model"], "anisotropic")), "/@setup.identification.model: unknown model 'anisotropic'"),
-    ("setup-wrong-params", _setup_attr(lambda d: _set(d, ["identification", "model"], "orthotropic")), "/@setup.identification.bounds: model 'orthotropic' needs bounds for D11, D12, D22, D66"),
-    ("setup-extra-param", _setup_attr(lambda d: _set(d, ["identification", "bounds", "E"], [1.0, 2.0])), "/@setup.identification.bounds: E is not a parameter of model 'isotropic'"),
-    ("setup-negative-frequency", _setup_attr(lambda d: _set(d, ["excitation", "frequencies_hz"], [5.0, -10.0])), "/@setup.excitation.frequencies_hz[1]: must be a positive number, got -10.0"),
-    ("setup-bounds-shape", _setup_attr(lambda d: _set(d, ["identification", "bounds", "nu"], [0.1])), "/@setup.identification.bounds.nu: expected [low, high], got [0.1]"),
+    (
+        "setup-no-specimen",
+        _setup_attr(lambda d: _del(d, ["specimen"])),
+        "/@setup.specimen: missing",
+    ),
+    (
+        "setup-length-str",
+        _setup_attr(lambda d: _set(d, ["specimen", "length_m"], "100 mm")),
+        "/@setup.specimen.length_m: expected a number, got a string",
+    ),
+    (
+        "setup-negative-length",
+        _setup_attr(lambda d: _set(d, ["specimen", "length_m"], -0.1)),
+        "/@setup.specimen.length_m: must be a positive number, got -0.1",
+    ),
+    (
+        "setup-zero-density",
+        _setup_attr(lambda d: _set(d, ["specimen", "density_kg_m3"], 0)),
+        "/@setup.specimen.density_kg_m3: must be a positive number, got 0.0",
+    ),
+    (
+        "setup-sensor-outside",
+        _setup_attr(lambda d: _set(d, ["sensors", "response", "x_m"], 0.0995)),
+        "/@setup.sensors.response: the sensor disc",
+    ),
+    (
+        "setup-negative-mass",
+        _setup_attr(lambda d: _set(d, ["sensors", "response", "mass_kg"], -0.001)),
+        "/@setup.sensors.response.mass_kg: must be zero or positive",
+    ),
+    (
+        "setup-bounds-reversed",
+        _setup_attr(lambda d: _set(d, ["identification", "bounds", "D"], [100.0, 1.0])),
+        "/@setup.identification.bounds.D: low 100.0 must be below high 1.0",
+    ),
+    (
+        "setup-unknown-model",
+        _setup_attr(lambda d: _set(d, ["identification", "model"], "anisotropic")),
+        "/@setup.identification.model: unknown model 'anisotropic'",
+    ),
+    (
+        "setup-wrong-params",
+        _setup_attr(lambda d: _set(d, ["identification", "model"], "orthotropic")),
+        "/@setup.identification.bounds: model 'orthotropic' needs bounds for D11, D12, D22, D66",
+    ),
+    (
+        "setup-extra-param",
+        _setup_attr(lambda d: _set(d, ["identification", "bounds", "E"], [1.0, 2.0])),
+        "/@setup.identification.bounds: E is not a parameter of model 'isotropic'",
+    ),
+    (
+        "setup-negative-frequency",
+        _setup_attr(lambda d: _set(d, ["excitation", "frequencies_hz"], [5.0, -10.0])),
+        "/@setup.excitation.frequencies_hz[1]: must be a positive number, got -10.0",
+    ),
+    (
+        "setup-bounds-shape",
+        _setup_attr(lambda d: _set(d, ["identification", "bounds", "nu"], [0.1])),
+        "/@setup.identification.bounds.nu: expected [low, high], got [0.1]",
+    ),
     ("no-steps-group", lambda f: f.move("steps", "records"), "/steps: missing group"),
-    ("step-out-of-sequence", _rename("steps/000002", "steps/000005"), "/steps/000003: step out of sequence: 000002 is missing before it"),
-    ("step-name-not-digits", _rename("steps/000003", "steps/step3"), "/steps/step3: step group name is not six digits"),
-    ("step-no-frequency", _del_attr("steps/000001", "frequency_hz"), "/steps/000001@frequency_hz: missing step attribute"),
-    ("step-frequency-str", _set_attr("steps/000001", "frequency_hz", "10 Hz"), "/steps/000001@frequency_hz: must be a number, got the string '10 Hz'"),
-    ("step-negative-rate", _set_attr("steps/000001", "sample_rate_hz", -25600.0), "/steps/000001@sample_rate_hz: must be a positive finite number, got -25600.0"),
-    ("step-above-nyquist", _set_attr("steps/000001", "frequency_hz", 13000.0), "/steps/000001@frequency_hz: 13000.0 Hz is not below the Nyquist frequency 12800.0 Hz"),
-    ("step-no-t0", _del_attr("steps/000002", "t0_utc"), "/steps/000002@t0_utc: missing step attribute"),
-    ("step-no-status", _del_attr("steps/000002", "status"), "/steps/000002@status: missing step attribute"),
-    ("step-unknown-status", _set_attr("steps/000002", "status", "clipped"), "/steps/000002@status: unknown status 'clipped', expected one of ok, overload, aborted"),
-    ("step-no-response", lambda f: f["steps/000003"].__delitem__("response"), "/steps/000003/response: missing dataset"),
-    ("step-lengths-differ", _replace_dataset("000003", "response", np.zeros(2047, np.float32)), "/steps/000003/response: length 2047 differs from base 2048"),
-    ("step-int-samples", _replace_dataset("000003", "base", np.zeros(2048, np.int16)), "/steps/000003/base: must be float32 or float64, is int16"),
-    ("step-2d-samples", _replace_dataset("000003", "base", np.zeros((2, 1024))), "/steps/000003/base: must be 1-D, has shape (2, 1024)"),
-    ("step-nan", _nan_at("000000", "response", np.nan), "/steps/000000/response: 1 sample is NaN or infinite"),
-    ("step-inf", _nan_at("000001", "base", np.inf), "/steps/000001/base: 1 sample is NaN or infinite"),
+    (
+        "step-out-of-sequence",
+        _rename("steps/000002", "steps/000005"),
+        "/steps/000003: step out of sequence: 000002 is missing before it",
+    ),
+    (
+        "step-name-not-digits",
+        _rename("steps/000003", "steps/step3"),
+        "/steps/step3: step group name is not six digits",
+    ),
+    (
+        "step-no-frequency",
+        _del_attr("steps/000001", "frequency_hz"),
+        "/steps/000001@frequency_hz: missing step attribute",
+    ),
+    (
+        "step-frequency-str",
+        _set_attr("steps/000001", "frequency_hz", "10 Hz"),
+        "/steps/000001@frequency_hz: must be a number, got the string '10 Hz'",
+    ),
+    (
+        "step-negative-rate",
+        _set_attr("steps/000001", "sample_rate_hz", -25600.0),
+        "/steps/000001@sample_rate_hz: must be a positive finite number, got -25600.0",
+    ),
+    (
+        "step-above-nyquist",
+        _set_attr("steps/000001", "frequency_hz", 13000.0),
+        "/steps/000001@frequency_hz: 13000.0 Hz is not below the Nyquist frequency 12800.0 Hz",
+    ),
+    (
+        "step-no-t0",
+        _del_attr("steps/000002", "t0_utc"),
+        "/steps/000002@t0_utc: missing step attribute",
+    ),
+    (
+        "step-no-status",
+        _del_attr("steps/000002", "status"),
+        "/steps/000002@status: missing step attribute",
+    ),
+    (
+        "step-unknown-status",
+        _set_attr("steps/000002", "status", "clipped"),
+        "/steps/000002@status: unknown status 'clipped', expected one of ok, overload, aborted",
+    ),
+    (
+        "step-no-response",
+        lambda f: f["steps/000003"].__delitem__("response"),
+        "/steps/000003/response: missing dataset",
+    ),
+    (
+        "step-lengths-differ",
+        _replace_dataset("000003", "response", np.zeros(2047, np.float32)),
+        "/steps/000003/response: length 2047 differs from base 2048",
+    ),
+    (
+        "step-int-samples",
+        _replace_dataset("000003", "base", np.zeros(2048, np.int16)),
+        "/steps/000003/base: must be float32 or float64, is int16",
+    ),
+    (
+        "step-2d-samples",
+        _replace_dataset("000003", "base", np.zeros((2, 1024))),
+        "/steps/000003/base: must be 1-D, has shape (2, 1024)",
+    ),
+    (
+        "step-nan",
+        _nan_at("000000", "response", np.nan),
+        "/steps/000000/response: 1 sample is NaN or infinite",
+    ),
+    (
+        "step-inf",
+        _nan_at("000001", "base", np.inf),
+        "/steps/000001/base: 1 sample is NaN or infinite",
+    ),
     ("step-empty", _replace_dataset("000002", "base", np.zeros(0)), "/steps/000002/base: is empty"),
 ]
 
@@ -205,7 +340,9 @@ def test_installed_command_exit_codes(tmp_path):
     good, bad = tmp_path / "good.h5", tmp_path / "bad.h5"
     write_conformant(good)
     bad.write_text("not hdf5")
-    run = lambda *a: subprocess.run([sys.executable, "-m", "vibid", *a], capture_output=True, text=True)
+    run = lambda *a: subprocess.run(
+        [sys.executable, "-m", "vibid", *a], capture_output=True, text=True
+    )
     ok, fail, usage = run("validate", str(good)), run("validate", str(bad)), run("validate")
     assert (ok.returncode, fail.returncode, usage.returncode) == (0, 1, 2)
     assert all("Traceback" not in r.stdout + r.stderr for r in (ok, fail, usage))

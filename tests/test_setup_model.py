@@ -22,14 +22,22 @@ def test_every_problem_is_listed_at_once():
         parse_setup(doc)
     problems = err.value.problems
     assert "setup.specimen.thickness_m: must be a positive number, got 0.0" in problems
-    assert "setup.identification.bounds.beta: the loss factor cannot be negative, low is -0.1" in problems
-    assert sum("Nyquist" in p for p in problems) == sum(f >= 1000.0 for f in example_setup().excitation.frequencies_hz)
+    assert (
+        "setup.identification.bounds.beta: the loss factor cannot be negative, low is -0.1"
+        in problems
+    )
+    assert sum("Nyquist" in p for p in problems) == sum(
+        f >= 1000.0 for f in example_setup().excitation.frequencies_hz
+    )
 
 
 @pytest.mark.parametrize("model", list(MODEL_PARAMETERS))
 def test_each_model_needs_exactly_its_parameters(model):
     doc = example_setup().to_dict()
-    doc["identification"] = {"model": model, "bounds": {n: [0.1, 0.4] for n in MODEL_PARAMETERS[model]}}
+    doc["identification"] = {
+        "model": model,
+        "bounds": {n: [0.1, 0.4] for n in MODEL_PARAMETERS[model]},
+    }
     assert parse_setup(doc).identification.parameter_names == MODEL_PARAMETERS[model]
     doc["identification"]["bounds"].popitem()
     with pytest.raises(SetupError, match="needs bounds for"):
@@ -103,7 +111,8 @@ def test_a_planned_setup_lists_settle_and_record_times_per_step():
         parse_setup(doc)
     assert err.value.problems == [
         "setup.excitation.settle_s: lists 2 values for 3 frequencies (one per step)",
-        "setup.excitation.record_s[1]: must be positive, got 0.0"]
+        "setup.excitation.record_s[1]: must be positive, got 0.0",
+    ]
 
 
 @pytest.mark.parametrize("raw, digits", [("1" * 400, 400), ("-" + "9" * 5000, 5000)])
@@ -114,20 +123,25 @@ def test_an_integer_beyond_the_floats_names_its_field_in_one_line(raw, digits):
     with pytest.raises(SetupError) as err:
         parse_setup(text)
     assert err.value.problems == [
-        (f"setup.specimen.length_m: must be a finite number, got an integer of {digits} digits "
-         "(beyond the floating-point range)")]
+        (
+            f"setup.specimen.length_m: must be a finite number, got an integer of {digits} digits "
+            "(beyond the floating-point range)"
+        )
+    ]
 
 
 def test_integers_beyond_the_floats_in_lists_and_bounds_name_their_place():
     doc = example_setup().to_dict()
-    doc["excitation"]["frequencies_hz"][1] = 10 ** 400
-    doc["excitation"]["settle_s"] = [0.5] * 199 + [-(10 ** 5000)]
-    doc["identification"]["bounds"]["D"] = [1, 10 ** 5000]
+    doc["excitation"]["frequencies_hz"][1] = 10**400
+    doc["excitation"]["settle_s"] = [0.5] * 199 + [-(10**5000)]
+    doc["identification"]["bounds"]["D"] = [1, 10**5000]
     with pytest.raises(SetupError) as err:
         parse_setup(doc)
     assert [p.split(":")[0] for p in err.value.problems] == [
-        "setup.excitation.frequencies_hz[1]", "setup.excitation.settle_s[199]",
-        "setup.identification.bounds.D[1]"]
+        "setup.excitation.frequencies_hz[1]",
+        "setup.excitation.settle_s[199]",
+        "setup.identification.bounds.D[1]",
+    ]
     assert "401 digits" in err.value.problems[0] and "5001 digits" in err.value.problems[2]
     assert "\n" not in str(err.value)
 
@@ -144,14 +158,15 @@ def test_an_odd_bounds_name_is_quoted_on_one_line(name):
     doc["identification"]["bounds"][name] = "1..2"
     with pytest.raises(SetupError) as err:
         parse_setup(doc)
-    assert err.value.problems == [f"setup.identification.bounds[{name!r}]: expected [low, high], "
-                                  + 'got "1..2"']
+    assert err.value.problems == [
+        f"setup.identification.bounds[{name!r}]: expected [low, high], " + 'got "1..2"'
+    ]
 
 
 def test_a_bad_bounds_pair_is_shown_short_on_one_line():
     doc = example_setup().to_dict()
     doc["identification"]["bounds"]["D"] = [1.0] * 1000
-    doc["identification"]["bounds"]["nu"] = {"a\nb": 10 ** 5000}
+    doc["identification"]["bounds"]["nu"] = {"a\nb": 10**5000}
     with pytest.raises(SetupError) as err:
         parse_setup(doc)
     d, nu = err.value.problems

@@ -15,8 +15,16 @@ FS = 25_600.0
 
 
 def _record(f_hz, h, n=12_800, ppm=0.0, seed=0, noise=(1e-3, 1e-3), **kw):
-    base, response = synthetic_step(f_hz, h, sample_rate_hz=FS, n_samples=n, clock_offset_ppm=ppm,
-                                    noise_std_m_s2=noise, rng=seed, **kw)
+    base, response = synthetic_step(
+        f_hz,
+        h,
+        sample_rate_hz=FS,
+        n_samples=n,
+        clock_offset_ppm=ppm,
+        noise_std_m_s2=noise,
+        rng=seed,
+        **kw,
+    )
     return base, response
 
 
@@ -24,7 +32,9 @@ def test_phase_is_positive_when_the_response_leads():
     """Direct construction, not the generator: response = cos(ωt + 30°), base = cos(ωt)."""
     t = np.arange(10_000) / 10_000.0
     w = 2 * np.pi * 123.0
-    table = afc_from_records([StepRecord(123.0, 10_000.0, np.cos(w * t), 2.0 * np.cos(w * t + np.radians(30.0)))])
+    table = afc_from_records(
+        [StepRecord(123.0, 10_000.0, np.cos(w * t), 2.0 * np.cos(w * t + np.radians(30.0)))]
+    )
     assert np.angle(table.H[0], deg=True) == pytest.approx(30.0, abs=1e-9)
     assert abs(table.H[0]) == pytest.approx(2.0, rel=1e-12)
 
@@ -32,7 +42,9 @@ def test_phase_is_positive_when_the_response_leads():
 def test_generator_phasors_follow_the_convention():
     """The mock's response at t = 0 is Re(H A e^{iφ}): independent of any fit."""
     h = 0.5 * np.exp(1j * 0.7)
-    base, response = synthetic_step(10.0, h, sample_rate_hz=1000.0, n_samples=10, base_phase_rad=0.2)
+    base, response = synthetic_step(
+        10.0, h, sample_rate_hz=1000.0, n_samples=10, base_phase_rad=0.2
+    )
     assert base[0] == pytest.approx(np.cos(0.2))
     assert response[0] == pytest.approx(0.5 * np.cos(0.9))
     again = synthetic_step(10.0, h, sample_rate_hz=1000.0, n_samples=10, base_phase_rad=0.2)
@@ -54,7 +66,9 @@ def test_table_holds_every_step_in_order_with_mixed_lengths():
     # 9 kHz at fs 25.6 kHz: 2f and 3f are above Nyquist, fitted with the fundamental only
     z = np.abs(table.H - np.array(truth)) / table.std
     assert np.all(z < 5.0)
-    f_true = [true_frequency_hz(f, 100.0 - 50 * k) for k, f in enumerate([20.0, 40.0, 60.0, 9_000.0])]
+    f_true = [
+        true_frequency_hz(f, 100.0 - 50 * k) for k, f in enumerate([20.0, 40.0, 60.0, 9_000.0])
+    ]
     f_std = np.array([p.frequency_std_hz for p in table.points])
     assert np.all(np.abs(table.frequency_hz - f_true) < 5.0 * f_std)
     assert np.isnan(table.points[3].thd_db[0])
@@ -62,8 +76,11 @@ def test_table_holds_every_step_in_order_with_mixed_lengths():
 
 def test_report_block_lists_used_steps_and_diagnoses_all():
     b, r = _record(50.0, 1.5j)
-    steps = [StepRecord(50.0, FS, b, r), StepRecord(50.0, FS, b, r, status="overload"),
-             StepRecord(70.0, FS, np.ones(5), np.ones(5))]
+    steps = [
+        StepRecord(50.0, FS, b, r),
+        StepRecord(50.0, FS, b, r, status="overload"),
+        StepRecord(70.0, FS, np.ones(5), np.ones(5)),
+    ]
     block = afc_from_records(steps).to_report_block()
     assert block["frequency_hz"] == [pytest.approx(50.0)]
     assert block["re"][0] == pytest.approx(0.0, abs=1e-4)
@@ -89,9 +106,16 @@ def _write_session(path, statuses=("ok", "ok", "overload")):
         for k, status in enumerate(statuses):
             f = 100.0 + 50.0 * k
             h = 1.0 / (1.0 - (f / 180.0) ** 2 + 0.01j)
-            b, r = _record(f, h, ppm=80.0, seed=k, dc_m_s2=(0.01, 0.02), harmonics_db=(-40.0, -45.0))
-            w.append(frequency_hz=f, sample_rate_hz=FS, base=b.astype(np.float32), response=r.astype(np.float32),
-                     status=status)
+            b, r = _record(
+                f, h, ppm=80.0, seed=k, dc_m_s2=(0.01, 0.02), harmonics_db=(-40.0, -45.0)
+            )
+            w.append(
+                frequency_hz=f,
+                sample_rate_hz=FS,
+                base=b.astype(np.float32),
+                response=r.astype(np.float32),
+                status=status,
+            )
             truth.append(h)
     return truth
 

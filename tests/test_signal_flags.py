@@ -18,8 +18,14 @@ def _h(f_hz):
 
 def _step(f_hz=210.0, status="ok", n=N, **kw):
     """A realistic clean step (clock offset, DC, drift, -40 dB harmonics, noise) with changes ``kw``."""
-    opts = dict(clock_offset_ppm=150.0, dc_m_s2=(0.05, -0.02), drift_m_s2_per_s=(0.01, 0.02),
-                harmonics_db=(-40.0, -40.0), noise_std_m_s2=(2e-3, 2e-3), rng=int(f_hz))
+    opts = dict(
+        clock_offset_ppm=150.0,
+        dc_m_s2=(0.05, -0.02),
+        drift_m_s2_per_s=(0.01, 0.02),
+        harmonics_db=(-40.0, -40.0),
+        noise_std_m_s2=(2e-3, 2e-3),
+        rng=int(f_hz),
+    )
     opts.update(kw)
     base, response = synthetic_step(f_hz, _h(f_hz), sample_rate_hz=FS, n_samples=n, **opts)
     return StepRecord(f_hz, FS, base, response, status=status)
@@ -31,7 +37,10 @@ def _flags(step):
 
 
 def test_no_flag_fires_on_clean_records_across_the_band():
-    steps = [_step(f, rng=k, clock_offset_ppm=(-200.0 + 4 * k)) for k, f in enumerate(np.geomspace(5.0, 4000.0, 100))]
+    steps = [
+        _step(f, rng=k, clock_offset_ppm=(-200.0 + 4 * k))
+        for k, f in enumerate(np.geomspace(5.0, 4000.0, 100))
+    ]
     table = afc_from_records(steps)
     assert table.flags == ((),) * 100
     assert table.used.all()
@@ -60,7 +69,9 @@ def test_aborted_status_sets_aborted():
 @pytest.mark.parametrize(
     "transient",
     [
-        Transient(amplitude_m_s2=0.02, decay_s=0.3),  # envelope still growing at the drive frequency
+        Transient(
+            amplitude_m_s2=0.02, decay_s=0.3
+        ),  # envelope still growing at the drive frequency
         # ringing at a natural frequency one bin from the drive: beats
         Transient(amplitude_m_s2=0.02, decay_s=0.3, frequency_hz=211.0),
     ],
@@ -80,7 +91,9 @@ def test_a_weak_response_sets_low_snr():
 def test_strong_harmonics_set_distortion():
     point = _flags(_step(harmonics_db=(-12.0, -30.0)))
     assert point.flag_names == ("distortion",)
-    assert point.thd_db[0] == pytest.approx(20 * np.log10(np.hypot(10 ** (-12 / 20), 10 ** (-30 / 20))), abs=0.05)
+    assert point.thd_db[0] == pytest.approx(
+        20 * np.log10(np.hypot(10 ** (-12 / 20), 10 ** (-30 / 20))), abs=0.05
+    )
 
 
 def test_a_clock_beyond_its_tolerance_sets_clock():
@@ -121,7 +134,9 @@ def test_flat_top_fraction_of_a_clean_sine_is_small_and_of_a_clipped_one_is_not(
     x = np.sin(2 * np.pi * 5.0 * t)  # 5120 samples per cycle: hits the peak exactly
     assert flat_top_fraction(x) < 0.001
     # clipped at 0.9: a fraction arccos(0.9)/π of the samples on each rail
-    assert flat_top_fraction(np.clip(x, -0.9, 0.9)) == pytest.approx(np.arccos(0.9) / np.pi, rel=0.01)
+    assert flat_top_fraction(np.clip(x, -0.9, 0.9)) == pytest.approx(
+        np.arccos(0.9) / np.pi, rel=0.01
+    )
 
 
 def test_chi2_limits_are_the_gaussian_tails():

@@ -36,13 +36,24 @@ def _h(fit):
 @pytest.mark.parametrize("ppm", [-200.0, 0.0, 137.0])
 def test_noise_free_record_gives_h_and_frequency_exactly(n, ppm):
     f, fs, h = 37.3, 2560.0, 0.7 * np.exp(0.9j)
-    x = _clean(f, h, fs, n, clock_offset_ppm=ppm, dc_m_s2=(0.3, -2.0), drift_m_s2_per_s=(0.05, 0.2),
-               harmonics_db=(-30.0, -35.0), rng=3)
+    x = _clean(
+        f,
+        h,
+        fs,
+        n,
+        clock_offset_ppm=ppm,
+        dc_m_s2=(0.3, -2.0),
+        drift_m_s2_per_s=(0.05, 0.2),
+        harmonics_db=(-30.0, -35.0),
+        rng=3,
+    )
     fit = fit_harmonics(x, f, fs)
     h_fit = fit.phasors_m_s2[0, 1, 0] / fit.phasors_m_s2[0, 0, 0]
     assert abs(h_fit - h) < 1e-9
     assert fit.frequency_hz[0] == pytest.approx(true_frequency_hz(f, ppm), rel=1e-11)
-    assert fit.offset_m_s2[0] == pytest.approx([0.3 + 0.05 * (n - 1) / fs / 2, -2.0 + 0.2 * (n - 1) / fs / 2], rel=1e-8)
+    assert fit.offset_m_s2[0] == pytest.approx(
+        [0.3 + 0.05 * (n - 1) / fs / 2, -2.0 + 0.2 * (n - 1) / fs / 2], rel=1e-8
+    )
     assert fit.drift_m_s2_per_s[0] == pytest.approx([0.05, 0.2], rel=1e-7)
     assert np.all(fit.converged)
 
@@ -82,7 +93,10 @@ def test_bad_layouts_are_refused():
 
 @pytest.mark.parametrize(
     "f_hz, fs_hz, n",
-    [(37.3, 2560.0, 4000), (10_000.0, 100_000.0, 20_001)],  # 58.3 cycles; 2000.1 cycles (0.4 bin at 200 ppm)
+    [
+        (37.3, 2560.0, 4000),
+        (10_000.0, 100_000.0, 20_001),
+    ],  # 58.3 cycles; 2000.1 cycles (0.4 bin at 200 ppm)
 )
 def test_h_is_unbiased_across_clock_offsets(f_hz, fs_hz, n):
     """Clock offsets -200..+200 ppm, harmonics at -40 dB, DC, drift, non-integer cycles."""
@@ -91,8 +105,18 @@ def test_h_is_unbiased_across_clock_offsets(f_hz, fs_hz, n):
     m = 40
     z_all = []
     for j, ppm in enumerate(np.linspace(-200.0, 200.0, 9)):
-        clean = _clean(f_hz, h_true, fs_hz, n, clock_offset_ppm=ppm, dc_m_s2=(0.5, -0.3),
-                       drift_m_s2_per_s=(0.2, -0.1), harmonics_db=(-40.0, -40.0), base_phase_rad=0.3 * j, rng=j)
+        clean = _clean(
+            f_hz,
+            h_true,
+            fs_hz,
+            n,
+            clock_offset_ppm=ppm,
+            dc_m_s2=(0.5, -0.3),
+            drift_m_s2_per_s=(0.2, -0.1),
+            harmonics_db=(-40.0, -40.0),
+            base_phase_rad=0.3 * j,
+            rng=j,
+        )
         fit = fit_harmonics(_noisy(clean, sigma, m, seed=100 + j), f_hz, fs_hz)
         h, s_re, s_im = _h(fit)
         # mean error against its own standard error: unbiased within uncertainty
@@ -129,7 +153,10 @@ def _exact_crb(f_hz, fs_hz, n, amplitudes, sigma, n_harmonics, refine):
     jac[:n, :p], jac[n:, p : 2 * p] = cols_all
     if refine:
         for c, a1 in enumerate(amplitudes):
-            d = sum(-(a1 if k == 1 else 0.01 * a1) * k * t * np.sin(k * w * t + 0.4 * k) for k in range(1, n_harmonics + 1))
+            d = sum(
+                -(a1 if k == 1 else 0.01 * a1) * k * t * np.sin(k * w * t + 0.4 * k)
+                for k in range(1, n_harmonics + 1)
+            )
             jac[c * n : (c + 1) * n, -1] = d / sigma[c]
     cov = np.linalg.inv(jac.T @ jac)
     var_a = np.array([cov[2, 2], cov[p + 2, p + 2]])
@@ -145,7 +172,16 @@ def test_amplitude_and_phase_variances_reach_the_cramer_rao_bound(refine):
     h = 0.6 * np.exp(0.8j)
     sigma = np.array([0.05, 0.03])
     amplitudes = np.array([1.0, abs(h)])
-    clean = _clean(f, h, fs, n, dc_m_s2=(0.2, 0.1), drift_m_s2_per_s=(0.1, -0.2), harmonics_db=(-40.0, -40.0), rng=5)
+    clean = _clean(
+        f,
+        h,
+        fs,
+        n,
+        dc_m_s2=(0.2, 0.1),
+        drift_m_s2_per_s=(0.1, -0.2),
+        harmonics_db=(-40.0, -40.0),
+        rng=5,
+    )
     fit = fit_harmonics(_noisy(clean, sigma, m, seed=7), f, fs, refine_frequency=refine)
     x = fit.phasors_m_s2[:, :, 0]
     var_a = np.abs(x).var(axis=0, ddof=1)
@@ -179,13 +215,24 @@ def test_reported_uncertainty_matches_the_monte_carlo_scatter():
     f, fs, n, m = 123.4, 5120.0, 3000, 1000
     h = 2.5 * np.exp(1.2j)
     sigma = np.array([0.02, 0.08])
-    clean = _clean(f, h, fs, n, clock_offset_ppm=-150.0, dc_m_s2=(1.0, 0.5), drift_m_s2_per_s=(0.3, 0.3),
-                   harmonics_db=(-40.0, -40.0), rng=11)
+    clean = _clean(
+        f,
+        h,
+        fs,
+        n,
+        clock_offset_ppm=-150.0,
+        dc_m_s2=(1.0, 0.5),
+        drift_m_s2_per_s=(0.3, 0.3),
+        harmonics_db=(-40.0, -40.0),
+        rng=11,
+    )
     fit = fit_harmonics(_noisy(clean, sigma, m, seed=12), f, fs)
     h_fit, s_re, s_im = _h(fit)
     assert s_re.mean() / np.real(h_fit).std(ddof=1) == pytest.approx(1.0, abs=0.15)
     assert s_im.mean() / np.imag(h_fit).std(ddof=1) == pytest.approx(1.0, abs=0.15)
-    assert fit.frequency_std_hz.mean() / fit.frequency_hz.std(ddof=1) == pytest.approx(1.0, abs=0.15)
+    assert fit.frequency_std_hz.mean() / fit.frequency_hz.std(ddof=1) == pytest.approx(
+        1.0, abs=0.15
+    )
     assert fit.noise_std_m_s2.mean(axis=0) == pytest.approx(sigma, rel=0.01)
     # the settling statistics are χ² with 1 (amplitude) and 2 (H) degrees of freedom: on clean
     # records their means are 1 and 2 (each known to ±4.5 %)
@@ -200,8 +247,9 @@ def test_residual_of_each_half_is_the_plain_least_squares_residual(n):
     (the centre sample of an odd record in neither), against numpy's least squares of the
     same model (offset, drift, 3 harmonics) at the fitted frequency, on the whole record."""
     fs, f = 25600.0, 210.0
-    base, response = synthetic_step(f, 2.0 - 1.0j, sample_rate_hz=fs, n_samples=n,
-                                    noise_std_m_s2=(1e-3, 1e-3), rng=4)
+    base, response = synthetic_step(
+        f, 2.0 - 1.0j, sample_rate_hz=fs, n_samples=n, noise_std_m_s2=(1e-3, 1e-3), rng=4
+    )
     t = np.arange(n) / fs
     response = response + 0.05 * np.exp(-8.0 * t) * np.cos(2 * np.pi * 251.0 * t)  # a ring
     x = np.stack([base, response])
@@ -212,7 +260,7 @@ def test_residual_of_each_half_is_the_plain_least_squares_residual(n):
     h = n // 2
     for c in range(2):
         r = x[c] - a @ np.linalg.lstsq(a, x[c], rcond=None)[0]
-        expected = [r[:h] @ r[:h], r[n - h:] @ r[n - h:]]
+        expected = [r[:h] @ r[:h], r[n - h :] @ r[n - h :]]
         np.testing.assert_allclose(fit.residual_ss_halves[0, c], expected, rtol=2e-3)
     first, second = fit.residual_ss_halves[0, 1]
     assert first > 2 * second  # the ring dies out: the first half holds more

@@ -33,8 +33,11 @@ from vibid.setup_model import Excitation, example_setup
 EXAMPLES = Path(__file__).parent.parent / "examples"
 #: the example stand's drive (|H| reaches a few hundred: 1 m/s² of base keeps the response in
 #: range) and settle cap, on a clean specimen at the default noise
-STAND = {"drive": {"target_base_m_s2": 1.0, "initial_vpp": 0.04}, "timing": {"max_settle_s": 30.0},
-         "simulated": {"seed": 0}}
+STAND = {
+    "drive": {"target_base_m_s2": 1.0, "initial_vpp": 0.04},
+    "timing": {"max_settle_s": 30.0},
+    "simulated": {"seed": 0},
+}
 
 
 def test_a_fault_plan_is_spaced_seeded_and_inside_the_campaign():
@@ -51,8 +54,12 @@ def test_a_fault_plan_is_spaced_seeded_and_inside_the_campaign():
 
 def _stand(name, faults):
     setup = dataclasses.replace(example_setup(), excitation=Excitation((180.0, 300.0, 420.0), 0.5))
-    config = StandConfig.from_dict({"generator": {"url": f"vibidsim://{name}", "timeout_s": 0.1},
-                                    "simulated": {"faults": faults}})
+    config = StandConfig.from_dict(
+        {
+            "generator": {"url": f"vibidsim://{name}", "timeout_s": 0.1},
+            "simulated": {"faults": faults},
+        }
+    )
     return setup, config
 
 
@@ -98,7 +105,9 @@ def test_a_campaign_survives_faults_at_random_steps_and_identifies_as_without_th
     logging.getLogger("vibid.acquisition.generator").setLevel(logging.ERROR)  # the lost links
     setup = load_setup(EXAMPLES / "strip_setup.json")
     freqs = setup.excitation.frequencies_hz[::2]
-    setup = dataclasses.replace(setup, excitation=dataclasses.replace(setup.excitation, frequencies_hz=freqs))
+    setup = dataclasses.replace(
+        setup, excitation=dataclasses.replace(setup.excitation, frequencies_hz=freqs)
+    )
     config = StandConfig.from_dict(STAND)
     # seed 0: two overloads on the way to the second SIGKILL (the killed process injects them)
     plan = fault_plan(len(freqs), {"no_reply": 2, "drop": 2, "overload": 2, "kill": 2}, seed=0)
@@ -137,9 +146,13 @@ def test_an_adaptive_campaign_survives_faults_and_identifies_as_without_them(tmp
     logging.getLogger("vibid.acquisition.generator").setLevel(logging.ERROR)
     setup = load_setup(EXAMPLES / "strip_setup.json")
     config = StandConfig.from_dict(STAND)
-    options = AdaptiveOptions(parse_targets(["D=1e-7%"], ("D", "nu", "beta")), (18.75, 1500.0), 60.0)
+    options = AdaptiveOptions(
+        parse_targets(["D=1e-7%"], ("D", "nu", "beta")), (18.75, 1500.0), 60.0
+    )
     plan = fault_plan(24, {"no_reply": 1, "drop": 1, "overload": 1, "kill": 1}, seed=0)
-    result = soak(setup, config, tmp_path / "soak.h5", plan, adaptive=options, reference=True, seed=1)
+    result = soak(
+        setup, config, tmp_path / "soak.h5", plan, adaptive=options, reference=True, seed=1
+    )
     print("\n" + "\n".join(result.log) + "\n" + result.summary())
     assert result.survived == len(plan), result.outcomes
     for o in result.outcomes:

@@ -43,12 +43,19 @@ def open_daq(source, config=DaqConfig(), sensitivities=(98.7, 10.2)):
 
 
 def test_channels_are_configured_from_the_setup_and_the_stand():
-    config = DaqConfig(device="Dev1", base_channel="ai2", response_channel="ai0",
-                       iepe_current_a=0.004, range_g=40.0)
+    config = DaqConfig(
+        device="Dev1",
+        base_channel="ai2",
+        response_channel="ai0",
+        iepe_current_a=0.004,
+        range_g=40.0,
+    )
     daq, (task,) = open_daq(Source(), config, sensitivities=(98.7, 10.2))
     assert isinstance(daq, Daq)
     assert [(c["physical_channel"], c["name"]) for c in task.channels] == [
-        ("Dev1/ai2", "base"), ("Dev1/ai0", "response")]
+        ("Dev1/ai2", "base"),
+        ("Dev1/ai0", "response"),
+    ]
     for channel, sensitivity in zip(task.channels, (98.7, 10.2)):
         assert channel["sensitivity"] == sensitivity
         assert channel["sensitivity_units"] is AccelSensitivityUnits.MILLIVOLTS_PER_G
@@ -68,7 +75,10 @@ def test_acquire_sets_the_clock_reads_n_samples_and_returns_m_s2():
     daq, (task,) = open_daq(source)
     reading = daq.acquire(6400)
     assert (task.timing.rate, task.timing.sample_mode, task.timing.samps_per_chan) == (
-        FS, AcquisitionType.FINITE, 6400)
+        FS,
+        AcquisitionType.FINITE,
+        6400,
+    )
     assert task.reads == [6400] and not task.running
     expected = source.record(6400, FS)
     np.testing.assert_allclose(reading.base_m_s2, expected[0], rtol=1e-12, atol=1e-12)
@@ -91,11 +101,26 @@ def test_overload_is_reported_and_the_record_clipped():
     assert daq.acquire(2560).overloaded == ("response",)  # each read reports its own
 
 
-@pytest.mark.parametrize("config, sensitivities, match", [
-    (DaqConfig(base_channel="ai7"), (100.0, 100.0), r"cannot add channel Dev1/ai7: Physical channel specified does not exist"),
-    (DaqConfig(range_g=60.0), (100.0, 100.0), r"cannot add channel Dev1/ai0: Requested value is not a supported value"),
-    (DaqConfig(iepe_current_a=0.003), (100.0, 100.0), r"cannot add channel Dev1/ai0: Requested value"),
-])
+@pytest.mark.parametrize(
+    "config, sensitivities, match",
+    [
+        (
+            DaqConfig(base_channel="ai7"),
+            (100.0, 100.0),
+            r"cannot add channel Dev1/ai7: Physical channel specified does not exist",
+        ),
+        (
+            DaqConfig(range_g=60.0),
+            (100.0, 100.0),
+            r"cannot add channel Dev1/ai0: Requested value is not a supported value",
+        ),
+        (
+            DaqConfig(iepe_current_a=0.003),
+            (100.0, 100.0),
+            r"cannot add channel Dev1/ai0: Requested value",
+        ),
+    ],
+)
 def test_settings_the_device_refuses_are_one_line(config, sensitivities, match):
     with pytest.raises(DaqError, match=f"^DAQ Dev1: {match}") as info:
         open_daq(Source(), config, sensitivities)
@@ -105,17 +130,24 @@ def test_settings_the_device_refuses_are_one_line(config, sensitivities, match):
 def test_a_sample_rate_the_device_refuses_is_one_line():
     daq, _ = open_daq(Source())
     daq.sample_rate_hz = 100_000.0
-    with pytest.raises(DaqError, match=r"^DAQ Dev1: cannot set the sample clock: Requested value") as info:
+    with pytest.raises(
+        DaqError, match=r"^DAQ Dev1: cannot set the sample clock: Requested value"
+    ) as info:
         daq.acquire(100)
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize("error", [
-    DaqNotFoundError("Could not find an installation of NI-DAQmx. Please ensure that NI-DAQmx "
-                     "is installed on this machine or contact National Instruments for support."),
-    OSError("libnidaqmx.so: cannot open shared object file"),
-    ImportError("No module named 'nidaqmx'"),
-])
+@pytest.mark.parametrize(
+    "error",
+    [
+        DaqNotFoundError(
+            "Could not find an installation of NI-DAQmx. Please ensure that NI-DAQmx "
+            "is installed on this machine or contact National Instruments for support."
+        ),
+        OSError("libnidaqmx.so: cannot open shared object file"),
+        ImportError("No module named 'nidaqmx'"),
+    ],
+)
 def test_missing_ni_daqmx_is_one_line(error):
     def factory():
         raise error
@@ -139,11 +171,14 @@ def test_ni_stand_on_this_machine_opens_or_says_ni_daqmx_is_missing():
 
 def test_from_setup_takes_rate_and_sensitivities_from_the_setup():
     setup = example_setup()
-    sensors = dataclasses.replace(setup.sensors, base=dataclasses.replace(setup.sensors.base,
-                                                                          sensitivity_mV_per_g=9.81))
+    sensors = dataclasses.replace(
+        setup.sensors, base=dataclasses.replace(setup.sensors.base, sensitivity_mV_per_g=9.81)
+    )
     setup = dataclasses.replace(setup, sensors=sensors)
     tasks = []
-    daq = NiDaq.from_setup(setup, DaqConfig(), task_factory=lambda: tasks.append(FakeTask(Source())) or tasks[-1])
+    daq = NiDaq.from_setup(
+        setup, DaqConfig(), task_factory=lambda: tasks.append(FakeTask(Source())) or tasks[-1]
+    )
     assert daq.sample_rate_hz == setup.daq.sample_rate_hz
     assert [c["sensitivity"] for c in tasks[0].channels] == [9.81, 100.0]
 
@@ -153,11 +188,17 @@ def test_a_failed_read_is_one_line_and_stops_the_task():
 
     class Failing(Source):
         def record(self, n, fs):
-            raise NiDaqError("Some or all of the samples requested have not yet been acquired.\n"
-                             "Increase the timeout.", -200284)
+            raise NiDaqError(
+                "Some or all of the samples requested have not yet been acquired.\n"
+                "Increase the timeout.",
+                -200284,
+            )
 
     daq, (task,) = open_daq(Failing())
-    with pytest.raises(DaqError, match=r"^DAQ Dev1: cannot read: Some or all of the samples requested "
-                                       r"have not yet been acquired\.$"):
+    with pytest.raises(
+        DaqError,
+        match=r"^DAQ Dev1: cannot read: Some or all of the samples requested "
+        r"have not yet been acquired\.$",
+    ):
         daq.acquire(256)
     assert not task.running

@@ -22,9 +22,15 @@ def test_devices_lists_ports_with_idn_and_says_what_it_knows_of_ni(monkeypatch, 
     silent = SimulatedGenerator(VirtualClock())
     silent.sim_no_reply()
     register("silent", silent)
-    monkeypatch.setattr(serial.tools.list_ports, "comports", lambda: [
-        _port("vibidsim://devtest", "USB serial"), _port("vibidsim://silent", "USB serial"),
-        _port("vibidsim://gone", "unplugged")])
+    monkeypatch.setattr(
+        serial.tools.list_ports,
+        "comports",
+        lambda: [
+            _port("vibidsim://devtest", "USB serial"),
+            _port("vibidsim://silent", "USB serial"),
+            _port("vibidsim://gone", "unplugged"),
+        ],
+    )
     assert main(["devices", "--timeout-s", "0.01"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[:4] == [  # sorted by device

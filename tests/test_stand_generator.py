@@ -12,7 +12,12 @@ import math
 import pytest
 
 import vibid.hardware_mocks  # noqa: F401  (registers the vibidsim:// scheme with pyserial)
-from vibid.acquisition.generator import GeneratorError, GeneratorTimeout, ScpiGenerator, open_generator
+from vibid.acquisition.generator import (
+    GeneratorError,
+    GeneratorTimeout,
+    ScpiGenerator,
+    open_generator,
+)
 from vibid.acquisition.protocols import Generator
 from vibid.errors import VibidError
 from vibid.hardware_mocks.sim_generator import IDN, SimulatedGenerator, register
@@ -46,35 +51,49 @@ def test_driver_is_a_generator():
     assert isinstance(gen, Generator)
 
 
-@pytest.mark.parametrize("name, value, command", [
-    ("frequency_hz", 123.4, "FREQ 123.4"),
-    ("frequency_hz", 1499.99025, "FREQ 1499.99025"),
-    ("amplitude_vpp", 0.5, "VOLT 0.5"),
-    ("output_enabled", True, "OUTP ON"),
-    ("output_enabled", False, "OUTP OFF"),
-])
+@pytest.mark.parametrize(
+    "name, value, command",
+    [
+        ("frequency_hz", 123.4, "FREQ 123.4"),
+        ("frequency_hz", 1499.99025, "FREQ 1499.99025"),
+        ("amplitude_vpp", 0.5, "VOLT 0.5"),
+        ("output_enabled", True, "OUTP ON"),
+        ("output_enabled", False, "OUTP OFF"),
+    ],
+)
 def test_set_sends_one_command_then_reads_the_error_queue(name, value, command):
     with expected_protocol([(command, None), ("SYST:ERR?", OK)]) as gen:
         setattr(gen, name, value)
 
 
-@pytest.mark.parametrize("name, state, reply, value", [
-    ("frequency_hz", {"frequency_hz": 250.5}, ("FREQ?", "250.5"), 250.5),
-    ("amplitude_vpp", {"amplitude_vpp": 0.125}, ("VOLT?", "0.125"), 0.125),
-    ("output_enabled", {"output_on": True}, ("OUTP?", "1"), True),
-    ("output_enabled", {"output_on": False}, ("OUTP?", "0"), False),
-    ("idn", {}, ("*IDN?", IDN), IDN),
-])
+@pytest.mark.parametrize(
+    "name, state, reply, value",
+    [
+        ("frequency_hz", {"frequency_hz": 250.5}, ("FREQ?", "250.5"), 250.5),
+        ("amplitude_vpp", {"amplitude_vpp": 0.125}, ("VOLT?", "0.125"), 0.125),
+        ("output_enabled", {"output_on": True}, ("OUTP?", "1"), True),
+        ("output_enabled", {"output_on": False}, ("OUTP?", "0"), False),
+        ("idn", {}, ("*IDN?", IDN), IDN),
+    ],
+)
 def test_get_sends_one_query(name, state, reply, value):
     with expected_protocol([reply], **state) as gen:
         assert getattr(gen, name) == value
 
 
-@pytest.mark.parametrize("name, value", [
-    ("frequency_hz", 0.0), ("frequency_hz", 30e6), ("frequency_hz", math.nan),
-    ("frequency_hz", "fast"), ("amplitude_vpp", 5.5), ("amplitude_vpp", 0.0),
-    ("output_enabled", "yes"), ("output_enabled", 1),
-])
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("frequency_hz", 0.0),
+        ("frequency_hz", 30e6),
+        ("frequency_hz", math.nan),
+        ("frequency_hz", "fast"),
+        ("amplitude_vpp", 5.5),
+        ("amplitude_vpp", 0.0),
+        ("output_enabled", "yes"),
+        ("output_enabled", 1),
+    ],
+)
 def test_out_of_range_raises_before_any_byte(name, value):
     with expected_protocol([], max_vpp=5.0) as gen:
         with pytest.raises(GeneratorError, match=f"{name}: .*") as info:
@@ -88,8 +107,13 @@ def test_refused_setting_is_reported_and_output_goes_off():
     inst.max_vpp = 5.0
     with pytest.raises(GeneratorError, match=r"after 'VOLT 7': -222 Data out of range$"):
         gen.amplitude_vpp = 7.0
-    assert inst.sim_log == [("VOLT 7", None), ("SYST:ERR?", '-222,"Data out of range"'),
-                            ("SYST:ERR?", OK), ("OUTP OFF", None), ("SYST:ERR?", OK)]
+    assert inst.sim_log == [
+        ("VOLT 7", None),
+        ("SYST:ERR?", '-222,"Data out of range"'),
+        ("SYST:ERR?", OK),
+        ("OUTP OFF", None),
+        ("SYST:ERR?", OK),
+    ]
     assert inst.amplitude_vpp == 1.0 and not inst.output_on
 
 
@@ -107,7 +131,10 @@ def test_no_reply_is_a_timeout_on_the_stands_clock():
     clock = VirtualClock()
     inst, gen = instrument_and_driver(clock=clock, timeout_s=0.25, frequency_hz=80.0)
     inst.sim_no_reply()
-    with pytest.raises(GeneratorTimeout, match=r"^generator at vibidsim://gen\d+: no reply to 'FREQ\?' within 0.25 s$"):
+    with pytest.raises(
+        GeneratorTimeout,
+        match=r"^generator at vibidsim://gen\d+: no reply to 'FREQ\?' within 0.25 s$",
+    ):
         gen.frequency_hz  # noqa: B018
     assert clock.now_s() == pytest.approx(0.25)  # waited the timeout, virtually
     assert gen.frequency_hz == 80.0  # the next query is answered
@@ -142,8 +169,10 @@ def test_scheduled_no_reply_at_a_step_stops_the_output():
 def test_dropped_connection_is_one_line_and_shutdown_does_not_raise():
     inst, gen = instrument_and_driver(output_on=True)
     inst.sim_drop_connection()
-    with pytest.raises(GeneratorError, match="^generator at vibidsim://gen\\d+: cannot send 'FREQ 100': "
-                                             "device reports readiness") as info:
+    with pytest.raises(
+        GeneratorError,
+        match="^generator at vibidsim://gen\\d+: cannot send 'FREQ 100': device reports readiness",
+    ) as info:
         gen.frequency_hz = 100.0
     assert "\n" not in str(info.value)
     gen.shutdown()
@@ -152,7 +181,9 @@ def test_dropped_connection_is_one_line_and_shutdown_does_not_raise():
 
 
 def test_unknown_port_is_one_line():
-    with pytest.raises(VibidError, match="^generator at vibidsim://nobody: cannot open: could not open port"):
+    with pytest.raises(
+        VibidError, match="^generator at vibidsim://nobody: cannot open: could not open port"
+    ):
         open_generator("vibidsim://nobody")
     with pytest.raises(VibidError, match="^generator at nosuch://x: cannot open: invalid URL"):
         open_generator("nosuch://x")

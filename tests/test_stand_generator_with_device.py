@@ -26,8 +26,15 @@ def test_identifies_itself(generator):
     assert generator.idn.count(",") >= 3
 
 
-@pytest.mark.parametrize("name, value", [("frequency_hz", 123.4), ("amplitude_vpp", 0.01),
-                                         ("output_enabled", True), ("output_enabled", False)])
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("frequency_hz", 123.4),
+        ("amplitude_vpp", 0.01),
+        ("output_enabled", True),
+        ("output_enabled", False),
+    ],
+)
 def test_setting_reads_back(generator, name, value):
     setattr(generator, name, value)
     assert getattr(generator, name) == pytest.approx(value)

@@ -35,15 +35,16 @@ def test_two_threads_evaluating_one_elements_basis_get_each_their_own_matrices()
     not be broadcast together"); under the element's lock each gets the matrices it gets
     alone. A short switch interval makes the threads interleave often."""
     from plate_helpers import strip_setup
-
     from vibid.identify.model.assembly import Geometry
     from vibid.identify.model.forward import discretisation
 
     g = Geometry.from_setup(strip_setup())
     mesh = plate_mesh(g.length_m, g.width_m, discretisation(g, "default"))
     basis = Basis(mesh, ElementTriArgyrisLocal(), intorder=10)
-    centres = [np.array([0.8 * g.length_m, 0.5 * g.width_m]),
-               np.array([0.5 * g.length_m, 0.3 * g.width_m])] * 3
+    centres = [
+        np.array([0.8 * g.length_m, 0.5 * g.width_m]),
+        np.array([0.5 * g.length_m, 0.3 * g.width_m]),
+    ] * 3
     alone = [assemble_disc(basis, c, 0.003)[0].toarray() for c in centres]
     interval = sys.getswitchinterval()
     sys.setswitchinterval(1e-6)

@@ -10,8 +10,8 @@ import time
 
 import numpy as np
 import pytest
-from loop_data import F, data, declared_fit, strip_on
 
+from loop_data import F, data, declared_fit, strip_on
 from vibid.errors import VibidError
 from vibid.identify import threads as th
 from vibid.identify.loop import close_loop
@@ -35,7 +35,6 @@ class Overlap:
         finally:
             with self.lock:
                 self.now -= 1
-
 
 
 def test_the_turn_is_held_by_one_thread_while_numpy_only_work_overlaps():
@@ -127,8 +126,10 @@ def test_an_error_is_raised_where_its_item_is_taken():
 
 def test_one_thread_runs_every_item_on_the_calling_thread_without_the_turn():
     me = threading.get_ident()
-    assert list(in_order(lambda i: (threading.get_ident() == me, holds_turn()), range(3),
-                         workers=1)) == [(True, False)] * 3
+    assert (
+        list(in_order(lambda i: (threading.get_ident() == me, holds_turn()), range(3), workers=1))
+        == [(True, False)] * 3
+    )
 
 
 def test_the_thread_count_is_read_from_the_environment(monkeypatch):
@@ -193,13 +194,15 @@ def test_a_loop_on_two_threads_is_the_loop_on_one(monkeypatch):
         np.testing.assert_array_equal(a.result.values, b.result.values)
         np.testing.assert_array_equal(a.result.std, b.result.std)
     assert [[(s.name, s.verdict) for s in r] for r in one.rounds] == [
-        [(s.name, s.verdict) for s in r] for r in two.rounds]
+        [(s.name, s.verdict) for s in r] for r in two.rounds
+    ]
     assert seen == set()
 
 
 def test_an_in_order_inside_an_item_runs_on_that_items_thread():
     """A polish inside a loop's refit: the inner items run one after the other on the
     outer item's worker thread (no third thread waiting for the turn)."""
+
     def inner(j):
         return threading.get_ident()
 
@@ -230,8 +233,9 @@ def test_a_lock_is_waited_for_with_the_turn_lent():
         return i
 
     results = []
-    run = threading.Thread(target=lambda: results.extend(in_order(holder, range(2), workers=2)),
-                           daemon=True)
+    run = threading.Thread(
+        target=lambda: results.extend(in_order(holder, range(2), workers=2)), daemon=True
+    )
     run.start()
     run.join(timeout=30)
     assert not run.is_alive(), "deadlocked: the waiter held the turn the holder needed"

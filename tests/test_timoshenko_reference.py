@@ -3,12 +3,12 @@ results: the Rayleigh-beam reference (tests/beam_reference.py) in the shear-rigi
 (1961) closed-form cantilever frequency equation, static Timoshenko beam theory for the
 low-frequency limit, and its own result with the beam cut finer (the multiple shooting)."""
 
-import huang_cantilever as huang
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 
 import beam_reference as br
+import huang_cantilever as huang
 import timoshenko_reference as tr
 
 # the titanium strip of shared/data/real-titanium (as in test_effect_transverse_shear.py):
@@ -27,10 +27,14 @@ def cantilever(shear: bool, n: int = 2):
 
 
 # ------------------------------------------------------------ shear-rigid limit = Rayleigh
-@pytest.mark.parametrize("x_s, m, J", [(L, BODY_M, BODY_J), (0.7 * L, BODY_M, BODY_J), (L, 0, 0)],
-                         ids=["body-at-tip", "body-inside", "no-body"])
-@pytest.mark.parametrize("k_root", [None, 2000.0, 2000.0 * (1 + 0.01j)],
-                         ids=["clamp", "spring", "lossy-spring"])
+@pytest.mark.parametrize(
+    "x_s, m, J",
+    [(L, BODY_M, BODY_J), (0.7 * L, BODY_M, BODY_J), (L, 0, 0)],
+    ids=["body-at-tip", "body-inside", "no-body"],
+)
+@pytest.mark.parametrize(
+    "k_root", [None, 2000.0, 2000.0 * (1 + 0.01j)], ids=["clamp", "spring", "lossy-spring"]
+)
 @pytest.mark.parametrize("loss", [0.0, 0.003])
 def test_shear_rigid_limit_is_the_rayleigh_reference(x_s, m, J, k_root, loss):
     """kGA = 1e14 EI / L^2: the shear terms are s^2 lambda^2 < 1e-12 up to 5 kHz (lambda < 9).
@@ -120,8 +124,13 @@ def test_cutting_finer_changes_nothing():
     case, a 0.5 mm steel strip up to 50 kHz (kL ~ 60), the cuts agree to ~1e-12, while one
     transfer matrix over each segment (a huge step) is wrong by orders of magnitude."""
     body = dict(x_s=0.7 * L, m=BODY_M, J=BODY_J, k_root=2000.0)
-    steel = dict(L=L, EI=200e9 * B * 0.0005**3 / 12, kGA=KAPPA * 200e9 / 2.6 * B * 0.0005,
-                 rhoA=7800 * B * 0.0005, rhoI=7800 * B * 0.0005**3 / 12)
+    steel = dict(
+        L=L,
+        EI=200e9 * B * 0.0005**3 / 12,
+        kGA=KAPPA * 200e9 / 2.6 * B * 0.0005,
+        rhoA=7800 * B * 0.0005,
+        rhoI=7800 * B * 0.0005**3 / 12,
+    )
     hard = 2 * np.pi * np.geomspace(5e3, 5e4, 12)
     cases = [(STRIP, EI * (1 + 0.003j), OMEGA[::5]), (steel, steel["EI"] * (1 + 0.003j), hard)]
     base = [tr.afc(om, **dict(beam, EI=EIc), **body) for beam, EIc, om in cases]

@@ -34,9 +34,20 @@ def test_the_titanium_strip_gets_an_honest_report(tmp_path):
     out = tmp_path / "ti.json"
     # two candidates (of the eight) keep it to a few minutes: the gain the declared model
     # lacks, and the mass that brings nu back into its box (BENCHMARKS.md: every candidate)
-    rc = main(["identify", "--afc", str(DATA / "titanium_afc_thin.csv"),
-               "--setup", str(DATA / "titanium_setup.json"), "--json", str(out),
-               "--candidates", "sensor_gain,added_mass", "--no-progress"])
+    rc = main(
+        [
+            "identify",
+            "--afc",
+            str(DATA / "titanium_afc_thin.csv"),
+            "--setup",
+            str(DATA / "titanium_setup.json"),
+            "--json",
+            str(out),
+            "--candidates",
+            "sensor_gain,added_mass",
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     report = _strict(out.read_text())
     loop = report["loop"]

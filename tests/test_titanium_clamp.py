@@ -31,11 +31,20 @@ def test_the_titanium_strip_in_the_calibrated_clamp_is_cut_tenfold(tmp_path):
     with gzip.open(DATA / "titanium_afc.csv.gz", "rt") as fh:
         (tmp_path / "afc.csv").write_text(fh.read())
     out = tmp_path / "ti.json"
-    rc = main(["identify", "--afc", str(tmp_path / "afc.csv"),
-               "--setup", str(ROOT / "examples/real-steel/titanium_setup.json"),
-               "--json", str(out), "--no-progress",
-               "--candidates",
-               "sensor_gain,channel_delay,stand_resonance,fixture_resonance"])
+    rc = main(
+        [
+            "identify",
+            "--afc",
+            str(tmp_path / "afc.csv"),
+            "--setup",
+            str(ROOT / "examples/real-steel/titanium_setup.json"),
+            "--json",
+            str(out),
+            "--no-progress",
+            "--candidates",
+            "sensor_gain,channel_delay,stand_resonance,fixture_resonance",
+        ]
+    )
     assert rc == 0
     report = json.loads(out.read_text())
     loop = report["loop"]

@@ -9,8 +9,8 @@ import struct
 import numpy as np
 import pytest
 import pyuff
-from afc_files import write_afc_csv, write_pyuff_record
 
+from afc_files import write_afc_csv, write_pyuff_record
 from vibid.cli import main
 from vibid.errors import VibidError
 from vibid.setup_model import example_setup
@@ -20,8 +20,15 @@ from vibid.signal.uff import is_uff, read_afc_uff, write_afc_uff
 #: Refined frequencies as the signal stage gives them (ppm off the commanded ones, every
 #: digit significant), an AFC through a resonance and its std.
 F = np.array([22.500903217, 45.001806431, 67.50270965, 90.003612866, 497.13370021])
-H = np.array([1.0012 - 3.1e-4j, 1.00481 - 0.00123j, 1.011 + 2.5e-9j, -3.7 + 41.2345678901234j,
-              0.123456789012345 - 1e-12j])
+H = np.array(
+    [
+        1.0012 - 3.1e-4j,
+        1.00481 - 0.00123j,
+        1.011 + 2.5e-9j,
+        -3.7 + 41.2345678901234j,
+        0.123456789012345 - 1e-12j,
+    ]
+)
 STD = np.array([1.1e-5, 1.2e-5, 1.3e-5, 4.1e-4, 9.9e-6])
 
 
@@ -95,12 +102,15 @@ def test_an_even_spaced_ascii_file_of_another_system(tmp_path):
     assert afc.std is None
 
 
-@pytest.mark.parametrize("content, message", [
-    (b"", "empty file"),
-    (b"    -1\n    58\nNONE\nrubbish\n    -1\n", "UFF record 1 (dataset 58) cannot be read"),
-    (b"    -1\n  2411\n         1\n    -1\n", "no type-58 record"),
-    (b"frequency_hz,re,im\n1,2,3\n", "not a UFF file"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (b"", "empty file"),
+        (b"    -1\n    58\nNONE\nrubbish\n    -1\n", "UFF record 1 (dataset 58) cannot be read"),
+        (b"    -1\n  2411\n         1\n    -1\n", "no type-58 record"),
+        (b"frequency_hz,re,im\n1,2,3\n", "not a UFF file"),
+    ],
+)
 def test_junk_is_one_line(tmp_path, content, message):
     p = tmp_path / "junk.uff"
     p.write_bytes(content)
@@ -113,8 +123,11 @@ def test_junk_is_one_line(tmp_path, content, message):
 def test_truncated_files_are_refused(tmp_path):
     raw = _write(tmp_path).read_bytes()
     end_of_first = raw.index(b"    -1\n    -1\n") + 7
-    for cut, message in ((len(raw) // 2, "truncated"), (len(raw) - 30, "truncated"),
-                         (end_of_first, "std record ('vibid AFC std') of this vibid AFC")):
+    for cut, message in (
+        (len(raw) // 2, "truncated"),
+        (len(raw) - 30, "truncated"),
+        (end_of_first, "std record ('vibid AFC std') of this vibid AFC"),
+    ):
         p = tmp_path / "cut.uff"
         p.write_bytes(raw[:cut])
         with pytest.raises(VibidError, match="cut.uff: ") as err:
@@ -129,7 +142,9 @@ def test_only_real_records_and_bad_frequencies(tmp_path):
         read_afc_uff(real)
     negative = tmp_path / "negative.uff"
     _pyuff_record(negative, -F[::-1], H, spacing=0, binary=1)
-    with pytest.raises(VibidError, match="record 1, point 1: frequency_hz -497.13370021 Hz is not positive"):
+    with pytest.raises(
+        VibidError, match="record 1, point 1: frequency_hz -497.13370021 Hz is not positive"
+    ):
         read_afc_uff(negative)
     with pytest.raises(VibidError, match="not finite"):
         write_afc_uff(tmp_path / "nan.uff", F, H * np.nan, STD, session_id="x")
@@ -162,17 +177,25 @@ def session(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("uff-cli")
     s = example_setup()
-    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                              frequencies_hz=STEPS_HZ))
-    simulate_session(folder / "sim.h5", s, {"D": 17.97, "nu": 0.286, "beta": 0.003}, seed=1,
-                     accuracy="default")
+    s = dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=STEPS_HZ)
+    )
+    simulate_session(
+        folder / "sim.h5", s, {"D": 17.97, "nu": 0.286, "beta": 0.003}, seed=1, accuracy="default"
+    )
     path = folder / "session.h5"
-    with (read_session(folder / "sim.h5") as r,
-          SessionWriter(path, r.setup, session_id="uff-test") as w):
+    with (
+        read_session(folder / "sim.h5") as r,
+        SessionWriter(path, r.setup, session_id="uff-test") as w,
+    ):
         for step in r.steps():
-            w.append(frequency_hz=step.frequency_hz, sample_rate_hz=step.sample_rate_hz,
-                     base=step.base, response=step.response,
-                     status="overload" if step.index == OVERLOADED else "ok")
+            w.append(
+                frequency_hz=step.frequency_hz,
+                sample_rate_hz=step.sample_rate_hz,
+                base=step.base,
+                response=step.response,
+                status="overload" if step.index == OVERLOADED else "ok",
+            )
         setup = folder / "setup.json"
         setup.write_text(json.dumps(r.setup.to_dict()))
     return folder, path, setup
@@ -212,8 +235,21 @@ def test_afc_uff_then_identify_gives_the_session_s_parameters(session, capsys):
 
     common = ["--no-loop", "--restarts", "1", "--seed", "0", "--no-progress"]
     assert main(["identify", str(path), "--json", str(folder / "a.json"), *common]) == 0
-    assert main(["identify", "--afc", str(uff), "--setup", str(setup),
-                 "--json", str(folder / "b.json"), *common]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                "--afc",
+                str(uff),
+                "--setup",
+                str(setup),
+                "--json",
+                str(folder / "b.json"),
+                *common,
+            ]
+        )
+        == 0
+    )
     a = json.loads((folder / "a.json").read_text())
     b = json.loads((folder / "b.json").read_text())
     assert set(a["parameters"]) == set(b["parameters"]) == {"D", "nu", "beta"}
@@ -225,6 +261,7 @@ def test_afc_uff_then_identify_gives_the_session_s_parameters(session, capsys):
 
 
 # --- issue 62: the UFF58 reader never hangs and is never silently wrong --------------------
+
 
 def _many(n=80, seed=1):
     """``n`` refined frequencies, an AFC and its std whose doubles hold LF bytes (0x0A) in
@@ -253,8 +290,9 @@ def test_a_shuffled_uff_reads_as_the_sorted_one(tmp_path):
         _same(back, clean)
         assert back.where(0) == f"record 1, point {list(order).index(0) + 1}"
         for binary in (0, 1):
-            p = write_pyuff_record(tmp_path / f"o{k}{binary}.uff", f[order], h[order], spacing=0,
-                                   binary=binary)
+            p = write_pyuff_record(
+                tmp_path / f"o{k}{binary}.uff", f[order], h[order], spacing=0, binary=binary
+            )
             q = write_pyuff_record(tmp_path / f"c{k}{binary}.uff", f, h, spacing=0, binary=binary)
             _same(read_afc(p), read_afc(q))
     x = np.arange(1, 41) * 2.5
@@ -274,8 +312,10 @@ def test_repeated_uff_points_count_once_and_conflicting_ones_are_refused(tmp_pat
     write_afc_uff(p, np.r_[F, F[1]], np.r_[H, H[1] * 1.5], np.r_[STD, STD[1]], session_id="s")
     with pytest.raises(VibidError) as err:
         read_afc(p)
-    assert str(err.value) == (f"{p}: record 1, points 2 and 6 both give {float(F[1])!r} Hz, with "
-                              "different values: keep one of them, or average them")
+    assert str(err.value) == (
+        f"{p}: record 1, points 2 and 6 both give {float(F[1])!r} Hz, with "
+        "different values: keep one of them, or average them"
+    )
 
 
 def test_a_crlf_uff_file_reads_as_written(tmp_path):
@@ -305,22 +345,29 @@ def test_a_damaged_binary_record_is_refused_not_read_shifted(tmp_path):
     raw = _write(tmp_path).read_bytes()
     start = raw.index(b"NONE                \n", raw.index(b"Base accel")) + 21  # record 1's data
     p = tmp_path / "damaged.uff"
-    p.write_bytes(raw[:start + 10] + raw[start + 13:])
+    p.write_bytes(raw[: start + 10] + raw[start + 13 :])
     with pytest.raises(VibidError) as err:
         read_afc(p)
-    assert str(err.value) == (f"{p}: UFF record 1 (dataset 58b) holds 117 bytes of binary data "
-                              "where its 5 points take 120 (truncated, or damaged in a copy: "
-                              "copy binary UFF files as binary)")
+    assert str(err.value) == (
+        f"{p}: UFF record 1 (dataset 58b) holds 117 bytes of binary data "
+        "where its 5 points take 120 (truncated, or damaged in a copy: "
+        "copy binary UFF files as binary)"
+    )
 
 
-@pytest.mark.parametrize("content, message", [
-    (b"    -1\n  garbage\n    -1\n",
-     "not a readable UFF file (no dataset number after its first -1 line)"),
-    (b"-1\n58\n-1\n", "not a readable UFF file (its -1 lines must be right-justified"),
-    (b"\n  \n\t-1\n    58\n", "not a readable UFF file (its -1 lines must be right-justified"),
-    (b"    -1\n  2411\n         1\n    -1\n    -1\n    58\n", "truncated UFF file"),
-    (b"    -1\n", "truncated UFF file"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (
+            b"    -1\n  garbage\n    -1\n",
+            "not a readable UFF file (no dataset number after its first -1 line)",
+        ),
+        (b"-1\n58\n-1\n", "not a readable UFF file (its -1 lines must be right-justified"),
+        (b"\n  \n\t-1\n    58\n", "not a readable UFF file (its -1 lines must be right-justified"),
+        (b"    -1\n  2411\n         1\n    -1\n    -1\n    58\n", "truncated UFF file"),
+        (b"    -1\n", "truncated UFF file"),
+    ],
+)
 def test_a_file_starting_with_minus_1_is_judged_as_uff(tmp_path, content, message):
     """A file whose first non-blank line is -1 is UFF, whatever follows: its faults are
     UFF faults in one line (before, such files were read as CSV: "the header lacks ...")."""
@@ -339,18 +386,25 @@ def test_leading_blank_lines_and_a_truncated_end_of_a_uff_file(tmp_path):
     p.write_bytes(b"\n   \n" + raw)
     _same(read_afc(p), clean)
     end_of_first = raw.index(b"    -1\n    -1\n") + 7
-    p.write_bytes(raw[:end_of_first + 6])  # record 2's -1 line and nothing after it
+    p.write_bytes(raw[: end_of_first + 6])  # record 2's -1 line and nothing after it
     with pytest.raises(VibidError, match="truncated UFF file"):
         read_afc(p)
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda h, s: (h * 0.0, s), "every H is 0: no response measured"),
-    (lambda h, s: (np.where(np.arange(h.size) == 2, 1e300, h), s),
-     "record 1, point 3: re 1e+300 is beyond ±1e+06"),
-    (lambda h, s: (h, np.where(np.arange(s.size) == 4, 0.0, s)),
-     "record 1, point 5: std 0.0 must be positive"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda h, s: (h * 0.0, s), "every H is 0: no response measured"),
+        (
+            lambda h, s: (np.where(np.arange(h.size) == 2, 1e300, h), s),
+            "record 1, point 3: re 1e+300 is beyond ±1e+06",
+        ),
+        (
+            lambda h, s: (h, np.where(np.arange(s.size) == 4, 0.0, s)),
+            "record 1, point 5: std 0.0 must be positive",
+        ),
+    ],
+)
 def test_absurd_uff_values_are_refused_naming_the_point(tmp_path, change, message):
     h, s = change(H.copy(), STD.copy())
     p = tmp_path / "afc.uff"
@@ -360,17 +414,20 @@ def test_absurd_uff_values_are_refused_naming_the_point(tmp_path, change, messag
     assert message in str(err.value) and "\n" not in str(err.value)
 
 
-@pytest.mark.parametrize("value, message", [
-    (np.nan, "record 1, point 3: re is nan, not a finite number"),
-    (np.inf, "record 1, point 3: re is inf, not a finite number"),
-    (1e308, "record 1, point 3: re 1e+308 is beyond ±1e+06"),
-])
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        (np.nan, "record 1, point 3: re is nan, not a finite number"),
+        (np.inf, "record 1, point 3: re is inf, not a finite number"),
+        (1e308, "record 1, point 3: re 1e+308 is beyond ±1e+06"),
+    ],
+)
 def test_non_finite_binary_doubles_are_refused_naming_the_point(tmp_path, value, message):
     """Point 3's real part replaced in the file's bytes (pyuff's writer would write 0 for a
     NaN)."""
     raw = bytearray(_write(tmp_path).read_bytes())
     start = raw.index(b"NONE                \n", raw.index(b"Base accel")) + 21  # record 1's data
-    raw[start + 56:start + 64] = struct.pack("<d", value)  # (x, re, im) per point
+    raw[start + 56 : start + 64] = struct.pack("<d", value)  # (x, re, im) per point
     p = tmp_path / "bad.uff"
     p.write_bytes(bytes(raw))
     with pytest.raises(VibidError) as err:
@@ -387,6 +444,8 @@ def test_a_uff_frequency_above_the_daq_s_nyquist_is_refused(tmp_path):
     write_afc_uff(p, np.r_[F, 20000.0], np.r_[H, 0.1], np.r_[STD, 1e-3], session_id="s")
     with pytest.raises(VibidError) as err:
         afc_file(p, setup)
-    assert str(err.value) == (f"{p}: record 1, point 6: 20000.0 Hz is not below the Nyquist "
-                              "frequency 12800.0 Hz of the setup's DAQ (daq.sample_rate_hz "
-                              "25600.0)")
+    assert str(err.value) == (
+        f"{p}: record 1, point 6: 20000.0 Hz is not below the Nyquist "
+        "frequency 12800.0 Hz of the setup's DAQ (daq.sample_rate_hz "
+        "25600.0)"
+    )

@@ -49,21 +49,23 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 #: The test needs a Chromium on PATH (and runs about a minute: slow).
 needs_chromium = pytest.mark.skipif(
-    CHROMIUM is None, reason="needs Chromium: no chromium or chromium-browser on PATH "
-    "(Debian: apt-get install chromium)")
+    CHROMIUM is None,
+    reason="needs Chromium: no chromium or chromium-browser on PATH "
+    "(Debian: apt-get install chromium)",
+)
 pytestmark = [needs_chromium, pytest.mark.slow]
 
-SERVER_START_TIMEOUT_S = 180.0   # a fresh PREFECT_HOME copies the UI bundle first
+SERVER_START_TIMEOUT_S = 180.0  # a fresh PREFECT_HOME copies the UI bundle first
 SERVER_STOP_TIMEOUT_S = 30.0
-CAMPAIGN_TIMEOUT_S = 400.0       # about 35 s on a 2-core machine (JAX compiles included)
+CAMPAIGN_TIMEOUT_S = 400.0  # about 35 s on a 2-core machine (JAX compiles included)
 CHROMIUM_TIMEOUT_S = 120.0
 HTTP_TIMEOUT_S = 30.0
 
 #: matplotlib's default colours as the figures draw them (report/plots.py's afc_figure,
 #: flows/live.py's LiveAfc.render_png)
-C0_BLUE = (0x1F, 0x77, 0xB4)     # measured points (report and live AFC)
-C1_ORANGE = (0xFF, 0x7F, 0x0E)   # the identified model's line in the report's AFC
-C3_RED = (0xD6, 0x27, 0x28)      # the identified model's line in the live AFC
+C0_BLUE = (0x1F, 0x77, 0xB4)  # measured points (report and live AFC)
+C1_ORANGE = (0xFF, 0x7F, 0x0E)  # the identified model's line in the report's AFC
+C3_RED = (0xD6, 0x27, 0x28)  # the identified model's line in the live AFC
 
 #: the short campaign: the strip of setup_model.example_setup, 21 steps to 900 Hz
 FREQUENCIES_HZ = (30.0,) + tuple(45.0 * k for k in range(1, 21))
@@ -123,17 +125,34 @@ def prefect_server(folder: Path, *, timeout_s: float = SERVER_START_TIMEOUT_S):
     folder.mkdir(parents=True, exist_ok=True)
     port = free_port()
     api_url = f"http://127.0.0.1:{port}/api"
-    env = prefect_env(folder / "prefect-home",
-                      PREFECT_API_DATABASE_CONNECTION_URL=
-                      f"sqlite+aiosqlite:///{folder / 'prefect.db'}",
-                      PREFECT_UI_API_URL=api_url, PREFECT_SERVER_API_HOST="127.0.0.1",
-                      PREFECT_SERVER_API_PORT=str(port))
+    env = prefect_env(
+        folder / "prefect-home",
+        PREFECT_API_DATABASE_CONNECTION_URL=f"sqlite+aiosqlite:///{folder / 'prefect.db'}",
+        PREFECT_UI_API_URL=api_url,
+        PREFECT_SERVER_API_HOST="127.0.0.1",
+        PREFECT_SERVER_API_PORT=str(port),
+    )
     log = folder / "server.log"
     with open(log, "wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "prefect", "server", "start",
-                                 "--host", "127.0.0.1", "--port", str(port)],
-                                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                env=env, cwd=folder, start_new_session=True)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "prefect",
+                "server",
+                "start",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+            ],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=env,
+            cwd=folder,
+            start_new_session=True,
+        )
     try:
         deadline = time.monotonic() + timeout_s
         while True:
@@ -146,8 +165,9 @@ def prefect_server(folder: Path, *, timeout_s: float = SERVER_START_TIMEOUT_S):
             except OSError:
                 pass
             if time.monotonic() > deadline:
-                raise TimeoutError(f"no Prefect server at {api_url} after {timeout_s:.0f} s:\n"
-                                   f"{_tail(log)}")
+                raise TimeoutError(
+                    f"no Prefect server at {api_url} after {timeout_s:.0f} s:\n{_tail(log)}"
+                )
             time.sleep(0.5)
         yield api_url
     finally:
@@ -162,16 +182,25 @@ def write_campaign_inputs(folder: Path) -> tuple[Path, Path]:
     from vibid.setup_model import example_setup
 
     s = example_setup()
-    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation,
-                                                              frequencies_hz=FREQUENCIES_HZ))
+    s = dataclasses.replace(
+        s, excitation=dataclasses.replace(s.excitation, frequencies_hz=FREQUENCIES_HZ)
+    )
     setup = folder / "setup.json"
     setup.write_text(s.to_json())
     stand = folder / "stand.json"
-    stand.write_text(json.dumps({
-        "generator": {"url": "vibidsim://ui-browser", "timeout_s": 0.2},
-        "timing": {"min_record_s": 0.05, "min_cycles": 10, "max_settle_s": 40.0},
-        "simulated": {"seed": 3, "noise": 0.003,
-                      "effects": {"channel_delay": {"tau_s": TAU_S}}}}))
+    stand.write_text(
+        json.dumps(
+            {
+                "generator": {"url": "vibidsim://ui-browser", "timeout_s": 0.2},
+                "timing": {"min_record_s": 0.05, "min_cycles": 10, "max_settle_s": 40.0},
+                "simulated": {
+                    "seed": 3,
+                    "noise": 0.003,
+                    "effects": {"channel_delay": {"tau_s": TAU_S}},
+                },
+            }
+        )
+    )
     return setup, stand
 
 
@@ -181,13 +210,35 @@ def run_campaign(folder: Path, api_url: str, *, timeout_s: float = CAMPAIGN_TIME
     folder.mkdir(parents=True, exist_ok=True)
     setup, stand = write_campaign_inputs(folder)
     env = prefect_env(folder / "client-home", PREFECT_API_URL=api_url)
-    cmd = [sys.executable, "-m", "vibid", "campaign", os.fspath(setup), "--stand", "simulated",
-           "--stand-config", os.fspath(stand), "--out", os.fspath(folder / "strip.h5"),
-           "--report", os.fspath(folder / "report"), "--candidates", "channel_delay",
-           "--restarts", "1"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            stdin=subprocess.DEVNULL, env=env, cwd=folder, text=True,
-                            start_new_session=True)
+    cmd = [
+        sys.executable,
+        "-m",
+        "vibid",
+        "campaign",
+        os.fspath(setup),
+        "--stand",
+        "simulated",
+        "--stand-config",
+        os.fspath(stand),
+        "--out",
+        os.fspath(folder / "strip.h5"),
+        "--report",
+        os.fspath(folder / "report"),
+        "--candidates",
+        "channel_delay",
+        "--restarts",
+        "1",
+    ]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        env=env,
+        cwd=folder,
+        text=True,
+        start_new_session=True,
+    )
     try:
         out, _ = proc.communicate(timeout=timeout_s)
     except subprocess.TimeoutExpired:
@@ -208,24 +259,39 @@ def artifact_key(specimen: str, suffix: str) -> str:
 
 # -- helpers: the REST API ---------------------------------------------------------------------
 def api_post(api_url: str, path: str, body: dict):
-    req = urllib.request.Request(f"{api_url}{path}", data=json.dumps(body).encode(),
-                                 headers={"Content-Type": "application/json"}, method="POST")
+    req = urllib.request.Request(
+        f"{api_url}{path}",
+        data=json.dumps(body).encode(),
+        headers={"Content-Type": "application/json"},
+        method="POST",
+    )
     with urllib.request.urlopen(req, timeout=HTTP_TIMEOUT_S) as r:
         return json.loads(r.read())
 
 
 def latest_artifact(api_url: str, key: str) -> dict | None:
     """The newest version of the artifact ``key`` (``POST /api/artifacts/filter``)."""
-    found = api_post(api_url, "/artifacts/filter", {
-        "artifacts": {"key": {"any_": [key]}}, "sort": "CREATED_DESC", "limit": 1})
+    found = api_post(
+        api_url,
+        "/artifacts/filter",
+        {"artifacts": {"key": {"any_": [key]}}, "sort": "CREATED_DESC", "limit": 1},
+    )
     return found[0] if found else None
 
 
 def create_markdown_artifact(api_url: str, key: str, markdown: str, *, flow_run_id=None) -> dict:
     """A markdown artifact made directly through the API (``POST /api/artifacts/``)."""
-    return api_post(api_url, "/artifacts/", {"key": key, "type": "markdown", "data": markdown,
-                                             "flow_run_id": flow_run_id,
-                                             "description": "vibid UI test: figures broken"})
+    return api_post(
+        api_url,
+        "/artifacts/",
+        {
+            "key": key,
+            "type": "markdown",
+            "data": markdown,
+            "flow_run_id": flow_run_id,
+            "description": "vibid UI test: figures broken",
+        },
+    )
 
 
 def artifact_page(api_url: str, artifact_id: str) -> str:
@@ -236,11 +302,26 @@ def artifact_page(api_url: str, artifact_id: str) -> str:
 # -- helpers: the browser ----------------------------------------------------------------------
 def _chromium(args: list[str], folder: Path, *, timeout_s: float) -> subprocess.CompletedProcess:
     profile = Path(tempfile.mkdtemp(prefix="chromium-profile-", dir=folder))
-    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           "--no-first-run", "--disable-dev-shm-usage", "--disable-extensions",
-           "--force-device-scale-factor=1", f"--user-data-dir={profile}", *args]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.DEVNULL, start_new_session=True)
+    cmd = [
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--hide-scrollbars",
+        "--no-first-run",
+        "--disable-dev-shm-usage",
+        "--disable-extensions",
+        "--force-device-scale-factor=1",
+        f"--user-data-dir={profile}",
+        *args,
+    ]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     try:
         out, err = proc.communicate(timeout=timeout_s)
     except subprocess.TimeoutExpired:
@@ -251,25 +332,44 @@ def _chromium(args: list[str], folder: Path, *, timeout_s: float) -> subprocess.
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
-def screenshot(url: str, path: Path, *, width: int = 1400, height: int = 2400,
-               budget_ms: int = 15000, timeout_s: float = CHROMIUM_TIMEOUT_S) -> Path:
+def screenshot(
+    url: str,
+    path: Path,
+    *,
+    width: int = 1400,
+    height: int = 2400,
+    budget_ms: int = 15000,
+    timeout_s: float = CHROMIUM_TIMEOUT_S,
+) -> Path:
     """Headless Chromium's screenshot of ``url`` (the viewport, ``width`` x ``height``)
     after ``budget_ms`` of virtual time (the UI's scripts and API calls run first)."""
     path = Path(path)
     path.unlink(missing_ok=True)
-    done = _chromium([f"--window-size={width},{height}", f"--virtual-time-budget={budget_ms}",
-                      f"--screenshot={path}", url], path.parent, timeout_s=timeout_s)
+    done = _chromium(
+        [
+            f"--window-size={width},{height}",
+            f"--virtual-time-budget={budget_ms}",
+            f"--screenshot={path}",
+            url,
+        ],
+        path.parent,
+        timeout_s=timeout_s,
+    )
     if not path.is_file():
-        raise RuntimeError(f"chromium wrote no screenshot (rc {done.returncode}):\n"
-                           f"{done.stderr.decode(errors='replace')[-2000:]}")
+        raise RuntimeError(
+            f"chromium wrote no screenshot (rc {done.returncode}):\n"
+            f"{done.stderr.decode(errors='replace')[-2000:]}"
+        )
     return path
 
 
-def dump_dom(url: str, folder: Path, *, budget_ms: int = 15000,
-             timeout_s: float = CHROMIUM_TIMEOUT_S) -> str:
+def dump_dom(
+    url: str, folder: Path, *, budget_ms: int = 15000, timeout_s: float = CHROMIUM_TIMEOUT_S
+) -> str:
     """The page's DOM as headless Chromium has it after ``budget_ms`` of virtual time."""
-    done = _chromium([f"--virtual-time-budget={budget_ms}", "--dump-dom", url], folder,
-                     timeout_s=timeout_s)
+    done = _chromium(
+        [f"--virtual-time-budget={budget_ms}", "--dump-dom", url], folder, timeout_s=timeout_s
+    )
     return done.stdout.decode(errors="replace")
 
 
@@ -287,11 +387,12 @@ def colour_mask(rgb, colour, tol: int = 40):
     and an antialiased line's pixels blend with the white around it)."""
     import numpy as np
 
-    return (np.abs(rgb.astype(int) - np.array(colour)).max(axis=2) <= tol)
+    return np.abs(rgb.astype(int) - np.array(colour)).max(axis=2) <= tol
 
 
-def white_areas(rgb, *, min_run: int = 40, min_row_white: int = 200, min_height: int = 120,
-                max_gap: int = 6):
+def white_areas(
+    rgb, *, min_run: int = 40, min_row_white: int = 200, min_height: int = 120, max_gap: int = 6
+):
     """The large white areas of a screenshot, as (top, bottom, left, right) boxes: bands of
     rows that hold at least ``min_row_white`` pixels in white runs of ``min_run`` or more
     (a figure's background; glyphs of text never make such runs), at least ``min_height``
@@ -342,23 +443,42 @@ def figure_evidence(rgb, line, points) -> list[dict]:
     return out
 
 
-def shows_figure(rgb, *, line, points, min_line_columns: int = 150,
-                 min_line_pixels: int = 200, min_points: int = 50) -> dict | None:
+def shows_figure(
+    rgb,
+    *,
+    line,
+    points,
+    min_line_columns: int = 150,
+    min_line_pixels: int = 200,
+    min_points: int = 50,
+) -> dict | None:
     """The first white area that holds a plot: the ``line`` colour over at least
     ``min_line_columns`` columns (a curve across the axes, not a glyph or a badge) and
     ``min_points`` pixels of the ``points`` colour; None if there is none. A broken image
     (its icon and alt text on the dark page) has no white area at all, and a light page
     without the figure no line of the figure's colours."""
     for item in figure_evidence(rgb, line, points):
-        if (item["line_columns"] >= min_line_columns and item["line"] >= min_line_pixels
-                and item["points"] >= min_points):
+        if (
+            item["line_columns"] >= min_line_columns
+            and item["line"] >= min_line_pixels
+            and item["points"] >= min_points
+        ):
             return item
     return None
 
 
-def crop_for_docs(rgb, box, path: Path, *, header_rows: int = 70, above: int = 60,
-                  below: int = 50, near_top: int = 1000, max_width: int = 1000,
-                  max_bytes: int = 300_000) -> Path:
+def crop_for_docs(
+    rgb,
+    box,
+    path: Path,
+    *,
+    header_rows: int = 70,
+    above: int = 60,
+    below: int = 50,
+    near_top: int = 1000,
+    max_width: int = 1000,
+    max_bytes: int = 300_000,
+) -> Path:
     """The README's picture: the page from its top down to the figure area ``box`` (plus
     ``below`` rows) where the figure starts within ``near_top`` rows; else the UI's header
     (the artifact's key and id), a grey cut, and the page from ``above`` rows over the
@@ -384,8 +504,11 @@ def crop_for_docs(rgb, box, path: Path, *, header_rows: int = 70, above: int = 6
         start = top - above
         while start < top and np.ptp(lum[start, :right]) > 12:
             start += 1  # not from the middle of a line of text: from the blank row after it
-        parts = [rgb[:header_rows, :right], np.full((3, right, 3), 90, np.uint8),
-                 rgb[start:end, :right]]
+        parts = [
+            rgb[:header_rows, :right],
+            np.full((3, right, 3), 90, np.uint8),
+            rgb[start:end, :right],
+        ]
     im = Image.fromarray(np.ascontiguousarray(np.concatenate(parts, axis=0)))
     width = min(max_width, im.width)
     path = Path(path)
@@ -401,7 +524,7 @@ def crop_for_docs(rgb, box, path: Path, *, header_rows: int = 70, above: int = 6
 # -- the whole check ----------------------------------------------------------------------------
 REPORT_WINDOW = (1400, 5200)  # tall: the report's figures come after its tables
 LIVE_WINDOW = (1400, 1400)
-BUDGETS_MS = (15000, 45000)   # a second, longer look where the first found no figure
+BUDGETS_MS = (15000, 45000)  # a second, longer look where the first found no figure
 
 
 def screenshot_showing(url: str, path: Path, window, *, line, points, min_line_columns):
@@ -409,8 +532,9 @@ def screenshot_showing(url: str, path: Path, window, *, line, points, min_line_c
     longer virtual-time budget if the first look finds none (a busy machine's UI may not
     have its data yet)."""
     for budget_ms in BUDGETS_MS:
-        rgb = load_rgb(screenshot(url, path, width=window[0], height=window[1],
-                                  budget_ms=budget_ms))
+        rgb = load_rgb(
+            screenshot(url, path, width=window[0], height=window[1], budget_ms=budget_ms)
+        )
         hit = shows_figure(rgb, line=line, points=points, min_line_columns=min_line_columns)
         if hit is not None:
             break
@@ -434,29 +558,47 @@ def check_in_browser(folder: Path, *, docs: Path | None = None, log=print) -> di
         # the report: its figures in the artifact, then on the screen
         report = latest_artifact(api_url, artifact_key(specimen, "report"))
         assert report is not None, f"no {artifact_key(specimen, 'report')} artifact"
-        assert report["type"] == "markdown" and DATA_URI.search(report["data"]), \
+        assert report["type"] == "markdown" and DATA_URI.search(report["data"]), (
             "the report artifact embeds no PNG"
+        )
         shot = folder / "report.png"
-        rgb, hit = screenshot_showing(artifact_page(api_url, report["id"]), shot, REPORT_WINDOW,
-                                      line=C1_ORANGE, points=C0_BLUE, min_line_columns=200)
-        assert hit is not None, ("the report artifact's page shows no AFC figure: "
-                                 f"{figure_evidence(rgb, C1_ORANGE, C0_BLUE)} ({shot})")
+        rgb, hit = screenshot_showing(
+            artifact_page(api_url, report["id"]),
+            shot,
+            REPORT_WINDOW,
+            line=C1_ORANGE,
+            points=C0_BLUE,
+            min_line_columns=200,
+        )
+        assert hit is not None, (
+            "the report artifact's page shows no AFC figure: "
+            f"{figure_evidence(rgb, C1_ORANGE, C0_BLUE)} ({shot})"
+        )
         found["report"] = {"id": report["id"], "screenshot": shot, "figure": hit}
         if docs is not None:
-            found["report"]["docs"] = crop_for_docs(rgb, hit["box"],
-                                                    Path(docs) / "ui-report-artifact.png")
+            found["report"]["docs"] = crop_for_docs(
+                rgb, hit["box"], Path(docs) / "ui-report-artifact.png"
+            )
 
         # the same page with its figures' data broken: the UI shows the text, the check
         # must see no figure
         broken_md = DATA_URI.sub("data:image/png;base64,AAAA", report["data"])
-        broken = create_markdown_artifact(api_url, artifact_key(specimen, "broken-figures"),
-                                          broken_md, flow_run_id=report["flow_run_id"])
+        broken = create_markdown_artifact(
+            api_url,
+            artifact_key(specimen, "broken-figures"),
+            broken_md,
+            flow_run_id=report["flow_run_id"],
+        )
         url = artifact_page(api_url, broken["id"])
         dom = dump_dom(url, folder)
-        assert "identification report" in dom and "data:image/png;base64,AAAA" in dom, \
+        assert "identification report" in dom and "data:image/png;base64,AAAA" in dom, (
             "the UI did not render the broken copy's markdown: the control proves nothing"
-        rgb_broken = load_rgb(screenshot(url, folder / "report-broken.png",
-                                         width=REPORT_WINDOW[0], height=REPORT_WINDOW[1]))
+        )
+        rgb_broken = load_rgb(
+            screenshot(
+                url, folder / "report-broken.png", width=REPORT_WINDOW[0], height=REPORT_WINDOW[1]
+            )
+        )
         miss = shows_figure(rgb_broken, line=C1_ORANGE, points=C0_BLUE, min_line_columns=200)
         assert miss is None, f"the check sees a figure where the image is broken: {miss}"
 
@@ -465,14 +607,23 @@ def check_in_browser(folder: Path, *, docs: Path | None = None, log=print) -> di
         assert live is not None, f"no {artifact_key(specimen, 'live')} artifact"
         assert DATA_URI.search(live["data"]), "the live artifact embeds no PNG"
         shot = folder / "live.png"
-        rgb, hit = screenshot_showing(artifact_page(api_url, live["id"]), shot, LIVE_WINDOW,
-                                      line=C3_RED, points=C0_BLUE, min_line_columns=150)
-        assert hit is not None, ("the live artifact's page shows no AFC figure: "
-                                 f"{figure_evidence(rgb, C3_RED, C0_BLUE)} ({shot})")
+        rgb, hit = screenshot_showing(
+            artifact_page(api_url, live["id"]),
+            shot,
+            LIVE_WINDOW,
+            line=C3_RED,
+            points=C0_BLUE,
+            min_line_columns=150,
+        )
+        assert hit is not None, (
+            "the live artifact's page shows no AFC figure: "
+            f"{figure_evidence(rgb, C3_RED, C0_BLUE)} ({shot})"
+        )
         found["live"] = {"id": live["id"], "screenshot": shot, "figure": hit}
         if docs is not None:
-            found["live"]["docs"] = crop_for_docs(rgb, hit["box"],
-                                                  Path(docs) / "ui-live-artifact.png")
+            found["live"]["docs"] = crop_for_docs(
+                rgb, hit["box"], Path(docs) / "ui-live-artifact.png"
+            )
     log(f"checked in {time.monotonic() - t0:.0f} s")
     return found
 
@@ -485,12 +636,17 @@ def test_report_and_live_figures_show_in_the_prefect_ui(tmp_path):
 def main(argv=None) -> int:
     import argparse
 
-    p = argparse.ArgumentParser(description="Run a short campaign against a temporary Prefect "
-                                "server, screenshot its report and live AFC artifacts in "
-                                "headless Chromium, check that they show the figures, and "
-                                "write the README's pictures.")
-    p.add_argument("--docs", default=os.path.join(os.path.dirname(__file__), "..", "docs"),
-                   help="where to write ui-report-artifact.png and ui-live-artifact.png")
+    p = argparse.ArgumentParser(
+        description="Run a short campaign against a temporary Prefect "
+        "server, screenshot its report and live AFC artifacts in "
+        "headless Chromium, check that they show the figures, and "
+        "write the README's pictures."
+    )
+    p.add_argument(
+        "--docs",
+        default=os.path.join(os.path.dirname(__file__), "..", "docs"),
+        help="where to write ui-report-artifact.png and ui-live-artifact.png",
+    )
     p.add_argument("--keep", metavar="DIR", help="work in DIR (kept) instead of a temporary one")
     args = p.parse_args(argv)
     if CHROMIUM is None:
@@ -500,8 +656,10 @@ def main(argv=None) -> int:
         folder = args.keep or stack.enter_context(tempfile.TemporaryDirectory(prefix="vibid-ui-"))
         found = check_in_browser(Path(folder), docs=Path(args.docs))
         for name, item in found.items():
-            print(f"{name}: artifact {item['id']}, figure at {item['figure']['box']} "
-                  f"-> {os.path.normpath(item['docs'])}")
+            print(
+                f"{name}: artifact {item['id']}, figure at {item['figure']['box']} "
+                f"-> {os.path.normpath(item['docs'])}"
+            )
     return 0
 
 

@@ -31,8 +31,12 @@ def setup_with(freqs=FREQS):
 
 def stand_for(setup, ppm=40.0, **sim):
     name = f"vs{next(_names)}"
-    config = StandConfig.from_dict({"generator": {"url": f"vibidsim://{name}", "timeout_s": 0.1},
-                                    "simulated": {"clock_offset_ppm": ppm, **sim}})
+    config = StandConfig.from_dict(
+        {
+            "generator": {"url": f"vibidsim://{name}", "timeout_s": 0.1},
+            "simulated": {"clock_offset_ppm": ppm, **sim},
+        }
+    )
     stand = open_simulated_stand(setup, config, accuracy="default")
     return stand, lookup_stand(name)
 
@@ -45,8 +49,13 @@ def play(stand, frequency_hz, *, settle_s, vpp=0.2, n=N, commanded_hz=None):
     stand.generator.output_enabled = True
     stand.clock.sleep(settle_s)
     reading = stand.daq.acquire(n)
-    step = StepRecord(commanded_hz or frequency_hz, reading.sample_rate_hz, reading.base_m_s2,
-                      reading.response_m_s2, status="overload" if reading.overloaded else "ok")
+    step = StepRecord(
+        commanded_hz or frequency_hz,
+        reading.sample_rate_hz,
+        reading.base_m_s2,
+        reading.response_m_s2,
+        status="overload" if reading.overloaded else "ok",
+    )
     return afc_from_records([step]).points[0], reading
 
 
@@ -76,8 +85,9 @@ def test_the_virtual_specimen_is_the_simulated_sessions_truth():
     setup = setup_with()
     _, virtual = stand_for(setup)
     freqs = np.array([180.0, 620.0])
-    np.testing.assert_array_equal(virtual.specimen.h(freqs),
-                                  true_afc(setup, virtual.truth, [180.0, 620.0, 1.05 * 1100.0])[:2])
+    np.testing.assert_array_equal(
+        virtual.specimen.h(freqs), true_afc(setup, virtual.truth, [180.0, 620.0, 1.05 * 1100.0])[:2]
+    )
 
 
 def test_a_wrong_frequency_command_gives_a_wrong_record():
@@ -174,15 +184,28 @@ def test_open_stand_finds_the_simulated_stand_by_name():
     assert not lookup_stand("stand").instrument.output_on
 
 
-@pytest.mark.parametrize("doc, match", [
-    ({"generator": {"url": "/dev/ttyUSB0"}}, "generator.url: the simulated stand needs vibidsim://NAME"),
-    ({"simulated": {"effects": {"glue": {"x": 1.0}}}}, "simulated.effects.glue: unknown effect"),
-    ({"simulated": {"effects": {"stand_resonance": [{"f_hz": 660.0}]}}},
-     "simulated.effects.stand_resonance: give f_hz, q, theta_rad_per_m, got f_hz"),
-    ({"simulated": {"effects": {"sensor_gain": [{"gain": 1.0}, {"gain": 1.1}]}}},
-     "simulated.effects.sensor_gain: sensor_gain occurs once, given 2 times"),
-    ({"simulated": {"faults": [{"kind": "fire"}]}}, "simulated: unknown fault kind 'fire'"),
-])
+@pytest.mark.parametrize(
+    "doc, match",
+    [
+        (
+            {"generator": {"url": "/dev/ttyUSB0"}},
+            "generator.url: the simulated stand needs vibidsim://NAME",
+        ),
+        (
+            {"simulated": {"effects": {"glue": {"x": 1.0}}}},
+            "simulated.effects.glue: unknown effect",
+        ),
+        (
+            {"simulated": {"effects": {"stand_resonance": [{"f_hz": 660.0}]}}},
+            "simulated.effects.stand_resonance: give f_hz, q, theta_rad_per_m, got f_hz",
+        ),
+        (
+            {"simulated": {"effects": {"sensor_gain": [{"gain": 1.0}, {"gain": 1.1}]}}},
+            "simulated.effects.sensor_gain: sensor_gain occurs once, given 2 times",
+        ),
+        ({"simulated": {"faults": [{"kind": "fire"}]}}, "simulated: unknown fault kind 'fire'"),
+    ],
+)
 def test_bad_simulated_configuration_is_one_line(doc, match):
     with pytest.raises(StandConfigError, match=match):
         open_simulated_stand(setup_with((300.0,)), StandConfig.from_dict(doc), accuracy="default")
@@ -191,9 +214,16 @@ def test_bad_simulated_configuration_is_one_line(doc, match):
 def test_two_stand_resonances_are_two_instances_of_the_truth():
     from vibid.hardware_mocks.virtual_stand import true_parameters
 
-    doc = {"simulated": {"effects": {"stand_resonance": [
-        {"f_hz": 660.0, "q": 30.0, "theta_rad_per_m": 0.3},
-        {"f_hz": 300.0, "q": 10.0, "theta_rad_per_m": -0.2}]}}}
+    doc = {
+        "simulated": {
+            "effects": {
+                "stand_resonance": [
+                    {"f_hz": 660.0, "q": 30.0, "theta_rad_per_m": 0.3},
+                    {"f_hz": 300.0, "q": 10.0, "theta_rad_per_m": -0.2},
+                ]
+            }
+        }
+    }
     truth = true_parameters(StandConfig.from_dict(doc))
     assert truth["f_hz_1"] == 660.0 and truth["f_hz_2"] == 300.0
     assert truth["theta_rad_per_m_2"] == -0.2
@@ -220,12 +250,17 @@ def test_undeclared_effect_is_in_the_specimen_not_the_setup():
     assert SimulatedConfig().effects == {}
 
 
-@pytest.mark.parametrize("fault, error", [
-    ({"kind": "error", "at_step": 1, "code": -310, "message": "Overheated"},
-     "instrument error after 'FREQ 300': -310 Overheated"),
-    ({"kind": "no_reply", "at_step": 1}, r"no reply to 'SYST:ERR\?' within 0.1 s"),
-    ({"kind": "drop", "at_step": 1}, "device disconnected"),
-])
+@pytest.mark.parametrize(
+    "fault, error",
+    [
+        (
+            {"kind": "error", "at_step": 1, "code": -310, "message": "Overheated"},
+            "instrument error after 'FREQ 300': -310 Overheated",
+        ),
+        ({"kind": "no_reply", "at_step": 1}, r"no reply to 'SYST:ERR\?' within 0.1 s"),
+        ({"kind": "drop", "at_step": 1}, "device disconnected"),
+    ],
+)
 def test_faults_of_the_stand_configuration_fire_at_their_step(fault, error):
     from vibid.acquisition.generator import GeneratorError
 

@@ -25,9 +25,13 @@ REPO = Path(__file__).resolve().parents[1]
 
 def _watch(limit_s, folder):
     fired = []
-    dog = heartbeat.Watchdog(limit_s, lambda: folder, "vibid test",
-                             on_stall=lambda line, path: fired.append((line, path)),
-                             poll_s=0.02)
+    dog = heartbeat.Watchdog(
+        limit_s,
+        lambda: folder,
+        "vibid test",
+        on_stall=lambda line, path: fired.append((line, path)),
+        poll_s=0.02,
+    )
     return dog, fired
 
 
@@ -75,8 +79,9 @@ def test_outside_every_stage_it_never_fires():
     assert fired == []
 
 
-@pytest.mark.parametrize("raw, expected", [(None, heartbeat.DEFAULT_LIMIT_S), ("0", 0.0),
-                                           ("2.5", 2.5)])
+@pytest.mark.parametrize(
+    "raw, expected", [(None, heartbeat.DEFAULT_LIMIT_S), ("0", 0.0), ("2.5", 2.5)]
+)
 def test_the_limit(raw, expected, monkeypatch):
     monkeypatch.delenv("VIBID_STALL_TIMEOUT_S", raising=False)
     assert heartbeat.limit_from(raw) == expected
@@ -112,21 +117,41 @@ def test_identify_whose_hessian_never_returns_ends_in_one_line(tmp_path):
     setup = tmp_path / "setup.json"
     setup.write_text(example_setup().to_json())
     report = tmp_path / "report"
-    cmd = [sys.executable, "-c", CHILD, "--stall-timeout", "5", "identify", "--afc",
-           str(REPO / "tests/data/adaptive_strip_afc.csv"), "--setup", str(setup),
-           "--json", str(tmp_path / "r.json"), "--report", str(report), "--no-loop"]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path,
-                          check=False)
+    cmd = [
+        sys.executable,
+        "-c",
+        CHILD,
+        "--stall-timeout",
+        "5",
+        "identify",
+        "--afc",
+        str(REPO / "tests/data/adaptive_strip_afc.csv"),
+        "--setup",
+        str(setup),
+        "--json",
+        str(tmp_path / "r.json"),
+        "--report",
+        str(report),
+        "--no-loop",
+    ]
+    done = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False
+    )
     # the progress bars (tqdm, on stderr) then the one line
-    lines = [x for x in done.stderr.replace("\r", "\n").splitlines()
-             if x.strip() and not x.startswith("global search:")]
+    lines = [
+        x
+        for x in done.stderr.replace("\r", "\n").splitlines()
+        if x.strip() and not x.startswith("global search:")
+    ]
     assert done.returncode == 1, done.stderr[-2000:]
     assert len(lines) == 1, lines
     assert lines[0].startswith("vibid identify: error: no progress for 5 s in ")
     assert "'problem.hessian' (local fits > problem.hessian)" in lines[0]
-    assert lines[0].endswith("'identify'; ended: the Python stacks are in "
-                             f"{report / heartbeat.STACKS_FILE} (set the limit with "
-                             "--stall-timeout S)")
+    assert lines[0].endswith(
+        "'identify'; ended: the Python stacks are in "
+        f"{report / heartbeat.STACKS_FILE} (set the limit with "
+        "--stall-timeout S)"
+    )
     assert "Traceback" not in done.stderr
     stacks = (report / heartbeat.STACKS_FILE).read_text()
     assert "in parked" in stacks and "hessian" in stacks

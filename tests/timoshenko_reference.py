@@ -208,7 +208,8 @@ def natural_frequencies_hz(n, *, L, EI, kGA, rhoA, rhoI, x_s=None, m=0.0, J=0.0,
         cuts = int(_cuts(omega_of(lam[-1:]), L, EI, kGA, rhoA, rhoI)[0])
         d = det(lam, cuts)
         for i in np.flatnonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)[: n - len(roots)]:
-            roots.append(brentq(lambda s: det(s, cuts)[0], lam[i], lam[i + 1], xtol=1e-300,
-                                rtol=1e-15))
+            roots.append(
+                brentq(lambda s: det(s, cuts)[0], lam[i], lam[i + 1], xtol=1e-300, rtol=1e-15)
+            )
         start = lam[-1]
     return omega_of(np.array(roots)) / (2 * np.pi)

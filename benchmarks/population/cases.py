@@ -53,15 +53,37 @@ DETECTABLE = 3.0
 CHECK_ORDER = {"strip": (16, 7), "plate": (14, 12)}
 TRUTH_ORDER = {"strip": pm.STRIP_ORDER, "plate": pm.PLATE_ORDER}
 
-METALS = {"steel": (200e9, 0.29, 7850.0), "aluminium": (70e9, 0.33, 2700.0),
-          "titanium": (110e9, 0.32, 4500.0)}
+METALS = {
+    "steel": (200e9, 0.29, 7850.0),
+    "aluminium": (70e9, 0.33, 2700.0),
+    "titanium": (110e9, 0.32, 4500.0),
+}
 
-STRIP_EFFECTS = ["channel_delay", "sensor_gain", "clamp_compliance", "clamp_loss",
-                 "free_length", "added_mass", "frequency_dependent_loss", "stand_resonance",
-                 "fixture_resonance", "sensor_position", "sensor_inertia"]
-PLATE_EFFECTS = ["channel_delay", "sensor_gain", "clamp_compliance", "clamp_loss",
-                 "free_length", "added_mass", "frequency_dependent_loss", "stand_resonance",
-                 "fixture_resonance", "anisotropy"]
+STRIP_EFFECTS = [
+    "channel_delay",
+    "sensor_gain",
+    "clamp_compliance",
+    "clamp_loss",
+    "free_length",
+    "added_mass",
+    "frequency_dependent_loss",
+    "stand_resonance",
+    "fixture_resonance",
+    "sensor_position",
+    "sensor_inertia",
+]
+PLATE_EFFECTS = [
+    "channel_delay",
+    "sensor_gain",
+    "clamp_compliance",
+    "clamp_loss",
+    "free_length",
+    "added_mass",
+    "frequency_dependent_loss",
+    "stand_resonance",
+    "fixture_resonance",
+    "anisotropy",
+]
 OUT_OF_LIBRARY = ["air_damping", "crosstalk", "amplitude_dependent_top"]
 
 
@@ -80,25 +102,33 @@ def draw_specimen(rng, kind, ortho=False):
         G12, nu12 = rng.uniform(3.5e9, 5.5e9), rng.uniform(0.25, 0.32)
         nu21 = nu12 * E2 / E1
         c = h**3 / (12 * (1 - nu12 * nu21))
-        mat = {"D11": E1 * c, "D22": E2 * c, "D12": nu12 * E2 * c, "D66": G12 * h**3 / 12,
-               "beta": rng.uniform(0.004, 0.01)}
+        mat = {
+            "D11": E1 * c,
+            "D22": E2 * c,
+            "D12": nu12 * E2 * c,
+            "D66": G12 * h**3 / 12,
+            "beta": rng.uniform(0.004, 0.01),
+        }
         nominal = dict(mat)
-        mat = {k: v * (rng.uniform(0.93, 1.07) if k != "beta" else 1.0)
-               for k, v in mat.items()}
+        mat = {k: v * (rng.uniform(0.93, 1.07) if k != "beta" else 1.0) for k, v in mat.items()}
     else:
         mname = str(rng.choice(list(METALS)))
         E, nu, rho = METALS[mname]
         Et = E * rng.uniform(0.95, 1.05)  # the specimen's own modulus, not the handbook's
         nut = float(np.clip(nu + rng.uniform(-0.02, 0.02), 0.2, 0.4))
-        mat = {"D": Et * h**3 / (12 * (1 - nut**2)), "nu": nut,
-               "beta": float(np.exp(rng.uniform(math.log(0.0015), math.log(0.005))))}
+        mat = {
+            "D": Et * h**3 / (12 * (1 - nut**2)),
+            "nu": nut,
+            "beta": float(np.exp(rng.uniform(math.log(0.0015), math.log(0.005)))),
+        }
         nominal = {"D": E * h**3 / (12 * (1 - nu**2)), "nu": nu, "beta": 0.003}
     mass = rng.uniform(0.5e-3, 2.0e-3)
     radius = rng.uniform(1.0e-3, 3.5e-3) if kind == "strip" else rng.uniform(2e-3, 4e-3)
     xs = L * rng.uniform(0.85, 0.93)
     ys = B * (rng.uniform(0.35, 0.65) if kind == "strip" else rng.uniform(0.55, 0.8))
-    plate = pm.Plate(float(L), float(B), float(h), rho, float(xs), float(ys), float(mass),
-                     float(radius))
+    plate = pm.Plate(
+        float(L), float(B), float(h), rho, float(xs), float(ys), float(mass), float(radius)
+    )
     name = f"{mname} {kind} {L * 1e3:.0f}x{B * 1e3:.0f}x{h * 1e3:.2f}"
     return plate, {k: float(v) for k, v in mat.items()}, nominal, name
 
@@ -118,8 +148,7 @@ def draw_effect(rng, name, ctx, grow=1.0):
         c = float(np.exp(rng.uniform(math.log(150), math.log(5000)))) / g  # k L / D
         out = {"k_theta_N_per_rad": c * D / plate.L}
         if name == "clamp_loss":  # lossless or far lossier than the plate
-            out["beta_clamp"] = 0.0 if rng.uniform() < 0.4 else float(
-                beta * rng.uniform(8, 30) * g)
+            out["beta_clamp"] = 0.0 if rng.uniform() < 0.4 else float(beta * rng.uniform(8, 30) * g)
         return out
     if name == "free_length":
         return {"dL_m": float(rng.uniform(0.3e-3, 2e-3) * g)}
@@ -131,10 +160,16 @@ def draw_effect(rng, name, ctx, grow=1.0):
         f0 = _between_modes(rng, modes, ctx["f_lo"], f_hi)
         q = float(rng.uniform(10, 40))
         if name == "stand_resonance":
-            return {"f_hz_1": f0, "q_1": q,
-                    "theta_rad_per_m_1": float(rng.uniform(0.01, 0.06) * g / (q * plate.xs))}
-        return {"f_fixture_hz": f0, "q_fixture": q,
-                "a_fixture": float(rng.uniform(0.005, 0.03) * g)}
+            return {
+                "f_hz_1": f0,
+                "q_1": q,
+                "theta_rad_per_m_1": float(rng.uniform(0.01, 0.06) * g / (q * plate.xs)),
+            }
+        return {
+            "f_fixture_hz": f0,
+            "q_fixture": q,
+            "a_fixture": float(rng.uniform(0.005, 0.03) * g),
+        }
     if name == "sensor_position":
         room = plate.B / 2 - plate.radius - 1e-3
         dy = min(rng.uniform(2e-3, 5e-3) * g, room)
@@ -148,8 +183,10 @@ def draw_effect(rng, name, ctx, grow=1.0):
         ph = rng.uniform(-0.3, 0.3)
         return {"crosstalk_re": float(c * math.cos(ph)), "crosstalk_im": float(c * math.sin(ph))}
     if name == "amplitude_dependent_top":
-        return {"slip_kappa": float(rng.uniform(0.3, 1.0)),
-                "slip_fraction": float(rng.uniform(0.3, 0.6) / g)}
+        return {
+            "slip_kappa": float(rng.uniform(0.3, 1.0)),
+            "slip_fraction": float(rng.uniform(0.3, 0.6) / g),
+        }
     if name == "anisotropy":
         return {}
     raise ValueError(name)
@@ -159,8 +196,9 @@ def _between_modes(rng, modes, f_lo, f_hi):
     """A frequency in the band at least 4 % from every mode (a resonance where the plate has
     none)."""
     for _ in range(200):
-        f = float(np.exp(rng.uniform(math.log(max(f_lo * 1.5, 0.5 * modes[0])),
-                                     math.log(f_hi * 0.95))))
+        f = float(
+            np.exp(rng.uniform(math.log(max(f_lo * 1.5, 0.5 * modes[0])), math.log(f_hi * 0.95)))
+        )
         if np.all(np.abs(np.asarray(modes) / f - 1) > 0.04):
             return f
     return float(0.5 * (modes[0] + modes[1]))
@@ -187,8 +225,11 @@ def declared_start(case):
     mat = case["material"]
     if case["declared"] == "isotropic" and "D" not in mat:  # orthotropic declared isotropic
         D11 = mat["D11"]
-        return {"D": D11, "nu": mat["D12"] / math.sqrt(mat["D11"] * mat["D22"]),
-                "beta": mat["beta"]}
+        return {
+            "D": D11,
+            "nu": mat["D12"] / math.sqrt(mat["D11"] * mat["D22"]),
+            "beta": mat["beta"],
+        }
     return dict(mat)
 
 
@@ -202,8 +243,17 @@ def chi2_declared(case, effects, f, std, free=(), fixed=None, truth_model=False)
     if truth_model:
         c["declared"] = "isotropic" if "D" in case["material"] else "orthotropic"
     start = declared_start(c) | {k: effects[k] for k in free}
-    chi, _ = pm.refit(f, H, std, c["plate"], c["declared"], start, free_effects=free,
-                      fixed_effects=fixed, order=order)
+    chi, _ = pm.refit(
+        f,
+        H,
+        std,
+        c["plate"],
+        c["declared"],
+        start,
+        free_effects=free,
+        fixed_effects=fixed,
+        order=order,
+    )
     return chi
 
 
@@ -251,8 +301,7 @@ def make_case(index, spec, seed):
             if name == "clamp_loss":
                 # against a clamp spring of the plate's loss (k free): clamp_compliance alone
                 with_spring = {"k_theta_N_per_rad": p["k_theta_N_per_rad"]}
-                chi = chi2_declared(case, p, f, std, free=("k_theta_N_per_rad",),
-                                    truth_model=aniso)
+                chi = chi2_declared(case, p, f, std, free=("k_theta_N_per_rad",), truth_model=aniso)
                 chi_k = chi2_declared(case, with_spring, f, std, truth_model=aniso)
                 checks["clamp_compliance"] = chi_k
                 if chi_k < DETECTABLE:
@@ -278,8 +327,11 @@ def make_case(index, spec, seed):
                 break
         if not ok:
             checks[name + "_not_detectable"] = chi
-    if "clamp_compliance" in required and "clamp_loss" not in required and \
-            "clamp_loss" not in optional:
+    if (
+        "clamp_compliance" in required
+        and "clamp_loss" not in required
+        and "clamp_loss" not in optional
+    ):
         optional.append("clamp_loss")  # its null is the plate's beta: a fit may add it
     truth_effects = _merge(effects)
     out_of_library = [n for n in wanted if n in OUT_OF_LIBRARY and n in effects]
@@ -297,20 +349,27 @@ def make_case(index, spec, seed):
     name = f"c{index:02d}-{kind}-{grid_kind}-" + ("+".join(wanted) if wanted else "clean")
     setup = setup_json(plate, sname, declared, nominal, mat)
     truth = {
-        "name": name, "kind": kind, "grid": grid_kind,
+        "name": name,
+        "kind": kind,
+        "grid": grid_kind,
         "material_model": "isotropic" if "D" in mat else "orthotropic",
-        "declared_model": declared, "material": mat,
+        "declared_model": declared,
+        "material": mat,
         "engineering": engineering(plate, mat),
-        "effects": {k: {n: v for n, v in p.items()} for k, p in effects.items()
-                    if k not in OUT_OF_LIBRARY},
+        "effects": {
+            k: {n: v for n, v in p.items()} for k, p in effects.items() if k not in OUT_OF_LIBRARY
+        },
         "out_of_library": {k: effects[k] for k in out_of_library},
-        "required": required, "optional": optional,
+        "required": required,
+        "optional": optional,
         "detectability_chi2_red": {k: round(v, 3) for k, v in checks.items()},
         "whole_case_chi2_red": None if whole is None else round(whole, 3),
-        "band_hz": [float(f[0]), float(f[-1])], "n_points": int(f.size),
+        "band_hz": [float(f[0]), float(f[-1])],
+        "n_points": int(f.size),
         "modes_hz": [float(m) for m in modes],
         "noise": {"rel": noise_rel, "floor": floor},
-        "ritz_order": list(TRUTH_ORDER[kind]), "seed": [SEED, seed],
+        "ritz_order": list(TRUTH_ORDER[kind]),
+        "seed": [SEED, seed],
         "drawn": list(wanted),
     }
     return name, f, Hn, std, setup, truth
@@ -324,8 +383,12 @@ def engineering(plate, mat):
     nu12 = mat["D12"] / mat["D22"]
     nu21 = mat["D12"] / mat["D11"]
     c = 12 * (1 - nu12 * nu21) / h**3
-    return {"E1_Pa": mat["D11"] * c, "E2_Pa": mat["D22"] * c,
-            "G12_Pa": mat["D66"] * 12 / h**3, "nu12": nu12}
+    return {
+        "E1_Pa": mat["D11"] * c,
+        "E2_Pa": mat["D22"] * c,
+        "G12_Pa": mat["D66"] * 12 / h**3,
+        "nu12": nu12,
+    }
 
 
 def setup_json(plate, sname, declared, nominal, mat):
@@ -340,15 +403,28 @@ def setup_json(plate, sname, declared, nominal, mat):
         bounds["D12"] = [0.0, nominal["D12"] * 3]
         bounds["beta"] = [1e-4, 0.1]
     return {
-        "specimen": {"name": sname, "length_m": plate.L, "width_m": plate.B,
-                     "thickness_m": plate.h, "density_kg_m3": plate.rho},
-        "sensors": {"base": {"sensitivity_mV_per_g": 100.0},
-                    "response": {"sensitivity_mV_per_g": 100.0, "x_m": plate.xs,
-                                 "y_m": plate.ys, "mass_kg": plate.mass,
-                                 "radius_m": plate.radius}},
+        "specimen": {
+            "name": sname,
+            "length_m": plate.L,
+            "width_m": plate.B,
+            "thickness_m": plate.h,
+            "density_kg_m3": plate.rho,
+        },
+        "sensors": {
+            "base": {"sensitivity_mV_per_g": 100.0},
+            "response": {
+                "sensitivity_mV_per_g": 100.0,
+                "x_m": plate.xs,
+                "y_m": plate.ys,
+                "mass_kg": plate.mass,
+                "radius_m": plate.radius,
+            },
+        },
         "daq": {"sample_rate_hz": 25600.0},
-        "identification": {"model": declared,
-                           "bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()}},
+        "identification": {
+            "model": declared,
+            "bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()},
+        },
     }
 
 
@@ -409,8 +485,9 @@ def split(names):
 def write_case(name, f, H, std, setup, truth, root=CASES_DIR):
     d = root / name
     d.mkdir(parents=True, exist_ok=True)
-    rows = ["frequency_hz,re,im,std"] + [f"{a:.8f},{b.real:.10g},{b.imag:.10g},{s:.6g}"
-                                         for a, b, s in zip(f, H, std)]
+    rows = ["frequency_hz,re,im,std"] + [
+        f"{a:.8f},{b.real:.10g},{b.imag:.10g},{s:.6g}" for a, b, s in zip(f, H, std)
+    ]
     (d / "afc.csv").write_text("\n".join(rows) + "\n")
     (d / "setup.json").write_text(json.dumps(setup, indent=1) + "\n")
     (d / "truth.json").write_text(json.dumps(truth, indent=1) + "\n")
@@ -440,10 +517,12 @@ def main(argv=None):
         name, f, H, std, setup, truth = make_case(i, spec, seed=i)
         write_case(name, f, H, std, setup, truth)
         names.append(name)
-        print(f"{name}: {truth['n_points']} pts {truth['band_hz'][0]:.0f}-"
-              f"{truth['band_hz'][1]:.0f} Hz required={truth['required']} "
-              f"optional={truth['optional']} chi2={truth['detectability_chi2_red']}",
-              flush=True)
+        print(
+            f"{name}: {truth['n_points']} pts {truth['band_hz'][0]:.0f}-"
+            f"{truth['band_hz'][1]:.0f} Hz required={truth['required']} "
+            f"optional={truth['optional']} chi2={truth['detectability_chi2_red']}",
+            flush=True,
+        )
     allnames = case_names()
     (HERE / "split.json").write_text(json.dumps(split(allnames), indent=1) + "\n")
 

@@ -65,15 +65,24 @@ def run_case(name, timeout):
     if meta_path.exists():
         meta = json.loads(meta_path.read_text())
         done = meta.get("status") in ("ok", "failed") or (
-            meta.get("status") == "timeout" and meta.get("timeout_s", 0) >= timeout)
+            meta.get("status") == "timeout" and meta.get("timeout_s", 0) >= timeout
+        )
         if meta.get("digest") == digest and meta.get("code") == code and done:
             meta["cached"] = True
             return meta
     report = out / "report.json"
     if report.exists():
         report.unlink()
-    cmd = vibid_command() + ["identify", "--afc", str(d / "afc.csv"), "--setup",
-                             str(d / "setup.json"), "--json", str(report), "--no-progress"]
+    cmd = vibid_command() + [
+        "identify",
+        "--afc",
+        str(d / "afc.csv"),
+        "--setup",
+        str(d / "setup.json"),
+        "--json",
+        str(report),
+        "--no-progress",
+    ]
     t0 = time.monotonic()
     with open(out / "stdout.txt", "w") as so, open(out / "stderr.txt", "w") as se:
         proc = subprocess.Popen(cmd, stdout=so, stderr=se, start_new_session=True)
@@ -86,9 +95,17 @@ def run_case(name, timeout):
             rc, status = None, "timeout"
     seconds = time.monotonic() - t0
     tail = (out / "stderr.txt").read_text()[-2000:]
-    meta = {"case": name, "status": status, "returncode": rc, "seconds": round(seconds, 2),
-            "timeout_s": timeout, "digest": digest, "code": code, "command": cmd,
-            "stderr_tail": tail}
+    meta = {
+        "case": name,
+        "status": status,
+        "returncode": rc,
+        "seconds": round(seconds, 2),
+        "timeout_s": timeout,
+        "digest": digest,
+        "code": code,
+        "command": cmd,
+        "stderr_tail": tail,
+    }
     meta_path.write_text(json.dumps(meta, indent=1) + "\n")
     return meta
 
@@ -123,19 +140,29 @@ def main(argv=None):
             meta = json.loads(p.read_text())
         else:
             meta = run_case(name, args.timeout)
-            print(f"[{i + 1}/{len(names)}] {name}: {meta['status']} {meta['seconds']:.0f} s"
-                  + (" (cached)" if meta.get("cached") else ""), file=sys.stderr, flush=True)
+            print(
+                f"[{i + 1}/{len(names)}] {name}: {meta['status']} {meta['seconds']:.0f} s"
+                + (" (cached)" if meta.get("cached") else ""),
+                file=sys.stderr,
+                flush=True,
+            )
         truth = json.loads((C.CASES_DIR / name / "truth.json").read_text())
         rp = RESULTS / name / "report.json"
         report = json.loads(rp.read_text()) if meta["status"] == "ok" and rp.exists() else None
         rows.append(S.score_case(truth, report, meta))
-    halves = {h: [r for r in rows if r["case"] in set(split[h])]
-              for h in ("calibration", "measured")}
+    halves = {
+        h: [r for r in rows if r["case"] in set(split[h])] for h in ("calibration", "measured")
+    }
     summary = {h: S.summarise(rs) for h, rs in halves.items() if rs}
     if args.half == "all":
         summary["all"] = S.summarise(rows)
-    doc = {"format": "vibid.population_benchmark", "version": 1,
-           "equivalences": S.EQUIVALENCES, "summary": summary, "cases": rows}
+    doc = {
+        "format": "vibid.population_benchmark",
+        "version": 1,
+        "equivalences": S.EQUIVALENCES,
+        "summary": summary,
+        "cases": rows,
+    }
     OUT_JSON.write_text(json.dumps(doc, indent=1, default=float) + "\n")
     print(S.markdown(summary, rows))
 

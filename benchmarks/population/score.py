@@ -16,17 +16,25 @@ from collections import Counter
 
 #: How the named effects are counted against the truth (also written into population.json).
 EQUIVALENCES = [
-    ("clamp_loss (a clamp whose spring dissipates otherwise than the plate) counts as named "
-     "only when clamp_compliance and clamp_loss were both added; clamp_compliance counts as "
-     "named whether or not clamp_loss came with it"),
-    ("clamp_loss is tolerated (no false addition) wherever the truth has a clamp spring: its "
-     "null is the plate's beta, and a lossless clamp (beta_clamp = 0) that the data cannot "
-     "tell from a clamp of the plate's loss names it optional"),
+    (
+        "clamp_loss (a clamp whose spring dissipates otherwise than the plate) counts as named "
+        "only when clamp_compliance and clamp_loss were both added; clamp_compliance counts as "
+        "named whether or not clamp_loss came with it"
+    ),
+    (
+        "clamp_loss is tolerated (no false addition) wherever the truth has a clamp spring: its "
+        "null is the plate's beta, and a lossless clamp (beta_clamp = 0) that the data cannot "
+        "tell from a clamp of the plate's loss names it optional"
+    ),
     ("anisotropy counts as named when the report's final model is orthotropic"),
-    ("stand_resonance and fixture_resonance count per instance (a second instance where the "
-     "truth has one is a false addition)"),
-    ("free_length and clamp_compliance are NOT equivalent, nor added_mass and sensor_inertia, "
-     "nor sensor_gain and channel_delay"),
+    (
+        "stand_resonance and fixture_resonance count per instance (a second instance where the "
+        "truth has one is a false addition)"
+    ),
+    (
+        "free_length and clamp_compliance are NOT equivalent, nor added_mass and sensor_inertia, "
+        "nor sensor_gain and channel_delay"
+    ),
 ]
 
 #: nu's tolerance for an out-of-library case: 5 % of the truth's nu
@@ -36,8 +44,11 @@ D_REL = 0.01
 
 def added_effects(report) -> list[str]:
     names = [e["name"] for e in report.get("effects", [])]
-    if report.get("model") == "orthotropic" and report.get("declared_model") == "isotropic" \
-            and "anisotropy" not in names:
+    if (
+        report.get("model") == "orthotropic"
+        and report.get("declared_model") == "isotropic"
+        and "anisotropy" not in names
+    ):
         names.append("anisotropy")
     return names
 
@@ -67,14 +78,26 @@ def coverage(truth, report) -> dict:
 
 
 def score_case(truth, report, meta) -> dict:
-    row = {"case": truth["name"], "kind": truth["kind"], "grid": truth["grid"],
-           "status": meta["status"], "seconds": meta["seconds"],
-           "required": truth["required"], "optional": truth["optional"],
-           "out_of_library": sorted(truth.get("out_of_library", {})),
-           "clean": not truth["required"] and not truth.get("out_of_library")}
+    row = {
+        "case": truth["name"],
+        "kind": truth["kind"],
+        "grid": truth["grid"],
+        "status": meta["status"],
+        "seconds": meta["seconds"],
+        "required": truth["required"],
+        "optional": truth["optional"],
+        "out_of_library": sorted(truth.get("out_of_library", {})),
+        "clean": not truth["required"] and not truth.get("out_of_library"),
+    }
     if report is None:
-        row.update(added=None, named=[], missed=list(truth["required"]), false=None,
-                   coverage={}, honest=None)
+        row.update(
+            added=None,
+            named=[],
+            missed=list(truth["required"]),
+            false=None,
+            coverage={},
+            honest=None,
+        )
         return row
     added = added_effects(report)
     req = Counter(truth["required"])
@@ -90,12 +113,17 @@ def score_case(truth, report, meta) -> dict:
     extra = got - req
     false = sorted(n for n in extra.elements() if n not in tolerated)
     loop = report.get("loop", {})
-    row.update(added=added, named=named, missed=missed, false=false,
-               unexplained_residual=loop.get("unexplained_residual"),
-               chi2_reduced=[s.get("chi2_reduced") for s in loop.get("stages", [])],
-               coverage=coverage(truth, report),
-               values={k: _param(report, k)[0] for k in truth["material"]},
-               stds={k: _param(report, k)[1] for k in truth["material"]})
+    row.update(
+        added=added,
+        named=named,
+        missed=missed,
+        false=false,
+        unexplained_residual=loop.get("unexplained_residual"),
+        chi2_reduced=[s.get("chi2_reduced") for s in loop.get("stages", [])],
+        coverage=coverage(truth, report),
+        values={k: _param(report, k)[0] for k in truth["material"]},
+        stds={k: _param(report, k)[1] for k in truth["material"]},
+    )
     if loop.get("criterion"):
         crit = loop["criterion"]
         row["criterion"] = crit.get("name") if isinstance(crit, dict) else str(crit)
@@ -110,8 +138,11 @@ def score_case(truth, report, meta) -> dict:
         ok_d = d is not None and abs(d / mat[dname] - 1) <= D_REL
         ok_nu = "nu" not in mat or (nu is not None and abs(nu - mat["nu"]) <= NU_REL * mat["nu"])
         row["honest"] = bool(loop.get("unexplained_residual")) and ok_d and ok_nu
-        row["honest_parts"] = {"unexplained_residual": loop.get("unexplained_residual"),
-                               "D_within_1pct": ok_d, "nu_within_5pct": ok_nu}
+        row["honest_parts"] = {
+            "unexplained_residual": loop.get("unexplained_residual"),
+            "D_within_1pct": ok_d,
+            "nu_within_5pct": ok_nu,
+        }
     else:
         row["honest"] = None
     return row
@@ -143,14 +174,18 @@ def summarise(rows) -> dict:
     clean = [r for r in done if r["clean"]]
     ool = [r for r in done if r["out_of_library"]]
     return {
-        "cases": len(rows), "ran": len(done),
+        "cases": len(rows),
+        "ran": len(done),
         "failures": {s: sum(r["status"] == s for r in rows) for s in ("failed", "timeout")},
-        "recall": None if not n_req else n_named / n_req, "recall_counts": [n_named, n_req],
+        "recall": None if not n_req else n_named / n_req,
+        "recall_counts": [n_named, n_req],
         "recall_per_effect": {k: f"{a}/{b}" for k, (a, b) in sorted(per_effect.items())},
         "false_additions": _share([bool(r["false"]) for r in done])[0],
         "false_addition_cases": sum(bool(r["false"]) for r in done),
-        "coverage": {k: {"share": _share(v)[0], "n": _share(v)[1],
-                         "missing": sum(x is None for x in v)} for k, v in sorted(cov.items())},
+        "coverage": {
+            k: {"share": _share(v)[0], "n": _share(v)[1], "missing": sum(x is None for x in v)}
+            for k, v in sorted(cov.items())
+        },
         "clean_untouched": _share([not r["added"] for r in clean])[0],
         "clean_counts": [sum(not r["added"] for r in clean), len(clean)],
         "out_of_library_honest": _share([r["honest"] for r in ool])[0],
@@ -175,32 +210,59 @@ def markdown(summary, rows) -> str:
     def line(label, fn):
         lines.append(f"| {label} | " + " | ".join(fn(summary[h]) for h in halves) + " |")
 
-    line("cases (ran / failed / timed out)", lambda s: f"{s['ran']}/{s['failures']['failed']}"
-         f"/{s['failures']['timeout']} of {s['cases']}")
-    line("recall (true effects named)", lambda s: f"{_fmt(s['recall'])} "
-         f"({s['recall_counts'][0]}/{s['recall_counts'][1]})")
-    line("false additions (cases)", lambda s: f"{_fmt(s['false_additions'])} "
-         f"({s['false_addition_cases']})")
-    line("clean untouched", lambda s: f"{_fmt(s['clean_untouched'])} "
-         f"({s['clean_counts'][0]}/{s['clean_counts'][1]})")
-    line("out-of-library honest", lambda s: f"{_fmt(s['out_of_library_honest'])} "
-         f"({s['out_of_library_counts'][0]}/{s['out_of_library_counts'][1]})")
+    line(
+        "cases (ran / failed / timed out)",
+        lambda s: (
+            f"{s['ran']}/{s['failures']['failed']}/{s['failures']['timeout']} of {s['cases']}"
+        ),
+    )
+    line(
+        "recall (true effects named)",
+        lambda s: f"{_fmt(s['recall'])} ({s['recall_counts'][0]}/{s['recall_counts'][1]})",
+    )
+    line(
+        "false additions (cases)",
+        lambda s: f"{_fmt(s['false_additions'])} ({s['false_addition_cases']})",
+    )
+    line(
+        "clean untouched",
+        lambda s: f"{_fmt(s['clean_untouched'])} ({s['clean_counts'][0]}/{s['clean_counts'][1]})",
+    )
+    line(
+        "out-of-library honest",
+        lambda s: (
+            f"{_fmt(s['out_of_library_honest'])} "
+            f"({s['out_of_library_counts'][0]}/{s['out_of_library_counts'][1]})"
+        ),
+    )
     keys = sorted({k for h in halves for k in summary[h]["coverage"]})
     for k in keys:
-        line(f"coverage {k} (2 std)", lambda s, k=k: (
-            f"{_fmt(s['coverage'][k]['share'])} (n={s['coverage'][k]['n']})"
-            if k in s["coverage"] else "-"))
-    line("time per case median / max (s)", lambda s: f"{_fmt(s['seconds_median'], False)} / "
-         f"{_fmt(s['seconds_max'], False)}")
+        line(
+            f"coverage {k} (2 std)",
+            lambda s, k=k: (
+                f"{_fmt(s['coverage'][k]['share'])} (n={s['coverage'][k]['n']})"
+                if k in s["coverage"]
+                else "-"
+            ),
+        )
+    line(
+        "time per case median / max (s)",
+        lambda s: f"{_fmt(s['seconds_median'], False)} / {_fmt(s['seconds_max'], False)}",
+    )
     line("criterion", lambda s: ", ".join(s["criterion"]) or "-")
     out = "\n".join(lines)
-    per = ["", "| case | status | s | required | added | missed | false | honest |",
-           "|---|---|---|---|---|---|---|---|"]
+    per = [
+        "",
+        "| case | status | s | required | added | missed | false | honest |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        per.append(f"| {r['case']} | {r['status']} | {r['seconds']:.0f} | "
-                   f"{','.join(r['required']) or '-'} | "
-                   f"{'-' if r['added'] is None else (','.join(r['added']) or 'none')} | "
-                   f"{','.join(r['missed']) or '-'} | "
-                   f"{'-' if r['false'] is None else (','.join(r['false']) or '-')} | "
-                   f"{'-' if r['honest'] is None else r['honest']} |")
+        per.append(
+            f"| {r['case']} | {r['status']} | {r['seconds']:.0f} | "
+            f"{','.join(r['required']) or '-'} | "
+            f"{'-' if r['added'] is None else (','.join(r['added']) or 'none')} | "
+            f"{','.join(r['missed']) or '-'} | "
+            f"{'-' if r['false'] is None else (','.join(r['false']) or '-')} | "
+            f"{'-' if r['honest'] is None else r['honest']} |"
+        )
     return out + "\n" + "\n".join(per)

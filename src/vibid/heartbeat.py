@@ -99,8 +99,9 @@ def limit_from(value=None) -> float:
     except (TypeError, ValueError):
         raise ValueError(f"the stall time-out must be a number of seconds, got {raw!r}") from None
     if not math.isfinite(limit) or limit < 0:
-        raise ValueError(f"the stall time-out must be a finite number of seconds >= 0 "
-                         f"(0: off), got {raw!r}")
+        raise ValueError(
+            f"the stall time-out must be a finite number of seconds >= 0 (0: off), got {raw!r}"
+        )
     return limit
 
 
@@ -126,8 +127,7 @@ def write_stacks(path: Path) -> None:
     frames = sys._current_frames()
     names = {t.ident: t.name for t in threading.enumerate()}
     with open(path, "w", encoding="utf-8") as f:
-        f.write(f"vibid: no progress for {since_beat_s():.0f} s; open stages: "
-                f"{open_stages()}\n\n")
+        f.write(f"vibid: no progress for {since_beat_s():.0f} s; open stages: {open_stages()}\n\n")
         for ident, frame in frames.items():
             f.write(f"--- thread {names.get(ident, '?')} ({ident}) ---\n")
             f.write("".join(traceback.format_stack(frame)))
@@ -146,8 +146,14 @@ class Watchdog:
     command's report folder may not exist when it starts); ``prefix`` starts the line
     (``"vibid identify"``); ``on_stall(line, path)`` replaces the exit (tests)."""
 
-    def __init__(self, limit_s: float, folder, prefix: str = "vibid", on_stall=None,
-                 poll_s: float | None = None):
+    def __init__(
+        self,
+        limit_s: float,
+        folder,
+        prefix: str = "vibid",
+        on_stall=None,
+        poll_s: float | None = None,
+    ):
         self.limit_s = float(limit_s)
         self.folder = folder
         self.prefix = prefix
@@ -159,8 +165,7 @@ class Watchdog:
     def start(self) -> Watchdog:
         if self.limit_s > 0:
             beat()
-            self._thread = threading.Thread(target=self._run, name="vibid-watchdog",
-                                            daemon=True)
+            self._thread = threading.Thread(target=self._run, name="vibid-watchdog", daemon=True)
             self._thread.start()
         return self
 
@@ -191,9 +196,11 @@ class Watchdog:
             write_stacks(path)
         except Exception as exc:  # noqa: BLE001 - the line must come out whatever happens
             path = f"(not written: {exc})"
-        line = (f"{self.prefix}: error: no progress for {self.limit_s:g} s in "
-                f"{describe(stages)}; ended: the Python stacks are in {path} (set the "
-                f"limit with --stall-timeout S)")
+        line = (
+            f"{self.prefix}: error: no progress for {self.limit_s:g} s in "
+            f"{describe(stages)}; ended: the Python stacks are in {path} (set the "
+            f"limit with --stall-timeout S)"
+        )
         if self.on_stall is not None:
             self.on_stall(line, path)
             return

@@ -115,8 +115,9 @@ def _loss(name: str) -> Parameter:
 
 #: The isotropic plate's flexural rigidity.
 D = _stiffness("D")
-NU = Parameter("nu", "1", ("logit", -1.0, 0.5), rule=("interval", -1.0, 0.5),
-               noun="Poisson's ratio")
+NU = Parameter(
+    "nu", "1", ("logit", -1.0, 0.5), rule=("interval", -1.0, 0.5), noun="Poisson's ratio"
+)
 D11 = _stiffness("D11")
 #: D12, D16 and D26 may be negative.
 D12 = _stiffness("D12", True)
@@ -136,7 +137,8 @@ BETA16 = _loss("beta16")
 BETA26 = _loss("beta26")
 #: Every loss factor by name.
 LOSS_FACTORS: dict[str, Parameter] = {
-    q.name: q for q in (BETA, BETA11, BETA12, BETA22, BETA66, BETA16, BETA26)}
+    q.name: q for q in (BETA, BETA11, BETA12, BETA22, BETA66, BETA16, BETA26)
+}
 
 #: Stiffness parameters of each material model, in the order the identification uses.
 STIFFNESS: dict[str, tuple[Parameter, ...]] = {
@@ -167,11 +169,13 @@ def material_parameters(model: str, per_modulus_loss: bool = False) -> tuple[Par
 
 #: Parameter names of each material model with one loss factor (the setup's models).
 MODEL_PARAMETERS: dict[str, tuple[str, ...]] = {
-    m: tuple(q.name for q in material_parameters(m)) for m in MODELS}
+    m: tuple(q.name for q in material_parameters(m)) for m in MODELS
+}
 
 #: Every material parameter by name (every model, one or per-modulus loss).
 MATERIAL_PARAMETERS: dict[str, Parameter] = {
-    q.name: q for m in MODELS for pml in (False, True) for q in material_parameters(m, pml)}
+    q.name: q for m in MODELS for pml in (False, True) for q in material_parameters(m, pml)
+}
 
 
 # -- physical limits of a value, given the declared specimen --------------------------------
@@ -181,8 +185,12 @@ def specimen_scale(setup) -> dict[str, float]:
     ``width_m`` and the response sensor's centre across it, ``sensor_y_m`` (m). ``setup``:
     a :class:`vibid.setup_model.Setup` (read by attribute: no import)."""
     sp, r = setup.specimen, setup.sensors.response
-    return {"specimen_mass_kg": sp.density_kg_m3 * sp.length_m * sp.width_m * sp.thickness_m,
-            "length_m": sp.length_m, "width_m": sp.width_m, "sensor_y_m": r.y_m}
+    return {
+        "specimen_mass_kg": sp.density_kg_m3 * sp.length_m * sp.width_m * sp.thickness_m,
+        "length_m": sp.length_m,
+        "width_m": sp.width_m,
+        "sensor_y_m": r.y_m,
+    }
 
 
 def _lighter_than_the_specimen(x: float, scale: Mapping[str, float]) -> str | None:
@@ -193,8 +201,10 @@ def _lighter_than_the_specimen(x: float, scale: Mapping[str, float]) -> str | No
     identification resolves are the mass's), no detail the setup left out."""
     m = scale.get("specimen_mass_kg")
     if m is not None and math.isfinite(m) and x > m:
-        return (f"mass_kg (the added mass) {x!r} kg outweighs the specimen that carries it "
-                f"({m:.4g} kg): declare such a mass in the setup's sensor, not as an effect")
+        return (
+            f"mass_kg (the added mass) {x!r} kg outweighs the specimen that carries it "
+            f"({m:.4g} kg): declare such a mass in the setup's sensor, not as an effect"
+        )
     return None
 
 
@@ -202,8 +212,10 @@ def _a_free_length_left(x: float, scale: Mapping[str, float]) -> str | None:
     """The free length ``length_m + dL_m`` is a length: positive."""
     length = scale.get("length_m")
     if length is not None and math.isfinite(length) and not length + x > 0:
-        return (f"dL_m (the free length's change) {x!r} m leaves no free length (the "
-                f"declared free length is {length:g} m)")
+        return (
+            f"dL_m (the free length's change) {x!r} m leaves no free length (the "
+            f"declared free length is {length:g} m)"
+        )
     return None
 
 
@@ -212,67 +224,146 @@ def _on_the_plate(x: float, scale: Mapping[str, float]) -> str | None:
     off its edge measures nothing of it)."""
     y, width = scale.get("sensor_y_m"), scale.get("width_m")
     if y is not None and width is not None and not 0 <= y + x <= width:
-        return (f"sensor_dy_m (the sensor's offset across the width) {x!r} m puts the "
-                f"sensor's centre off the plate (declared at y = {y:g} m of its {width:g} m)")
+        return (
+            f"sensor_dy_m (the sensor's offset across the width) {x!r} m puts the "
+            f"sensor's centre off the plate (declared at y = {y:g} m of its {width:g} m)"
+        )
     return None
 
 
 # -- the effects (vibid.identify.effects, one module each) ---------------------------------
 #: ``added_mass``: an undeclared point mass at the response sensor (null 0).
-MASS = Parameter("mass_kg", "kg", ("log",), bounds=(0.0, 5e-3), null=0.0,
-                 rule="non-negative", noun="the added mass", limit=_lighter_than_the_specimen)
+MASS = Parameter(
+    "mass_kg",
+    "kg",
+    ("log",),
+    bounds=(0.0, 5e-3),
+    null=0.0,
+    rule="non-negative",
+    noun="the added mass",
+    limit=_lighter_than_the_specimen,
+)
 #: ``channel_delay``: the response channel's delay against the base channel (null 0).
-TAU = Parameter("tau_s", "s", ("linear",), bounds=(-1e-4, 1e-4), null=0.0,
-                noun="the delay")
+TAU = Parameter("tau_s", "s", ("linear",), bounds=(-1e-4, 1e-4), null=0.0, noun="the delay")
 #: ``clamp_compliance``: a rotational spring per metre of clamped edge (null: the rigid
 #: clamp, ``inf``).
-K_THETA = Parameter("k_theta_N_per_rad", "N/rad", ("log",), bounds=(1e2, 1e9), null=math.inf,
-                    rule="positive", noun="a stiffness")
+K_THETA = Parameter(
+    "k_theta_N_per_rad",
+    "N/rad",
+    ("log",),
+    bounds=(1e2, 1e9),
+    null=math.inf,
+    rule="positive",
+    noun="a stiffness",
+)
 #: ``frequency_dependent_loss``: the exponent of ``β (f / 1 kHz)^α`` (null 0).
-ALPHA = Parameter("alpha", "1", ("linear",), bounds=(-1.0, 1.0), null=0.0,
-                  noun="the loss exponent")
+ALPHA = Parameter("alpha", "1", ("linear",), bounds=(-1.0, 1.0), null=0.0, noun="the loss exponent")
 #: ``sensor_gain``: the response sensor's sensitivity against the base sensor's (null 1).
-GAIN = Parameter("gain", "1", ("log",), bounds=(0.8, 1.25), null=1.0, rule="positive",
-                 noun="a gain")
+GAIN = Parameter(
+    "gain", "1", ("log",), bounds=(0.8, 1.25), null=1.0, rule="positive", noun="a gain"
+)
 #: ``sensor_position``: the response sensor's offset across the width (null 0). The box
 #: is also the reach of the interpolation across the width
 #: (:func:`vibid.identify.effects.sensor_position.places`): its error grows with the
 #: offset, and on a real strip's setup grew from below 2e-4 of |H| to 5.7e-4 at ±10 mm.
-DY = Parameter("sensor_dy_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,
-               noun="the sensor's offset across the width", limit=_on_the_plate)
+DY = Parameter(
+    "sensor_dy_m",
+    "m",
+    ("linear",),
+    bounds=(-5e-3, 5e-3),
+    null=0.0,
+    noun="the sensor's offset across the width",
+    limit=_on_the_plate,
+)
 #: ``transverse_shear``: the transverse shear modulus, a parameter on an orthotropic or
 #: monoclinic plate only (an isotropic plate's follows from E and nu); null: the term
 #: absent.
-G13 = Parameter("G13_Pa", "Pa", ("log",), bounds=(1e8, 1e11), null=None, rule="positive",
-                noun="a shear modulus")
+G13 = Parameter(
+    "G13_Pa", "Pa", ("log",), bounds=(1e8, 1e11), null=None, rule="positive", noun="a shear modulus"
+)
 #: ``stand_resonance`` (several instances, :data:`MULTI_INSTANCE`): a resonance of the
 #: stand, its frequency, quality factor and the base rotation per base translation.
-F_HZ = Parameter("f_hz", "Hz", ("log",), bounds=(5.0, 5000.0), null=None, rule="positive",
-                 noun="a resonance frequency")
-Q = Parameter("q", "1", ("log",), bounds=(2.0, 500.0), null=None, rule="positive",
-              noun="a quality factor")
-THETA = Parameter("theta_rad_per_m", "rad/m", ("linear",), bounds=(-5.0, 5.0), null=0.0,
-                  noun="the base rotation per base translation")
+F_HZ = Parameter(
+    "f_hz",
+    "Hz",
+    ("log",),
+    bounds=(5.0, 5000.0),
+    null=None,
+    rule="positive",
+    noun="a resonance frequency",
+)
+Q = Parameter(
+    "q", "1", ("log",), bounds=(2.0, 500.0), null=None, rule="positive", noun="a quality factor"
+)
+THETA = Parameter(
+    "theta_rad_per_m",
+    "rad/m",
+    ("linear",),
+    bounds=(-5.0, 5.0),
+    null=0.0,
+    noun="the base rotation per base translation",
+)
 #: ``fixture_resonance``: a resonance of the fixture that carries the clamp, which the base
 #: sensor beside it does not share: its frequency, quality factor and the clamp's share of
 #: it (the fixture's motion at the clamp per unit table motion, quasi-statically; null 0).
-F_FIXTURE = Parameter("f_fixture_hz", "Hz", ("log",), bounds=(5.0, 5000.0), null=None,
-                      rule="positive", noun="a resonance frequency")
-Q_FIXTURE = Parameter("q_fixture", "1", ("log",), bounds=(2.0, 500.0), null=None,
-                      rule="positive", noun="a quality factor")
-A_FIXTURE = Parameter("a_fixture", "1", ("linear",), bounds=(-2.0, 2.0), null=0.0,
-                      noun="the clamp's share of the fixture's mode")
+F_FIXTURE = Parameter(
+    "f_fixture_hz",
+    "Hz",
+    ("log",),
+    bounds=(5.0, 5000.0),
+    null=None,
+    rule="positive",
+    noun="a resonance frequency",
+)
+Q_FIXTURE = Parameter(
+    "q_fixture",
+    "1",
+    ("log",),
+    bounds=(2.0, 500.0),
+    null=None,
+    rule="positive",
+    noun="a quality factor",
+)
+A_FIXTURE = Parameter(
+    "a_fixture",
+    "1",
+    ("linear",),
+    bounds=(-2.0, 2.0),
+    null=0.0,
+    noun="the clamp's share of the fixture's mode",
+)
 #: ``clamp_loss``: the clamp's own loss factor (its null is the plate's beta, not a
 #: fixed number). Its physical range starts at 0, the lossless spring (report format), so
 #: its box does too, on a linear scale (a log scale cannot reach 0).
-BETA_CLAMP = Parameter("beta_clamp", "1", ("linear",), bounds=(0.0, 0.5), null=None,
-                       rule="non-negative", noun="the clamp's loss factor")
+BETA_CLAMP = Parameter(
+    "beta_clamp",
+    "1",
+    ("linear",),
+    bounds=(0.0, 0.5),
+    null=None,
+    rule="non-negative",
+    noun="the clamp's loss factor",
+)
 #: ``free_length``: the change of the plate's free length (null 0).
-DL = Parameter("dL_m", "m", ("linear",), bounds=(-5e-3, 5e-3), null=0.0,
-               noun="the free length's change", limit=_a_free_length_left)
+DL = Parameter(
+    "dL_m",
+    "m",
+    ("linear",),
+    bounds=(-5e-3, 5e-3),
+    null=0.0,
+    noun="the free length's change",
+    limit=_a_free_length_left,
+)
 #: ``sensor_inertia``: the height of the response sensor's centre of mass (null 0).
-HEIGHT = Parameter("height_m", "m", ("linear",), bounds=(0.0, 0.02), null=0.0,
-                   rule="non-negative", noun="the sensor's height")
+HEIGHT = Parameter(
+    "height_m",
+    "m",
+    ("linear",),
+    bounds=(0.0, 0.02),
+    null=0.0,
+    rule="non-negative",
+    noun="the sensor's height",
+)
 
 #: Every effect's parameters by effect name, in every material's form (``transverse_shear``
 #: has ``G13_Pa`` on an orthotropic or monoclinic plate only: :func:`effect_parameters`).
@@ -309,14 +400,17 @@ def effect_parameters(effect: str, model: str | None = None) -> tuple[Parameter,
 
 #: Every effect parameter by name (unsuffixed for instance effects).
 EFFECT_PARAMETERS: dict[str, Parameter] = {
-    q.name: q for params in EFFECT_PARAMETERS_BY_EFFECT.values() for q in params}
+    q.name: q for params in EFFECT_PARAMETERS_BY_EFFECT.values() for q in params
+}
 
 #: The effect of each effect parameter (unsuffixed name -> effect name).
 EFFECT_OF: dict[str, str] = {
-    q.name: e for e, params in EFFECT_PARAMETERS_BY_EFFECT.items() for q in params}
+    q.name: e for e, params in EFFECT_PARAMETERS_BY_EFFECT.items() for q in params
+}
 
 _INSTANCE_PARAMETERS = frozenset(
-    q.name for e in MULTI_INSTANCE for q in EFFECT_PARAMETERS_BY_EFFECT[e])
+    q.name for e in MULTI_INSTANCE for q in EFFECT_PARAMETERS_BY_EFFECT[e]
+)
 _SUFFIX = re.compile(r"^(.+)_([1-9][0-9]*)$")
 
 
@@ -326,8 +420,9 @@ def instance_name(name: str, k: int) -> str:
     effect: ``instance_name("f_hz", 2) == "f_hz_2"``. ValueError when ``name`` is not a
     parameter of a :data:`MULTI_INSTANCE` effect or ``k`` is not a positive integer."""
     if name not in _INSTANCE_PARAMETERS:
-        raise ValueError(f"{name!r} is not a parameter of an effect with instances "
-                         f"({', '.join(MULTI_INSTANCE)})")
+        raise ValueError(
+            f"{name!r} is not a parameter of an effect with instances ({', '.join(MULTI_INSTANCE)})"
+        )
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise ValueError(f"an instance is numbered 1, 2, ..., got {k!r}")
     return f"{name}_{k}"
@@ -402,23 +497,39 @@ def known_effect_parameter(name: str) -> Parameter | None:
 #: What a lab engineer calls each parameter (and each engineering constant the report
 #: derives from them), one line each; units come from the declarations.
 DESCRIPTIONS: dict[str, str] = {
-    "D": "bending stiffness", "nu": "Poisson's ratio", "beta": "loss factor",
-    "D11": "bending stiffness along the length", "D22": "bending stiffness across",
-    "D12": "coupling stiffness", "D66": "twisting stiffness", "D16": "coupling stiffness 16",
-    "D26": "coupling stiffness 26", "E_Pa": "Young's modulus", "G_Pa": "shear modulus",
-    "E1_Pa": "Young's modulus along the length", "E2_Pa": "Young's modulus across",
-    "G12_Pa": "in-plane shear modulus", "nu12": "Poisson's ratio 12",
+    "D": "bending stiffness",
+    "nu": "Poisson's ratio",
+    "beta": "loss factor",
+    "D11": "bending stiffness along the length",
+    "D22": "bending stiffness across",
+    "D12": "coupling stiffness",
+    "D66": "twisting stiffness",
+    "D16": "coupling stiffness 16",
+    "D26": "coupling stiffness 26",
+    "E_Pa": "Young's modulus",
+    "G_Pa": "shear modulus",
+    "E1_Pa": "Young's modulus along the length",
+    "E2_Pa": "Young's modulus across",
+    "G12_Pa": "in-plane shear modulus",
+    "nu12": "Poisson's ratio 12",
     "sensor_dy_m": "sensor offset across the width",
-    "beta11": "loss factor of D11", "beta12": "loss factor of D12",
-    "beta22": "loss factor of D22", "beta66": "loss factor of D66",
-    "beta16": "loss factor of D16", "beta26": "loss factor of D26",
-    "mass_kg": "undeclared mass at the sensor", "tau_s": "delay between the channels",
+    "beta11": "loss factor of D11",
+    "beta12": "loss factor of D12",
+    "beta22": "loss factor of D22",
+    "beta66": "loss factor of D66",
+    "beta16": "loss factor of D16",
+    "beta26": "loss factor of D26",
+    "mass_kg": "undeclared mass at the sensor",
+    "tau_s": "delay between the channels",
     "k_theta_N_per_rad": "clamp's rotational stiffness per metre of edge",
-    "alpha": "loss factor's frequency exponent", "gain": "response sensor's relative gain",
+    "alpha": "loss factor's frequency exponent",
+    "gain": "response sensor's relative gain",
     "G13_Pa": "transverse shear modulus",
-    "f_hz": "stand resonance's frequency", "q": "stand resonance's quality factor",
+    "f_hz": "stand resonance's frequency",
+    "q": "stand resonance's quality factor",
     "theta_rad_per_m": "stand resonance's base rotation per base translation",
-    "beta_clamp": "clamp's loss factor", "dL_m": "change of the free length",
+    "beta_clamp": "clamp's loss factor",
+    "dL_m": "change of the free length",
     "height_m": "sensor's height",
     "f_fixture_hz": "fixture resonance's frequency",
     "q_fixture": "fixture resonance's quality factor",
@@ -440,17 +551,57 @@ def describe(name: str) -> str:
 __all__ = [
     "Parameter",
     # material
-    "D", "NU", "D11", "D12", "D22", "D66", "D16", "D26",
-    "BETA", "BETA11", "BETA12", "BETA22", "BETA66", "BETA16", "BETA26", "LOSS_FACTORS",
-    "STIFFNESS", "PER_MODULUS_LOSS", "MODELS", "MODEL_PARAMETERS", "MATERIAL_PARAMETERS",
+    "D",
+    "NU",
+    "D11",
+    "D12",
+    "D22",
+    "D66",
+    "D16",
+    "D26",
+    "BETA",
+    "BETA11",
+    "BETA12",
+    "BETA22",
+    "BETA66",
+    "BETA16",
+    "BETA26",
+    "LOSS_FACTORS",
+    "STIFFNESS",
+    "PER_MODULUS_LOSS",
+    "MODELS",
+    "MODEL_PARAMETERS",
+    "MATERIAL_PARAMETERS",
     "material_parameters",
     # effects
-    "MASS", "TAU", "K_THETA", "ALPHA", "GAIN", "DY", "G13",
-    "F_HZ", "Q", "THETA", "BETA_CLAMP", "DL", "HEIGHT",
-    "F_FIXTURE", "Q_FIXTURE", "A_FIXTURE",
-    "EFFECT_PARAMETERS_BY_EFFECT", "EFFECT_PARAMETERS", "EFFECT_OF", "MULTI_INSTANCE",
+    "MASS",
+    "TAU",
+    "K_THETA",
+    "ALPHA",
+    "GAIN",
+    "DY",
+    "G13",
+    "F_HZ",
+    "Q",
+    "THETA",
+    "BETA_CLAMP",
+    "DL",
+    "HEIGHT",
+    "F_FIXTURE",
+    "Q_FIXTURE",
+    "A_FIXTURE",
+    "EFFECT_PARAMETERS_BY_EFFECT",
+    "EFFECT_PARAMETERS",
+    "EFFECT_OF",
+    "MULTI_INSTANCE",
     "effect_parameters",
     # instances and look-ups
-    "instance_name", "split_instance", "catalogue", "known_parameter",
-    "known_effect_parameter", "DESCRIPTIONS", "describe", "specimen_scale",
+    "instance_name",
+    "split_instance",
+    "catalogue",
+    "known_parameter",
+    "known_effect_parameter",
+    "DESCRIPTIONS",
+    "describe",
+    "specimen_scale",
 ]

@@ -74,8 +74,10 @@ def parse_candidates(candidates) -> tuple[str, ...] | None:
 
     known = {c.name for c in all_candidates()}
     if unknown := sorted(set(names) - known):
-        raise VibidError(f"--candidates: unknown {', '.join(unknown)}; expected some of "
-                         f"{', '.join(sorted(known))}")
+        raise VibidError(
+            f"--candidates: unknown {', '.join(unknown)}; expected some of "
+            f"{', '.join(sorted(known))}"
+        )
     return names
 
 
@@ -123,8 +125,13 @@ def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
     if afc.std is None:
         raise VibidError(f"{os.fspath(path)}: this AFC has no std to write beside it")
     used = np.asarray(afc.used, bool)
-    write(os.fspath(path), np.asarray(afc.frequency_hz)[used], np.asarray(afc.H)[used],
-          np.asarray(afc.std)[used], session_id=data.session_id)
+    write(
+        os.fspath(path),
+        np.asarray(afc.frequency_hz)[used],
+        np.asarray(afc.H)[used],
+        np.asarray(afc.std)[used],
+        session_id=data.session_id,
+    )
     return int(used.sum())
 
 
@@ -144,10 +151,19 @@ def fit_points(afc, *, magnitude_only: bool = False, nonlinear_tops: bool = Fals
     return kept, tests
 
 
-def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
-                 method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                 seed: int = SEED, progress=None, magnitude_only: bool = False,
-                 nonlinear_tops: bool = False) -> Identified:
+def identify_afc(
+    data: SessionAfc,
+    *,
+    loop: bool = True,
+    candidates=None,
+    method: str = "global",
+    local: str = "newton",
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    progress=None,
+    magnitude_only: bool = False,
+    nonlinear_tops: bool = False,
+) -> Identified:
     """Identify the declared model from ``data.afc`` (global search, then the local polish),
     then, with ``loop``, close the loop (:func:`vibid.identify.loop.close_loop`): the
     effects the residual asks for, among ``candidates`` (names; default all).
@@ -174,36 +190,65 @@ def identify_afc(data: SessionAfc, *, loop: bool = True, candidates=None,
     used, tests = fit_points(afc, magnitude_only=magnitude_only, nonlinear_tops=nonlinear_tops)
     said = "".join(t.left_out_note + "\n" for t in tests if t.left_out_hz is not None)
     with jax_turn():
-        result = identify(setup, afc.frequency_hz, afc.H, afc.std, used=used, method=method,
-                          local=local, restarts=restarts, seed=seed, progress=progress,
-                          magnitude=magnitude_only)
+        result = identify(
+            setup,
+            afc.frequency_hz,
+            afc.H,
+            afc.std,
+            used=used,
+            method=method,
+            local=local,
+            restarts=restarts,
+            seed=seed,
+            progress=progress,
+            magnitude=magnitude_only,
+        )
         if loop and result.converged and afc.std is None:
-            return Identified(result, None, said + "no loop: the AFC has no std column, so the "
-                              "residual cannot be tested against the noise\n" + result.summary(),
-                              tests)
+            return Identified(
+                result,
+                None,
+                said + "no loop: the AFC has no std column, so the "
+                "residual cannot be tested against the noise\n" + result.summary(),
+                tests,
+            )
         if loop and result.converged:
             from vibid.identify.loop import close_loop
 
-            closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=used,
-                                candidates=names, local=local, declared=result,
-                                magnitude=magnitude_only, left_out_hz=tuple(
-                                    t.left_out_hz for t in tests if t.left_out_hz is not None))
+            closed = close_loop(
+                setup,
+                afc.frequency_hz,
+                afc.H,
+                afc.std,
+                used=used,
+                candidates=names,
+                local=local,
+                declared=result,
+                magnitude=magnitude_only,
+                left_out_hz=tuple(t.left_out_hz for t in tests if t.left_out_hz is not None),
+            )
             return Identified(closed.final, closed, said + closed.summary(), tests)
     return Identified(result, None, said + result.summary(), tests)
 
 
-def build_session_report(data: SessionAfc, identified: Identified,
-                         reference=None, not_done=()) -> dict[str, Any]:
+def build_session_report(
+    data: SessionAfc, identified: Identified, reference=None, not_done=()
+) -> dict[str, Any]:
     """The JSON report (:func:`vibid.report.build_report`) of one identified session;
     ``reference``: its ``reference`` block (:func:`reference_block`); ``not_done``: the
     stages that could not be done before it (:mod:`vibid.report.not_done`)."""
     from vibid.report import build_report
 
-    return build_report(identified.result, session_id=data.session_id,
-                        declared_model=data.setup.identification.model,
-                        afc=data.afc.to_report_block(), loop=identified.loop, setup=data.setup,
-                        linearity=identified.linearity, reference=reference,
-                        not_done=not_done)
+    return build_report(
+        identified.result,
+        session_id=data.session_id,
+        declared_model=data.setup.identification.model,
+        afc=data.afc.to_report_block(),
+        loop=identified.loop,
+        setup=data.setup,
+        linearity=identified.linearity,
+        reference=reference,
+        not_done=not_done,
+    )
 
 
 def require_converged(identified: Identified) -> None:
@@ -212,8 +257,15 @@ def require_converged(identified: Identified) -> None:
         raise VibidError(f"the identification did not converge: {identified.result.message}")
 
 
-def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
-                  session_path=None, reference=None) -> tuple[dict[str, Any], dict[str, str]]:
+def write_outputs(
+    data: SessionAfc,
+    identified: Identified,
+    *,
+    json_path=None,
+    report_dir=None,
+    session_path=None,
+    reference=None,
+) -> tuple[dict[str, Any], dict[str, str]]:
     """The report stage: build the JSON report, write the readable report folder
     (``report.md``, ``report.json``, PNG figures: :func:`vibid.report.write_lab_report`) to
     ``report_dir`` (if given) and the JSON report to ``json_path`` (if given). Returns the
@@ -237,9 +289,13 @@ def write_outputs(data: SessionAfc, identified: Identified, *, json_path=None, r
         from vibid.report import write_lab_report
 
         with jax_turn():  # the figures evaluate the model
-            paths |= write_lab_report(report_dir, data, identified, report,
-                                      session_path=None if session_path is None
-                                      else os.fspath(session_path))
+            paths |= write_lab_report(
+                report_dir,
+                data,
+                identified,
+                report,
+                session_path=None if session_path is None else os.fspath(session_path),
+            )
     if json_path is not None:
         write_report(report, json_path)
         paths["json"] = os.fspath(json_path)
@@ -257,8 +313,7 @@ def reference_block(data: SessionAfc, identified: Identified, reference) -> dict
 
     box = loop_box(data.setup, getattr(identified, "loop", None))
     try:
-        return calibrate_free_length(data.setup, identified.result, reference,
-                                     box=box).as_report()
+        return calibrate_free_length(data.setup, identified.result, reference, box=box).as_report()
     except VibidError as exc:  # the report stays: it says why there is no calibration
         return {"note": f"reference specimen: {exc}"}
 

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from vibid.errors import VibidError
+
 # the catalogue (no numerical import); MODEL_PARAMETERS: the parameter names of each
 # material model, in the order the identification uses
 from vibid.parameters import (
@@ -143,7 +144,7 @@ class Setup:
 
     # -- conversion ---------------------------------------------------------------
     @classmethod
-    def from_dict(cls, doc: Any) -> "Setup":
+    def from_dict(cls, doc: Any) -> Setup:
         """Build a setup from the parsed JSON; raise :class:`SetupError` on missing or
         mistyped fields. Meaning is checked by :func:`setup_problems`."""
         reader = _Reader()
@@ -153,7 +154,7 @@ class Setup:
         return setup
 
     @classmethod
-    def from_json(cls, text: str) -> "Setup":
+    def from_json(cls, text: str) -> Setup:
         try:
             doc = json.loads(text, parse_int=_parse_int)
         except (json.JSONDecodeError, TypeError) as exc:
@@ -164,8 +165,10 @@ class Setup:
 
     def to_dict(self) -> dict[str, Any]:
         doc = asdict(self)
-        for part, names in ((doc["specimen"], SPECIMEN_OPTIONAL),
-                            (doc["sensors"]["response"], RESPONSE_STD)):
+        for part, names in (
+            (doc["specimen"], SPECIMEN_OPTIONAL),
+            (doc["sensors"]["response"], RESPONSE_STD),
+        ):
             for name in names:
                 if part[name] is None:
                     del part[name]
@@ -212,8 +215,10 @@ def setup_problems(s: Setup) -> list[str]:
     sp = s.specimen
     for name in ("length_m", "width_m", "thickness_m", "density_kg_m3"):
         positive(f"specimen.{name}", getattr(sp, name))
-    for path, block, names in (("specimen", sp, SPECIMEN_STD),
-                               ("sensors.response", s.sensors.response, RESPONSE_STD)):
+    for path, block, names in (
+        ("specimen", sp, SPECIMEN_STD),
+        ("sensors.response", s.sensors.response, RESPONSE_STD),
+    ):
         for name in names:
             v = getattr(block, name)
             if v is not None and not (math.isfinite(v) and v >= 0):
@@ -252,17 +257,21 @@ def _excitation_problems(s: Setup) -> list[str]:
         out.append("setup.excitation.frequencies_hz: must list at least one frequency")
     for i, f in enumerate(freqs):
         if not (math.isfinite(f) and f > 0):
-            out.append(f"setup.excitation.frequencies_hz[{i}]: must be a positive number, got {f!r}")
+            out.append(
+                f"setup.excitation.frequencies_hz[{i}]: must be a positive number, got {f!r}"
+            )
         elif math.isfinite(s.daq.sample_rate_hz) and f >= s.daq.sample_rate_hz / 2:
             out.append(
                 f"setup.excitation.frequencies_hz[{i}]: {f!r} Hz is not below the Nyquist "
                 f"frequency {s.daq.sample_rate_hz / 2!r} Hz"
             )
-    out += _per_step_problems("settle_s", s.excitation.settle_s, len(freqs), lambda v: v >= 0,
-                              "zero or positive")
+    out += _per_step_problems(
+        "settle_s", s.excitation.settle_s, len(freqs), lambda v: v >= 0, "zero or positive"
+    )
     if s.excitation.record_s is not None:
-        out += _per_step_problems("record_s", s.excitation.record_s, len(freqs),
-                                  lambda v: v > 0, "positive")
+        out += _per_step_problems(
+            "record_s", s.excitation.record_s, len(freqs), lambda v: v > 0, "positive"
+        )
     return out
 
 
@@ -274,8 +283,11 @@ def _per_step_problems(name: str, value, n: int, ok, meaning: str) -> list[str]:
         return [] if good else [f"{path}: must be {meaning}, got {value!r}"]
     if len(value) != n:
         return [f"{path}: lists {len(value)} values for {n} frequencies (one per step)"]
-    return [f"{path}[{i}]: must be {meaning}, got {v!r}"
-            for i, v in enumerate(value) if not (math.isfinite(v) and ok(v))]
+    return [
+        f"{path}[{i}]: must be {meaning}, got {v!r}"
+        for i, v in enumerate(value)
+        if not (math.isfinite(v) and ok(v))
+    ]
 
 
 def _identification_problems(ident: Identification) -> list[str]:
@@ -342,8 +354,10 @@ class _Reader:
                 raise OverflowError
             return float(v)
         except OverflowError:
-            self.problems.append(f"{path}: must be a finite number, got an integer of "
-                                 f"{_digits(v)} digits (beyond the floating-point range)")
+            self.problems.append(
+                f"{path}: must be a finite number, got an integer of "
+                f"{_digits(v)} digits (beyond the floating-point range)"
+            )
             return math.nan
 
     def _str(self, doc: dict, key: str, path: str) -> str:
@@ -378,18 +392,26 @@ class _Reader:
         )
         p = "setup.sensors.response"
         sensors = Sensors(
-            base=BaseSensor(self._num(base, "sensitivity_mV_per_g", "setup.sensors.base") if base else math.nan),
+            base=BaseSensor(
+                self._num(base, "sensitivity_mV_per_g", "setup.sensors.base") if base else math.nan
+            ),
             response=ResponseSensor(
-                *(self._num(resp, k, p) if resp else math.nan
-                  for k in ("sensitivity_mV_per_g", "x_m", "y_m", "mass_kg", "radius_m")),
+                *(
+                    self._num(resp, k, p) if resp else math.nan
+                    for k in ("sensitivity_mV_per_g", "x_m", "y_m", "mass_kg", "radius_m")
+                ),
                 **{k: self._num(resp, k, p) for k in RESPONSE_STD if resp and k in resp},
             ),
         )
         daq_ = Daq(self._num(daq, "sample_rate_hz", "setup.daq") if daq else math.nan)
-        excitation = None if exc is None else Excitation(
-            frequencies_hz=self._frequencies(exc) if exc else (),
-            settle_s=self._per_step(exc, "settle_s") if exc else math.nan,
-            record_s=self._per_step(exc, "record_s") if exc and "record_s" in exc else None,
+        excitation = (
+            None
+            if exc is None
+            else Excitation(
+                frequencies_hz=self._frequencies(exc) if exc else (),
+                settle_s=self._per_step(exc, "settle_s") if exc else math.nan,
+                record_s=self._per_step(exc, "record_s") if exc and "record_s" in exc else None,
+            )
         )
         identification = Identification(
             model=self._str(ide, "model", "setup.identification") if ide else "",
@@ -421,7 +443,9 @@ class _Reader:
         v = exc.get(key)
         if isinstance(v, list):
             if not all(map(_is_number, v)):
-                self.problems.append(f"setup.excitation.{key}: expected a number or a list of numbers")
+                self.problems.append(
+                    f"setup.excitation.{key}: expected a number or a list of numbers"
+                )
                 return math.nan
             return tuple(self._float(x, f"setup.excitation.{key}[{i}]") for i, x in enumerate(v))
         return self._num(exc, key, "setup.excitation")
@@ -447,9 +471,16 @@ class _Reader:
 
 
 def _kind(v: Any) -> str:
-    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean",
-            type(None): "null", int: "a number", float: "a number",
-            _LongInteger: "a number"}.get(type(v), type(v).__name__)
+    return {
+        dict: "an object",
+        list: "a list",
+        str: "a string",
+        bool: "a boolean",
+        type(None): "null",
+        int: "a number",
+        float: "a number",
+        _LongInteger: "a number",
+    }.get(type(v), type(v).__name__)
 
 
 class _LongInteger:
@@ -476,7 +507,7 @@ def _digits(v: int | _LongInteger) -> int:
     if isinstance(v, _LongInteger):
         return len(v.text.lstrip("-"))
     n, k = abs(v), max(1, int(abs(v).bit_length() * 0.30102999566398120))  # x log10(2)
-    while 10 ** k <= n:  # the count: the least k with n < 10**k
+    while 10**k <= n:  # the count: the least k with n < 10**k
         k += 1
     while k > 1 and 10 ** (k - 1) > n:
         k -= 1

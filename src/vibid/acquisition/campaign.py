@@ -53,14 +53,23 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
-from vibid.acquisition.plan import (Pause, PlanError, StepCommand, StepOutcome, StepSource, plan_summary,
-                                    record_samples, stepped_sine)
+from vibid.acquisition.plan import (
+    Pause,
+    PlanError,
+    StepCommand,
+    StepOutcome,
+    StepSource,
+    plan_summary,
+    record_samples,
+    stepped_sine,
+)
 from vibid.acquisition.protocols import Reading, Stand
 from vibid.acquisition.stand_config import StandConfig
 from vibid.errors import VibidError
@@ -153,14 +162,23 @@ class _State:
     drive_vpp: float
     output_on: bool = False
     since_change_s: float = 0.0  #: time since the frequency last changed, s
-    last_settle_s: float = 0.0   #: ... when the last record began, s
+    last_settle_s: float = 0.0  #: ... when the last record began, s
 
 
-def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config: StandConfig, *,
-                 resume: bool = False, progress: Callable[[StepProgress], Any] | None = None,
-                 operator: str | None = None, notes: str | None = None,
-                 temperature_c: float | None = None, stop: Any = None,
-                 chooser: StepSource | None = None) -> CampaignResult:
+def run_campaign(
+    setup: Setup,
+    stand: Stand,
+    out_path: str | os.PathLike,
+    config: StandConfig,
+    *,
+    resume: bool = False,
+    progress: Callable[[StepProgress], Any] | None = None,
+    operator: str | None = None,
+    notes: str | None = None,
+    temperature_c: float | None = None,
+    stop: Any = None,
+    chooser: StepSource | None = None,
+) -> CampaignResult:
     """Run (or with ``resume`` continue) ``setup``'s stepped sine on ``stand`` into ``out_path``.
 
     Parameters
@@ -194,23 +212,35 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
     _check_drive(config)
     stepped_sine(setup, config)  # checks the timing before any file is touched
     if resume:
-        start, drive, near = resume_point(path, setup,
-                                          None if chooser is None else chooser.attribute)
+        start, drive, near = resume_point(
+            path, setup, None if chooser is None else chooser.attribute
+        )
         writer = SessionWriter.resume(path)
-        if chooser is None and start >= n_steps:  # stopped after its last step, before it was closed
+        if (
+            chooser is None and start >= n_steps
+        ):  # stopped after its last step, before it was closed
             writer.close("complete")
             return CampaignResult(path, "complete", "", writer.n_steps)
     else:
         if os.path.exists(path):
-            raise CampaignError(f"{path}: already exists; a session file is never overwritten "
-                                "(use --resume to continue an interrupted one)")
+            raise CampaignError(
+                f"{path}: already exists; a session file is never overwritten "
+                "(use --resume to continue an interrupted one)"
+            )
         start, drive, near = 0, config.drive.initial_vpp, False
-        writer = SessionWriter(path, setup, operator=operator, notes=notes,
-                               adaptive=None if chooser is None else chooser.attribute)
+        writer = SessionWriter(
+            path,
+            setup,
+            operator=operator,
+            notes=notes,
+            adaptive=None if chooser is None else chooser.attribute,
+        )
     if chooser is None:
         plan = stepped_sine(setup, config, start=start, near_resonance=near)
-        nominal = {c.index: c.settle_s + c.record_s
-                   for c in plan_summary(setup, config, start=start).commands}
+        nominal = {
+            c.index: c.settle_s + c.record_s
+            for c in plan_summary(setup, config, start=start).commands
+        }
     else:
         plan = chooser.plan(path if resume else None, start)
         nominal = {}  # the steps to come are not known: no time left to show
@@ -256,8 +286,9 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
                     run_status, reason = "aborted", m.abort_reason
                     break
                 try:
-                    nxt = plan.send(StepOutcome(settled=m.settled, reading=m.reading,
-                                                settle_s=m.settle_s))
+                    nxt = plan.send(
+                        StepOutcome(settled=m.settled, reading=m.reading, settle_s=m.settle_s)
+                    )
                 except StopIteration as end:
                     nxt, stopped_because = None, str(end.value or "")
                 if nxt is None or getattr(nxt, "index", None) != cmd.index:
@@ -283,8 +314,14 @@ def run_campaign(setup: Setup, stand: Stand, out_path: str | os.PathLike, config
         _finish(stand, writer, run_status, reason, flush)
         raise
     _finish(stand, writer, run_status, reason, flush)
-    return CampaignResult(path, run_status, reason, writer.n_steps,
-                          getattr(writer, "stand_time_s", None), stopped_because)
+    return CampaignResult(
+        path,
+        run_status,
+        reason,
+        writer.n_steps,
+        getattr(writer, "stand_time_s", None),
+        stopped_because,
+    )
 
 
 def _finish(stand: Stand, writer: SessionWriter, run_status: str, reason: str, flush) -> None:
@@ -354,8 +391,10 @@ class _Runner:
         if not peak <= self.drive.abort_response_m_s2:
             self.gen.shutdown()
             self.state.output_on = False
-            abort = (f"response peak {peak:.4g} m/s2 above the abort limit "
-                     f"{self.drive.abort_response_m_s2:g} m/s2 at {cmd.frequency_hz:g} Hz (step {cmd.index})")
+            abort = (
+                f"response peak {peak:.4g} m/s2 above the abort limit "
+                f"{self.drive.abort_response_m_s2:g} m/s2 at {cmd.frequency_hz:g} Hz (step {cmd.index})"
+            )
         return reading, base, abort
 
     def _within(self, base_m_s2: float) -> bool:
@@ -370,7 +409,9 @@ class _Runner:
             if self._within(base):
                 break
             factor = d.target_base_m_s2 / base if base > 0 else MAX_DRIVE_FACTOR
-            new = min(d.max_vpp, st.drive_vpp * min(max(factor, 1 / MAX_DRIVE_FACTOR), MAX_DRIVE_FACTOR))
+            new = min(
+                d.max_vpp, st.drive_vpp * min(max(factor, 1 / MAX_DRIVE_FACTOR), MAX_DRIVE_FACTOR)
+            )
             if new == st.drive_vpp:
                 break  # at the maximum drive and still low
             st.drive_vpp = new
@@ -382,26 +423,42 @@ class _Runner:
         reading, base, abort = self._record(cmd, cmd.n_samples)
         return reading, base, abort
 
-    def _measured(self, cmd: StepCommand, reading: Reading, base: float, abort_reason: str = "") -> _Measured:
+    def _measured(
+        self, cmd: StepCommand, reading: Reading, base: float, abort_reason: str = ""
+    ) -> _Measured:
         h, h_std, settled = _fit(cmd, reading)
         note = ""
         d = self.drive
         if not abort_reason and not self._within(base):
-            note = (f"base {base:.4g} m/s2 off the target {d.target_base_m_s2:g} m/s2 "
-                    f"at drive {self.state.drive_vpp:.4g} Vpp (maximum {d.max_vpp:g} Vpp)")
+            note = (
+                f"base {base:.4g} m/s2 off the target {d.target_base_m_s2:g} m/s2 "
+                f"at drive {self.state.drive_vpp:.4g} Vpp (maximum {d.max_vpp:g} Vpp)"
+            )
         if abort_reason:
             status = "aborted"
         elif reading.overloaded:
             status = "overload"
         else:
             status = "ok"
-        return _Measured(reading, status, h, settled, base, self.state.drive_vpp,
-                         self.state.last_settle_s, note, abort_reason, h_std)
+        return _Measured(
+            reading,
+            status,
+            h,
+            settled,
+            base,
+            self.state.drive_vpp,
+            self.state.last_settle_s,
+            note,
+            abort_reason,
+            h_std,
+        )
 
 
 def _short(timing):
     """Timing of the control loop's short records."""
-    return replace(timing, min_record_s=timing.min_record_s / 4, min_cycles=max(4, timing.min_cycles // 4))
+    return replace(
+        timing, min_record_s=timing.min_record_s / 4, min_cycles=max(4, timing.min_cycles // 4)
+    )
 
 
 #: the drive control measures the amplitude over blocks of about this length, s
@@ -420,8 +477,11 @@ def amplitude_m_s2(x: np.ndarray, frequency_hz: float, sample_rate_hz: float) ->
     x = np.asarray(x, dtype=np.float64)
     if x.size < 3:
         return 0.0
-    block = max(int(round(AMPLITUDE_BLOCK_S * sample_rate_hz)),
-                int(math.ceil(4 * sample_rate_hz / frequency_hz)), 3)
+    block = max(
+        int(round(AMPLITUDE_BLOCK_S * sample_rate_hz)),
+        int(math.ceil(4 * sample_rate_hz / frequency_hz)),
+        3,
+    )
     n_blocks = max(1, x.size // block)
     edges = np.linspace(0, x.size, n_blocks + 1).astype(int)
     amps = []
@@ -445,8 +505,13 @@ def _fit(cmd: StepCommand, reading: Reading) -> tuple[complex, float, bool]:
     the drive frequency, which the halves test misses)."""
     from vibid.signal import StepRecord, afc_from_records
 
-    point = afc_from_records([StepRecord(cmd.frequency_hz, reading.sample_rate_hz,
-                                         reading.base_m_s2, reading.response_m_s2)]).points[0]
+    point = afc_from_records(
+        [
+            StepRecord(
+                cmd.frequency_hz, reading.sample_rate_hz, reading.base_m_s2, reading.response_m_s2
+            )
+        ]
+    ).points[0]
     return point.h, point.std, not set(UNSETTLED_FLAGS) & set(point.flag_names)
 
 
@@ -457,48 +522,83 @@ def _begin_step(stand: Stand, index: int) -> None:
         hook(index)
 
 
-def _write(writer: SessionWriter, cmd: StepCommand, m: _Measured, temperature_c: float | None,
-           first_unsettled: bool) -> None:
-    extra = {"vibid_drive_vpp": float(m.drive_vpp), "vibid_settle_s": float(m.settle_s),
-             "vibid_unsettled_first": np.bool_(first_unsettled),
-             "vibid_resettled": np.bool_(cmd.attempt > 0)}
+def _write(
+    writer: SessionWriter,
+    cmd: StepCommand,
+    m: _Measured,
+    temperature_c: float | None,
+    first_unsettled: bool,
+) -> None:
+    extra = {
+        "vibid_drive_vpp": float(m.drive_vpp),
+        "vibid_settle_s": float(m.settle_s),
+        "vibid_unsettled_first": np.bool_(first_unsettled),
+        "vibid_resettled": np.bool_(cmd.attempt > 0),
+    }
     if m.note:
         extra["vibid_note"] = m.note
     r = m.reading
     try:
-        writer.append(frequency_hz=cmd.frequency_hz, sample_rate_hz=r.sample_rate_hz, base=r.base_m_s2,
-                      response=r.response_m_s2, status=m.status, t0_utc=r.t0_utc,
-                      temperature_c=temperature_c, settle_s=float(m.settle_s),
-                      extra_attrs=extra)
+        writer.append(
+            frequency_hz=cmd.frequency_hz,
+            sample_rate_hz=r.sample_rate_hz,
+            base=r.base_m_s2,
+            response=r.response_m_s2,
+            status=m.status,
+            t0_utc=r.t0_utc,
+            temperature_c=temperature_c,
+            settle_s=float(m.settle_s),
+            extra_attrs=extra,
+        )
     except VibidError as exc:
         raise _WriteError(str(exc)) from None
 
 
 def _check_drive(config: StandConfig) -> None:
     d = config.drive
-    ok = (d.target_base_m_s2 > 0 and 0 < d.tolerance < 1 and 0 < d.initial_vpp <= d.max_vpp
-          and d.abort_response_m_s2 > 0)
+    ok = (
+        d.target_base_m_s2 > 0
+        and 0 < d.tolerance < 1
+        and 0 < d.initial_vpp <= d.max_vpp
+        and d.abort_response_m_s2 > 0
+    )
     if not ok:
-        raise CampaignError("stand configuration drive: target_base_m_s2, initial_vpp and "
-                            "abort_response_m_s2 must be positive, tolerance within (0, 1), "
-                            f"initial_vpp at most max_vpp (got {d})")
+        raise CampaignError(
+            "stand configuration drive: target_base_m_s2, initial_vpp and "
+            "abort_response_m_s2 must be positive, tolerance within (0, 1), "
+            f"initial_vpp at most max_vpp (got {d})"
+        )
 
 
-def _progress(cmd: StepCommand, m: _Measured, nominal: dict[int, float], elapsed_s: float) -> StepProgress:
+def _progress(
+    cmd: StepCommand, m: _Measured, nominal: dict[int, float], elapsed_s: float
+) -> StepProgress:
     done = sum(v for k, v in nominal.items() if k <= cmd.index)
     left = sum(v for k, v in nominal.items() if k > cmd.index)
     eta = elapsed_s * left / done if done > 0 else math.nan
     h = m.h
     r = m.reading
-    return StepProgress(cmd.index, cmd.n_steps, cmd.frequency_hz, abs(h),
-                        math.degrees(math.atan2(h.imag, h.real)), eta, m.status, m.base_m_s2,
-                        m.drive_vpp, m.note, m.h_std, m.settle_s,
-                        r.base_m_s2.size / r.sample_rate_hz)
+    return StepProgress(
+        cmd.index,
+        cmd.n_steps,
+        cmd.frequency_hz,
+        abs(h),
+        math.degrees(math.atan2(h.imag, h.real)),
+        eta,
+        m.status,
+        m.base_m_s2,
+        m.drive_vpp,
+        m.note,
+        m.h_std,
+        m.settle_s,
+        r.base_m_s2.size / r.sample_rate_hz,
+    )
 
 
 # -- resume -------------------------------------------------------------------------------------
-def resume_point(path: str | os.PathLike, setup: Setup,
-                 adaptive: dict | None = None) -> tuple[int, float, bool]:
+def resume_point(
+    path: str | os.PathLike, setup: Setup, adaptive: dict | None = None
+) -> tuple[int, float, bool]:
     """``(first missing step, drive of the last step Vpp, last step was unsettled)`` of the
     session at ``path`` resumed with ``setup`` (``adaptive``: the adaptive campaign's
     options, as its session attribute; None for a campaign of the setup's own steps), or
@@ -511,16 +611,20 @@ def resume_point(path: str | os.PathLike, setup: Setup,
         return _adaptive_resume_point(path, setup, adaptive)
     with read_session(path) as s:
         if s.setup.to_dict() != setup.to_dict():
-            raise CampaignError(f"{path}: its declared setup differs from the one given; "
-                                "resume a session only with the setup it was started with")
+            raise CampaignError(
+                f"{path}: its declared setup differs from the one given; "
+                "resume a session only with the setup it was started with"
+            )
         n = len(s)
         want = setup.excitation.frequencies_hz
         got = s.frequencies_hz()
         if n > len(want) or not np.array_equal(got, np.asarray(want[:n], float)):
             raise CampaignError(f"{path}: its steps do not follow the setup's frequencies")
         if n >= len(want) and s.run_status_written and s.run_status == "complete":
-            raise CampaignError(f"{path}: the session is already complete ({n} steps): "
-                                "nothing to resume (vibid replay identifies it)")
+            raise CampaignError(
+                f"{path}: the session is already complete ({n} steps): "
+                "nothing to resume (vibid replay identifies it)"
+            )
         return _last_step_state(s)
 
 
@@ -531,7 +635,11 @@ def _last_step_state(s) -> tuple[int, float, bool]:
     if n == 0:
         return 0, math.nan, False
     last = s.step_attributes(n - 1)
-    return n, float(last.get("vibid_drive_vpp", math.nan)), bool(last.get("vibid_unsettled_first", False))
+    return (
+        n,
+        float(last.get("vibid_drive_vpp", math.nan)),
+        bool(last.get("vibid_unsettled_first", False)),
+    )
 
 
 def _adaptive_resume_point(path: str, setup: Setup, adaptive: dict) -> tuple[int, float, bool]:
@@ -542,11 +650,15 @@ def _adaptive_resume_point(path: str, setup: Setup, adaptive: dict) -> tuple[int
         if s.adaptive is None:
             raise CampaignError(f"{path}: not an adaptive campaign; resume it without --adaptive")
         if replace(s.setup, excitation=None).to_dict() != replace(setup, excitation=None).to_dict():
-            raise CampaignError(f"{path}: its declared setup differs from the one given (the "
-                                "excitation aside); resume a session only with its own setup")
+            raise CampaignError(
+                f"{path}: its declared setup differs from the one given (the "
+                "excitation aside); resume a session only with its own setup"
+            )
         if s.adaptive != adaptive:
-            raise CampaignError(f"{path}: it was started with other adaptive options "
-                                f"({json.dumps(s.adaptive, sort_keys=True)}); resume it with those")
+            raise CampaignError(
+                f"{path}: it was started with other adaptive options "
+                f"({json.dumps(s.adaptive, sort_keys=True)}); resume it with those"
+            )
         return _last_step_state(s)
 
 

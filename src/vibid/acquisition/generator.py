@@ -27,7 +27,8 @@ Protocol (commands end with ``\\n``; replies are one line)::
 from __future__ import annotations
 
 import logging
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from vibid.errors import VibidError
 
@@ -60,11 +61,17 @@ class Setting:
     from_text : parses the query's reply.
     """
 
-    def __init__(self, get_command: str, set_command: str, doc: str, *,
-                 limits: tuple[float, float] | str | None = None,
-                 to_text: Callable[[Any], str] = lambda v: format(float(v), ".12g"),
-                 from_text: Callable[[str], Any] = float,
-                 kind: type = float):
+    def __init__(
+        self,
+        get_command: str,
+        set_command: str,
+        doc: str,
+        *,
+        limits: tuple[float, float] | str | None = None,
+        to_text: Callable[[Any], str] = lambda v: format(float(v), ".12g"),
+        from_text: Callable[[str], Any] = float,
+        kind: type = float,
+    ):
         self.get_command = get_command
         self.set_command = set_command
         self.limits = limits
@@ -83,8 +90,9 @@ class Setting:
         try:
             return self.from_text(reply)
         except (TypeError, ValueError):
-            raise GeneratorError(f"{instrument.name}: cannot read the reply {reply!r} to "
-                                 f"{self.get_command!r}") from None
+            raise GeneratorError(
+                f"{instrument.name}: cannot read the reply {reply!r} to {self.get_command!r}"
+            ) from None
 
     def __set__(self, instrument, value) -> None:
         command = self.set_command.format(self.to_text(self.validate(instrument, value)))
@@ -108,8 +116,10 @@ class Setting:
             raise GeneratorError(f"{self.name}: expected a number, got {value!r}") from None
         limits = getattr(instrument, self.limits) if isinstance(self.limits, str) else self.limits
         if limits is not None and not (limits[0] <= number <= limits[1]):  # NaN fails too
-            raise GeneratorError(f"{self.name}: {number!r} is outside [{limits[0]:g}, "
-                                 f"{limits[1]:g}]; nothing was sent")
+            raise GeneratorError(
+                f"{self.name}: {number!r} is outside [{limits[0]:g}, "
+                f"{limits[1]:g}]; nothing was sent"
+            )
         return number
 
 
@@ -139,14 +149,25 @@ class ScpiGenerator:
     MIN_VPP = 1e-3
 
     frequency_hz = Setting(
-        "FREQ?", "FREQ {}", "Control the output frequency, Hz (float, 1 mHz to 20 MHz).",
-        limits=FREQUENCY_LIMITS_HZ)
+        "FREQ?",
+        "FREQ {}",
+        "Control the output frequency, Hz (float, 1 mHz to 20 MHz).",
+        limits=FREQUENCY_LIMITS_HZ,
+    )
     amplitude_vpp = Setting(
-        "VOLT?", "VOLT {}", "Control the output amplitude, V peak to peak (float, 1 mV to "
-        "``max_vpp``).", limits="amplitude_limits_vpp")
+        "VOLT?",
+        "VOLT {}",
+        "Control the output amplitude, V peak to peak (float, 1 mV to ``max_vpp``).",
+        limits="amplitude_limits_vpp",
+    )
     output_enabled = Setting(
-        "OUTP?", "OUTP {}", "Control the output: True drives the shaker (bool).",
-        to_text=lambda on: "ON" if on else "OFF", from_text=_on_off, kind=bool)
+        "OUTP?",
+        "OUTP {}",
+        "Control the output: True drives the shaker (bool).",
+        to_text=lambda on: "ON" if on else "OFF",
+        from_text=_on_off,
+        kind=bool,
+    )
 
     def __init__(self, port, *, name: str = "generator", max_vpp: float = 10.0):
         self.port = port
@@ -167,18 +188,22 @@ class ScpiGenerator:
         try:
             stale = self.port.in_waiting and self.port.read(self.port.in_waiting)
         except Exception as exc:  # noqa: BLE001
-            raise GeneratorError(f"{self.name}: connection lost before {command!r}: {_text(exc)}") from None
+            raise GeneratorError(
+                f"{self.name}: connection lost before {command!r}: {_text(exc)}"
+            ) from None
         if stale:
             log.warning("%s: discarded a late reply %r before %r", self.name, stale, command)
         self.write(command)
         try:
             reply = self.port.read_until(TERMINATOR)
         except Exception as exc:  # noqa: BLE001
-            raise GeneratorError(f"{self.name}: connection lost waiting for the reply to "
-                                 f"{command!r}: {_text(exc)}") from None
+            raise GeneratorError(
+                f"{self.name}: connection lost waiting for the reply to {command!r}: {_text(exc)}"
+            ) from None
         if not reply.endswith(TERMINATOR):
-            raise GeneratorTimeout(f"{self.name}: no reply to {command!r} within "
-                                   f"{self.port.timeout:g} s")
+            raise GeneratorTimeout(
+                f"{self.name}: no reply to {command!r} within {self.port.timeout:g} s"
+            )
         return reply[: -len(TERMINATOR)].decode("ascii", "replace").strip()
 
     def check_errors(self, after: str = "") -> None:
@@ -192,7 +217,9 @@ class ScpiGenerator:
                 if int(code) == 0:
                     break
             except ValueError:
-                raise GeneratorError(f"{self.name}: unexpected reply {reply!r} to 'SYST:ERR?'") from None
+                raise GeneratorError(
+                    f"{self.name}: unexpected reply {reply!r} to 'SYST:ERR?'"
+                ) from None
             errors.append(f"{code.strip()} {message.strip().strip(chr(34))}")
         if errors:
             more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
@@ -222,15 +249,16 @@ class ScpiGenerator:
             except Exception as exc:  # noqa: BLE001
                 log.warning("%s: closing the port failed: %s", self.name, exc)
 
-    def __enter__(self) -> "ScpiGenerator":
+    def __enter__(self) -> ScpiGenerator:
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
 
 
-def open_generator(url: str, *, baudrate: int = 9600, timeout_s: float = 2.0,
-                   max_vpp: float = 10.0) -> ScpiGenerator:
+def open_generator(
+    url: str, *, baudrate: int = 9600, timeout_s: float = 2.0, max_vpp: float = 10.0
+) -> ScpiGenerator:
     """Open the generator at a pyserial ``url`` (``/dev/ttyUSB0``, ``COM3``,
     ``vibidsim://NAME``) and return its driver; the output is left as it is (the campaign
     switches it off first thing). Failure to open is one :class:`GeneratorError` line."""

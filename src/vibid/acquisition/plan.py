@@ -32,16 +32,26 @@ rounded to whole samples.
 from __future__ import annotations
 
 import math
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, replace
-from typing import Any, Generator, Iterator, Protocol
+from typing import Any, Protocol
 
 from vibid.acquisition.stand_config import StandConfig, TimingConfig
 from vibid.errors import VibidError
 from vibid.setup_model import Setup
 
 __all__ = [
-    "Pause", "PlanError", "PlanSummary", "StepCommand", "StepOutcome", "damping_settle_s", "plan_summary",
-    "play_step", "record_samples", "stepped_sine", "StepSource",
+    "Pause",
+    "PlanError",
+    "PlanSummary",
+    "StepCommand",
+    "StepOutcome",
+    "damping_settle_s",
+    "plan_summary",
+    "play_step",
+    "record_samples",
+    "stepped_sine",
+    "StepSource",
 ]
 
 
@@ -100,12 +110,17 @@ class StepSource(Protocol):
 
     attribute: dict
 
-    def plan(self, session_path: str | None, start: int) -> Generator["StepCommand | Pause", StepOutcome | None, str]:
-        ...
+    def plan(
+        self, session_path: str | None, start: int
+    ) -> Generator[StepCommand | Pause, StepOutcome | None, str]: ...
 
 
-def record_samples(frequency_hz: float, sample_rate_hz: float, timing: TimingConfig,
-                   min_record_s: float | None = None) -> int:
+def record_samples(
+    frequency_hz: float,
+    sample_rate_hz: float,
+    timing: TimingConfig,
+    min_record_s: float | None = None,
+) -> int:
     """Samples of a record of whole cycles: at least ``min_record_s`` (default the timing's;
     a planned step's own, never below the timing's) and ``min_cycles``."""
     shortest_s = max(timing.min_record_s, min_record_s or 0.0)
@@ -124,8 +139,9 @@ def _time_constants_s(frequency_hz: float, timing: TimingConfig) -> float:
     return timing.settle_time_constants * q / (math.pi * frequency_hz)
 
 
-def stepped_sine(setup: Setup, config: StandConfig, *, start: int = 0,
-                 near_resonance: bool = False) -> Generator[StepCommand, StepOutcome | None, None]:
+def stepped_sine(
+    setup: Setup, config: StandConfig, *, start: int = 0, near_resonance: bool = False
+) -> Generator[StepCommand, StepOutcome | None, None]:
     """The plan of ``setup``'s stepped sine from step ``start`` (resume) on.
 
     ``near_resonance`` says the step before ``start`` was unsettled (so a resumed campaign
@@ -138,15 +154,24 @@ def stepped_sine(setup: Setup, config: StandConfig, *, start: int = 0,
     if not 0 <= start <= n:
         raise VibidError(f"cannot start at step {start} of {n}")
     t = config.timing
-    if not (t.expected_loss_factor > 0 and t.max_settle_s >= 0 and t.min_record_s > 0
-            and t.min_cycles >= 1 and t.settle_time_constants >= 0):
-        raise VibidError("stand configuration timing: expected_loss_factor, min_record_s and "
-                         "min_cycles must be positive, max_settle_s and settle_time_constants "
-                         "zero or positive")
+    if not (
+        t.expected_loss_factor > 0
+        and t.max_settle_s >= 0
+        and t.min_record_s > 0
+        and t.min_cycles >= 1
+        and t.settle_time_constants >= 0
+    ):
+        raise VibidError(
+            "stand configuration timing: expected_loss_factor, min_record_s and "
+            "min_cycles must be positive, max_settle_s and settle_time_constants "
+            "zero or positive"
+        )
     return _plan(setup, t, start, near_resonance)
 
 
-def _plan(setup: Setup, t: TimingConfig, start: int, near: bool) -> Generator[StepCommand, StepOutcome | None, None]:
+def _plan(
+    setup: Setup, t: TimingConfig, start: int, near: bool
+) -> Generator[StepCommand, StepOutcome | None, None]:
     exc = setup.excitation
     fs = setup.daq.sample_rate_hz
     n = len(exc.frequencies_hz)
@@ -157,7 +182,9 @@ def _plan(setup: Setup, t: TimingConfig, start: int, near: bool) -> Generator[St
         near = not (yield from play_step(StepCommand(i, n, f, settle, samples, fs), t))
 
 
-def play_step(first: StepCommand, t: TimingConfig) -> Generator[StepCommand, StepOutcome | None, bool]:
+def play_step(
+    first: StepCommand, t: TimingConfig
+) -> Generator[StepCommand, StepOutcome | None, bool]:
     """The records of one step: ``first``, then, while the record is unsettled, the same
     again at the next whole multiple of the damping settle since the frequency changed,
     within the cap (the settle rule above). Returns whether the first record was settled
@@ -199,7 +226,9 @@ class PlanSummary:
         return self.settle_s + self.record_s
 
 
-def plan_summary(setup: Setup, config: StandConfig = StandConfig(), *, start: int = 0) -> PlanSummary:
+def plan_summary(
+    setup: Setup, config: StandConfig = StandConfig(), *, start: int = 0
+) -> PlanSummary:
     """Dry-run the plan: every command, as if every record were settled."""
     return PlanSummary(tuple(_dry(stepped_sine(setup, config, start=start))))
 

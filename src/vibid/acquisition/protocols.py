@@ -28,9 +28,9 @@ class Generator(Protocol):
     the instrument's error queue; reading one queries it.
     """
 
-    frequency_hz: float          #: output frequency, Hz
-    amplitude_vpp: float         #: output amplitude, volts peak to peak
-    output_enabled: bool         #: True while the output drives the shaker
+    frequency_hz: float  #: output frequency, Hz
+    amplitude_vpp: float  #: output amplitude, volts peak to peak
+    output_enabled: bool  #: True while the output drives the shaker
 
     def shutdown(self) -> None:
         """Set the safe state: output off. Never raises for a closed or silent port."""
@@ -105,7 +105,7 @@ class Stand:
         finally:
             self.daq.close()
 
-    def __enter__(self) -> "Stand":
+    def __enter__(self) -> Stand:
         return self
 
     def __exit__(self, *exc) -> None:

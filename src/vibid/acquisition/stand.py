@@ -20,8 +20,9 @@ STAND_KINDS = ("simulated", "ni")
 SIMULATED_FACTORY = ("vibid.hardware_mocks.virtual_stand", "open_simulated_stand")
 
 
-def open_stand(kind: str, setup, config: StandConfig = StandConfig(), *,
-               realtime: bool = False) -> Stand:
+def open_stand(
+    kind: str, setup, config: StandConfig = StandConfig(), *, realtime: bool = False
+) -> Stand:
     """Open the generator and the DAQ of a stand.
 
     Parameters
@@ -45,10 +46,15 @@ def open_stand(kind: str, setup, config: StandConfig = StandConfig(), *,
     g = config.generator
     daq = NiDaq.from_setup(setup, config.daq)  # first: without NI-DAQmx, say so first
     try:
-        generator = open_generator(g.url, baudrate=g.baudrate, timeout_s=g.timeout_s,
-                                   max_vpp=config.drive.max_vpp)
+        generator = open_generator(
+            g.url, baudrate=g.baudrate, timeout_s=g.timeout_s, max_vpp=config.drive.max_vpp
+        )
     except BaseException:
         daq.close()
         raise
-    return Stand(generator, daq, WallClock(),
-                 description=f"NI stand: generator at {g.url}, DAQ {config.daq.device}")
+    return Stand(
+        generator,
+        daq,
+        WallClock(),
+        description=f"NI stand: generator at {g.url}, DAQ {config.daq.device}",
+    )

@@ -43,9 +43,9 @@ class StandConfigError(VibidError, ValueError):
 
 @dataclass(frozen=True)
 class GeneratorConfig:
-    url: str = "vibidsim://stand"   #: pyserial URL: ``/dev/ttyUSB0``, ``COM3``, ``vibidsim://...``
+    url: str = "vibidsim://stand"  #: pyserial URL: ``/dev/ttyUSB0``, ``COM3``, ``vibidsim://...``
     baudrate: int = 9600
-    timeout_s: float = 2.0          #: reply timeout of one SCPI query
+    timeout_s: float = 2.0  #: reply timeout of one SCPI query
 
 
 @dataclass(frozen=True)
@@ -53,36 +53,38 @@ class DaqConfig:
     device: str = "Dev1"
     base_channel: str = "ai0"
     response_channel: str = "ai1"
-    iepe_current_a: float = 0.004   #: IEPE excitation current, A (0 switches it off)
-    range_g: float = 50.0           #: input range, ± g
+    iepe_current_a: float = 0.004  #: IEPE excitation current, A (0 switches it off)
+    range_g: float = 50.0  #: input range, ± g
 
 
 @dataclass(frozen=True)
 class DriveConfig:
-    target_base_m_s2: float = 5.0   #: base acceleration amplitude to hold, m/s²
-    tolerance: float = 0.05         #: accept the drive when |base| is within ±5 % of target
-    initial_vpp: float = 0.2        #: first drive level tried, V peak to peak
-    max_vpp: float = 5.0            #: never drive above this, V peak to peak
+    target_base_m_s2: float = 5.0  #: base acceleration amplitude to hold, m/s²
+    tolerance: float = 0.05  #: accept the drive when |base| is within ±5 % of target
+    initial_vpp: float = 0.2  #: first drive level tried, V peak to peak
+    max_vpp: float = 5.0  #: never drive above this, V peak to peak
     abort_response_m_s2: float = 2000.0  #: abort the campaign above this response amplitude
 
 
 @dataclass(frozen=True)
 class TimingConfig:
     expected_loss_factor: float = 0.003  #: for the settle time near a resonance, Q = 1/β
-    settle_time_constants: float = 5.0   #: settle this many time constants Q/(π f)
+    settle_time_constants: float = 5.0  #: settle this many time constants Q/(π f)
     max_settle_s: float = 10.0
-    min_record_s: float = 0.25           #: record at least this long ...
-    min_cycles: int = 20                 #: ... and at least this many whole cycles
+    min_record_s: float = 0.25  #: record at least this long ...
+    min_cycles: int = 20  #: ... and at least this many whole cycles
 
 
 @dataclass(frozen=True)
 class SimulatedConfig:
-    params: dict[str, float] = field(default_factory=lambda: {"D": 17.97, "nu": 0.286, "beta": 0.003})
+    params: dict[str, float] = field(
+        default_factory=lambda: {"D": 17.97, "nu": 0.286, "beta": 0.003}
+    )
     effects: dict[str, dict[str, float] | list[dict[str, float]]] = field(default_factory=dict)
     noise: float = 4e-4
     seed: int = 0
     clock_offset_ppm: float = 40.0
-    shaker_m_s2_per_v: float = 25.0      #: base acceleration amplitude per volt peak to peak
+    shaker_m_s2_per_v: float = 25.0  #: base acceleration amplitude per volt peak to peak
     faults: tuple[dict[str, Any], ...] = ()
 
 
@@ -98,7 +100,7 @@ class StandConfig:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, doc: Any, *, where: str = "stand configuration") -> "StandConfig":
+    def from_dict(cls, doc: Any, *, where: str = "stand configuration") -> StandConfig:
         if not isinstance(doc, dict):
             raise StandConfigError(f"{where}: expected a JSON object")
         problems: list[str] = []
@@ -129,7 +131,12 @@ def _section(kind, part, name: str, problems: list[str]):
             ok = isinstance(value, type(default))
         elif isinstance(default, (int, float)):
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-            if ok and isinstance(default, int) and not isinstance(default, bool) and value != int(value):
+            if (
+                ok
+                and isinstance(default, int)
+                and not isinstance(default, bool)
+                and value != int(value)
+            ):
                 ok = False
             value = type(default)(value) if ok else value
         elif isinstance(default, dict):

@@ -23,8 +23,17 @@ from vibid import __version__, heartbeat
 from vibid.errors import VibidError
 
 #: Sub-command modules, in the order ``vibid --help`` lists them.
-COMMANDS = ("plan", "campaign", "simulate", "validate", "afc", "modes", "identify", "replay",
-            "devices")
+COMMANDS = (
+    "plan",
+    "campaign",
+    "simulate",
+    "validate",
+    "afc",
+    "modes",
+    "identify",
+    "replay",
+    "devices",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,11 +44,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"vibid {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    parser.add_argument("--stall-timeout", metavar="S", default=None,
-                        help="end the command, with every thread's Python stack written "
-                        "beside the report, when its computation makes no progress for S "
-                        f"seconds (default $VIBID_STALL_TIMEOUT_S or "
-                        f"{heartbeat.DEFAULT_LIMIT_S:g}; 0: never)")
+    parser.add_argument(
+        "--stall-timeout",
+        metavar="S",
+        default=None,
+        help="end the command, with every thread's Python stack written "
+        "beside the report, when its computation makes no progress for S "
+        f"seconds (default $VIBID_STALL_TIMEOUT_S or "
+        f"{heartbeat.DEFAULT_LIMIT_S:g}; 0: never)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
         importlib.import_module(f"vibid.cli.{name}").add_parser(sub)
@@ -78,8 +91,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--stall-timeout: {exc}")
     watchdog = heartbeat.Watchdog(limit, lambda: stall_folder(args), f"vibid {args.command}")
     try:
-        with watchdog, (heartbeat.stage(args.command) if args.command in COMPUTING
-                        else contextlib.nullcontext()):
+        with (
+            watchdog,
+            (
+                heartbeat.stage(args.command)
+                if args.command in COMPUTING
+                else contextlib.nullcontext()
+            ),
+        ):
             return int(args.run(args) or 0)
     except VibidError as exc:
         if args.debug:

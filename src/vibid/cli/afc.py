@@ -18,10 +18,17 @@ def add_parser(sub) -> None:
         "Flagged steps are listed but left out of the identification.",
     )
     p.add_argument("session", metavar="SESSION.h5", help="session file")
-    p.add_argument("--json", metavar="AFC.json", help="also write the report's 'afc' block with per-step diagnostics")
-    p.add_argument("--uff", metavar="AFC.uff",
-                   help="also write the AFC the identification uses (used steps only, refined "
-                   "frequencies) as UFF58: the AFC, then its std as a second record")
+    p.add_argument(
+        "--json",
+        metavar="AFC.json",
+        help="also write the report's 'afc' block with per-step diagnostics",
+    )
+    p.add_argument(
+        "--uff",
+        metavar="AFC.uff",
+        help="also write the AFC the identification uses (used steps only, refined "
+        "frequencies) as UFF58: the AFC, then its std as a second record",
+    )
     p.set_defaults(run=run)
 
 
@@ -64,7 +71,9 @@ def _write_uff(path, table, session_id: str) -> None:
 
 def format_table(table) -> str:
     """The AFC as a fixed-width text table, one line per step, then a summary line."""
-    head = f"{'step':>5} {'f_Hz':>12} {'|H|':>11} {'phase_deg':>10} {'std':>10} {'SNR_dB':>7}  flags"
+    head = (
+        f"{'step':>5} {'f_Hz':>12} {'|H|':>11} {'phase_deg':>10} {'std':>10} {'SNR_dB':>7}  flags"
+    )
     lines = [head]
     for p in table.points:
         snr = min(p.snr_db)
@@ -74,8 +83,14 @@ def format_table(table) -> str:
             f"{_num(snr, '7.1f')}  {','.join(p.flag_names) or '-'}"
         )
     n_used = int(table.used.sum())
-    lines.append(f"{n_used} of {len(table)} steps used" + ("" if n_used == len(table) else
-                 "; flagged steps are left out (reasons in the --json diagnostics)"))
+    lines.append(
+        f"{n_used} of {len(table)} steps used"
+        + (
+            ""
+            if n_used == len(table)
+            else "; flagged steps are left out (reasons in the --json diagnostics)"
+        )
+    )
     return "\n".join(lines)
 
 

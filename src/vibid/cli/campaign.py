@@ -28,55 +28,100 @@ it (with the options it was started with).
 
 from __future__ import annotations
 
-from vibid.cli.options import add_identification_options, profiled
-
 import json
 import math
 import os
 import sys
 
+from vibid.cli.options import add_identification_options, profiled
 from vibid.errors import VibidError
 
 
 def add_parser(sub):
-    p = sub.add_parser("campaign", help="run the stepped-sine campaign on the stand",
-                       description=__doc__.split("\n\n")[1])
+    p = sub.add_parser(
+        "campaign",
+        help="run the stepped-sine campaign on the stand",
+        description=__doc__.split("\n\n")[1],
+    )
     p.add_argument("setup", metavar="SETUP.json", help="the declared setup (with excitation)")
-    p.add_argument("--stand", required=True, choices=("simulated", "ni"),
-                   help="the real NI stand, or the simulated one behind the same drivers")
-    p.add_argument("--stand-config", metavar="STAND.json",
-                   help="the stand configuration (default: every setting at its default)")
-    p.add_argument("--out", metavar="S.h5",
-                   help="the session file to write (default: runs/<setup name>-<UTC time>.h5)")
-    p.add_argument("--report", metavar="DIR",
-                   help="the report folder: report.md, report.json, PNG figures "
-                   "(default: <session name>-report beside the session file)")
+    p.add_argument(
+        "--stand",
+        required=True,
+        choices=("simulated", "ni"),
+        help="the real NI stand, or the simulated one behind the same drivers",
+    )
+    p.add_argument(
+        "--stand-config",
+        metavar="STAND.json",
+        help="the stand configuration (default: every setting at its default)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="S.h5",
+        help="the session file to write (default: runs/<setup name>-<UTC time>.h5)",
+    )
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        help="the report folder: report.md, report.json, PNG figures "
+        "(default: <session name>-report beside the session file)",
+    )
     add_identification_options(p, methods=False)
-    p.add_argument("--resume", action="store_true",
-                   help="continue the interrupted session --out from its first missing step")
-    p.add_argument("--realtime", action="store_true",
-                   help="simulated stand: settle and record in wall-clock time")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted session --out from its first missing step",
+    )
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="simulated stand: settle and record in wall-clock time",
+    )
     p.add_argument("--operator", metavar="NAME", help="who runs the test (session attribute)")
     p.add_argument("--notes", metavar="TEXT", help="free-text notes (session attribute)")
-    p.add_argument("--temperature-c", type=float, metavar="T",
-                   help="specimen or room temperature, °C, written on every step")
-    p.add_argument("--dry-run", action="store_true",
-                   help="print the plan (steps, settle and record times, the least duration) "
-                   "and exit without opening the stand or writing --out")
-    p.add_argument("--record-only", action="store_true",
-                   help="record the session only: no Prefect flow, no identification or report")
-    a = p.add_argument_group("adaptive campaign", "choose the steps as the test goes: a coarse "
-                             "sweep, a fit after each batch, the next steps where the fit learns "
-                             "most per second of stand time, until the targets or the cap")
-    a.add_argument("--adaptive", action="store_true",
-                   help="run an adaptive campaign (the setup's excitation gives the band and "
-                   "the settle floor; its frequencies are not played)")
-    a.add_argument("--target", nargs="+", metavar="NAME=STD[%]",
-                   help="standard uncertainties to reach, relative with %%, e.g. D=0.1%% nu=0.002")
-    a.add_argument("--band", metavar="LOW:HIGH",
-                   help="frequency band, Hz (default: the setup's frequency span)")
-    a.add_argument("--max-stand-time", type=float, metavar="S",
-                   help="stop at this stand time, s (default 600)")
+    p.add_argument(
+        "--temperature-c",
+        type=float,
+        metavar="T",
+        help="specimen or room temperature, °C, written on every step",
+    )
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the plan (steps, settle and record times, the least duration) "
+        "and exit without opening the stand or writing --out",
+    )
+    p.add_argument(
+        "--record-only",
+        action="store_true",
+        help="record the session only: no Prefect flow, no identification or report",
+    )
+    a = p.add_argument_group(
+        "adaptive campaign",
+        "choose the steps as the test goes: a coarse "
+        "sweep, a fit after each batch, the next steps where the fit learns "
+        "most per second of stand time, until the targets or the cap",
+    )
+    a.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="run an adaptive campaign (the setup's excitation gives the band and "
+        "the settle floor; its frequencies are not played)",
+    )
+    a.add_argument(
+        "--target",
+        nargs="+",
+        metavar="NAME=STD[%]",
+        help="standard uncertainties to reach, relative with %%, e.g. D=0.1%% nu=0.002",
+    )
+    a.add_argument(
+        "--band",
+        metavar="LOW:HIGH",
+        help="frequency band, Hz (default: the setup's frequency span)",
+    )
+    a.add_argument(
+        "--max-stand-time", type=float, metavar="S", help="stop at this stand time, s (default 600)"
+    )
     a.add_argument("--batch", type=int, metavar="N", help="steps per batch (default 4)")
     p.set_defaults(run=run)
 
@@ -89,9 +134,16 @@ def adaptive_options(args, setup):
     from vibid.planner.adaptive import AdaptiveOptions
     from vibid.planner.prior import parse_targets
 
-    given = [o for o, v in (("--target", args.target), ("--band", args.band),
-                            ("--max-stand-time", args.max_stand_time), ("--batch", args.batch))
-             if v is not None]
+    given = [
+        o
+        for o, v in (
+            ("--target", args.target),
+            ("--band", args.band),
+            ("--max-stand-time", args.max_stand_time),
+            ("--batch", args.batch),
+        )
+        if v is not None
+    ]
     recorded = None
     if args.resume and args.out and os.path.isfile(args.out):
         from vibid.session import read_session
@@ -103,11 +155,15 @@ def adaptive_options(args, setup):
             raise VibidError(f"{given[0]} goes with --adaptive")
         return None
     if args.record_only:
-        raise VibidError("--record-only with --adaptive: an adaptive campaign fits between "
-                         "batches to choose its steps; run it without --record-only")
+        raise VibidError(
+            "--record-only with --adaptive: an adaptive campaign fits between "
+            "batches to choose its steps; run it without --record-only"
+        )
     if args.magnitude_only:
-        raise VibidError("--magnitude-only with --adaptive: the adaptive campaign plans on the "
-                         "complex AFC; run it without --magnitude-only")
+        raise VibidError(
+            "--magnitude-only with --adaptive: the adaptive campaign plans on the "
+            "complex AFC; run it without --magnitude-only"
+        )
     names = plate_model(setup.identification.model).names
     if recorded is not None and not given:
         return AdaptiveOptions.from_attribute(recorded, names)  # --resume: the file's own
@@ -117,14 +173,20 @@ def adaptive_options(args, setup):
 
     freqs = setup.excitation.frequencies_hz
     band = parse_band(args.band) or (float(min(freqs)), float(max(freqs)))
-    options = AdaptiveOptions(parse_targets(args.target, names), band,
-                              600.0 if args.max_stand_time is None else args.max_stand_time,
-                              4 if args.batch is None else args.batch, seed=args.seed)
+    options = AdaptiveOptions(
+        parse_targets(args.target, names),
+        band,
+        600.0 if args.max_stand_time is None else args.max_stand_time,
+        4 if args.batch is None else args.batch,
+        seed=args.seed,
+    )
     options.check(setup)
     if recorded is not None and options.attribute() != recorded:
-        raise VibidError(f"--out {args.out}: an adaptive campaign started with other options "
-                         f"({json.dumps(recorded, sort_keys=True)}); resume it without "
-                         f"{', '.join(given)}: --resume continues with the options it records")
+        raise VibidError(
+            f"--out {args.out}: an adaptive campaign started with other options "
+            f"({json.dumps(recorded, sort_keys=True)}); resume it without "
+            f"{', '.join(given)}: --resume continues with the options it records"
+        )
     return options
 
 
@@ -132,7 +194,7 @@ def default_out(setup_path: str, now=None) -> str:
     """``runs/<setup file stem>-<UTC time YYYYmmdd-HHMMSS>.h5``: a new file on every run."""
     import datetime
 
-    now = now or datetime.datetime.now(datetime.timezone.utc)
+    now = now or datetime.datetime.now(datetime.UTC)
     stem = os.path.splitext(os.path.basename(setup_path))[0] or "session"
     return os.path.join("runs", f"{stem}-{now:%Y%m%d-%H%M%S}.h5")
 
@@ -142,12 +204,16 @@ def check_out_path(path: str, resume: bool) -> None:
     if resume:
         if not os.path.isfile(path):
             raise VibidError(f"--out {path}: no such session file to resume")
-        if not os.access(path, os.W_OK) or not os.access(os.path.dirname(os.path.abspath(path)), os.W_OK):
+        if not os.access(path, os.W_OK) or not os.access(
+            os.path.dirname(os.path.abspath(path)), os.W_OK
+        ):
             raise VibidError(f"--out {path}: cannot be written")
         return
     if os.path.exists(path):
-        raise VibidError(f"--out {path}: already exists; a session file is never overwritten "
-                         "(--resume continues an interrupted one)")
+        raise VibidError(
+            f"--out {path}: already exists; a session file is never overwritten "
+            "(--resume continues an interrupted one)"
+        )
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):
         raise VibidError(f"--out {path}: the directory {parent} does not exist")
@@ -165,7 +231,9 @@ def run(args) -> int:
         raise VibidError(f"{args.setup}: the setup has no excitation to play")
     config = load_stand_config(args.stand_config)
     if args.realtime and args.stand != "simulated":
-        raise VibidError("--realtime paces the simulated stand; the real stand always runs in real time")
+        raise VibidError(
+            "--realtime paces the simulated stand; the real stand always runs in real time"
+        )
     if args.temperature_c is not None and not math.isfinite(args.temperature_c):
         raise VibidError("--temperature-c must be a finite number")
     candidates = parse_candidates(args.candidates)
@@ -178,7 +246,11 @@ def run(args) -> int:
         if adaptive is not None:
             from vibid.planner.adaptive import AdaptiveCampaign
 
-            print("\n".join(AdaptiveCampaign(setup, config, adaptive, loop=not args.no_loop).describe()))
+            print(
+                "\n".join(
+                    AdaptiveCampaign(setup, config, adaptive, loop=not args.no_loop).describe()
+                )
+            )
         else:
             print_plan(setup, config)
         return 0
@@ -197,8 +269,12 @@ def run(args) -> int:
 
     report_dir = args.report or default_report_dir(args.out)
     check_output_dir(report_dir)
-    return run_flow(args, report_dir, None if candidates is None else list(candidates),
-                    None if adaptive is None else adaptive.attribute())
+    return run_flow(
+        args,
+        report_dir,
+        None if candidates is None else list(candidates),
+        None if adaptive is None else adaptive.attribute(),
+    )
 
 
 def run_flow(args, report_dir: str, candidates, adaptive: dict | None = None) -> int:
@@ -215,13 +291,25 @@ def run_flow(args, report_dir: str, candidates, adaptive: dict | None = None) ->
     tie_temporary_server()  # a campaign killed outright leaves no Prefect server behind
 
     with profiled(args.profile):
-        state = campaign_flow(args.setup, stand=args.stand, stand_config=args.stand_config,
-                              out=args.out, report_dir=report_dir, resume=args.resume,
-                              realtime=args.realtime, loop=not args.no_loop, candidates=candidates,
-                              operator=args.operator, notes=args.notes,
-                              temperature_c=args.temperature_c, restarts=args.restarts,
-                              seed=args.seed, magnitude_only=args.magnitude_only,
-                              adaptive=adaptive, return_state=True)
+        state = campaign_flow(
+            args.setup,
+            stand=args.stand,
+            stand_config=args.stand_config,
+            out=args.out,
+            report_dir=report_dir,
+            resume=args.resume,
+            realtime=args.realtime,
+            loop=not args.no_loop,
+            candidates=candidates,
+            operator=args.operator,
+            notes=args.notes,
+            temperature_c=args.temperature_c,
+            restarts=args.restarts,
+            seed=args.seed,
+            magnitude_only=args.magnitude_only,
+            adaptive=adaptive,
+            return_state=True,
+        )
     if not state.is_completed():
         error = state.result(raise_on_failure=False)
         report_md = os.path.join(report_dir, "report.md")
@@ -256,9 +344,17 @@ def record_only(args, setup, config) -> int:
         configure()  # the virtual specimen is the plate model
     printer = ProgressPrinter(sys.stderr)
     with open_stand(args.stand, setup, config, realtime=args.realtime) as stand:
-        result = run_campaign(setup, stand, args.out, config, resume=args.resume, progress=printer,
-                              operator=args.operator, notes=args.notes,
-                              temperature_c=args.temperature_c)
+        result = run_campaign(
+            setup,
+            stand,
+            args.out,
+            config,
+            resume=args.resume,
+            progress=printer,
+            operator=args.operator,
+            notes=args.notes,
+            temperature_c=args.temperature_c,
+        )
     printer.close()
     n = len(setup.excitation.frequencies_hz)
     line = f"{result.path}: {result.run_status}, {result.n_steps} of {n} steps"
@@ -274,9 +370,11 @@ def record_only(args, setup, config) -> int:
 
 def resume_hint(args, path) -> str:
     """The command that continues the session at ``path``."""
-    return (f"continue with: vibid campaign {args.setup} --stand {args.stand}"
-            f"{' --stand-config ' + args.stand_config if args.stand_config else ''} "
-            f"--out {path} --resume{' --record-only' if args.record_only else ''}")
+    return (
+        f"continue with: vibid campaign {args.setup} --stand {args.stand}"
+        f"{' --stand-config ' + args.stand_config if args.stand_config else ''} "
+        f"--out {path} --resume{' --record-only' if args.record_only else ''}"
+    )
 
 
 def print_plan(setup, config) -> None:
@@ -285,11 +383,15 @@ def print_plan(setup, config) -> None:
 
     summary = plan_summary(setup, config)
     for c in summary.commands:
-        print(f"step {c.index + 1}/{c.n_steps}  {c.frequency_hz:g} Hz  settle {c.settle_s:g} s  "
-              f"record {c.n_samples} samples ({c.record_s:.4g} s)")
-    print(f"{len(summary.commands)} steps: settle {summary.settle_s:.1f} s + record "
-          f"{summary.record_s:.1f} s = at least {_duration(summary.duration_s)} (longer where a "
-          "record is unsettled or the drive moves)")
+        print(
+            f"step {c.index + 1}/{c.n_steps}  {c.frequency_hz:g} Hz  settle {c.settle_s:g} s  "
+            f"record {c.n_samples} samples ({c.record_s:.4g} s)"
+        )
+    print(
+        f"{len(summary.commands)} steps: settle {summary.settle_s:.1f} s + record "
+        f"{summary.record_s:.1f} s = at least {_duration(summary.duration_s)} (longer where a "
+        "record is unsettled or the drive moves)"
+    )
 
 
 class ProgressPrinter:
@@ -319,8 +421,10 @@ class ProgressPrinter:
 def progress_line(p) -> str:
     """``step 12/200  97.5 Hz  |H| 3.412  phase -12.3 deg  left 2 min 10 s`` (+ status, note);
     nothing about the time left while it cannot be estimated (``eta_s`` nan)."""
-    text = (f"step {p.index + 1}/{p.n_steps}  {p.frequency_hz:g} Hz  |H| {p.h_abs:.4g}  "
-            f"phase {p.phase_deg:+.1f} deg")
+    text = (
+        f"step {p.index + 1}/{p.n_steps}  {p.frequency_hz:g} Hz  |H| {p.h_abs:.4g}  "
+        f"phase {p.phase_deg:+.1f} deg"
+    )
     if math.isfinite(p.eta_s):
         text += f"  left {_duration(p.eta_s)}"
     if p.status != "ok":

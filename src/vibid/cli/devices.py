@@ -9,10 +9,17 @@ from __future__ import annotations
 
 
 def add_parser(sub):
-    p = sub.add_parser("devices", help="list serial ports and NI-DAQmx devices",
-                       description=__doc__.split("\n\n")[1])
-    p.add_argument("--timeout-s", type=float, default=0.5,
-                   help="how long to wait for each port's *IDN? reply, s (default 0.5)")
+    p = sub.add_parser(
+        "devices",
+        help="list serial ports and NI-DAQmx devices",
+        description=__doc__.split("\n\n")[1],
+    )
+    p.add_argument(
+        "--timeout-s",
+        type=float,
+        default=0.5,
+        help="how long to wait for each port's *IDN? reply, s (default 0.5)",
+    )
     p.add_argument("--baudrate", type=int, default=9600, help="baud rate of the query")
     p.set_defaults(run=run)
 
@@ -50,7 +57,8 @@ def ni_lines() -> list[str]:
         devices = list(system.devices)
     except Exception as exc:  # noqa: BLE001 - DaqNotFoundError, ImportError, OSError, ...
         if type(exc).__name__ in ("DaqNotFoundError", "DaqNotSupportedError") or isinstance(
-                exc, (ImportError, OSError)):
+            exc, (ImportError, OSError)
+        ):
             return ["  NI-DAQmx is not installed on this machine"]
         return [f"  NI-DAQmx cannot list devices: {' '.join(str(exc).split())[:200]}"]
     lines = [f"  NI-DAQmx {version.major_version}.{version.minor_version}.{version.update_version}"]

@@ -13,8 +13,12 @@ the fit unless ``--nonlinear-tops`` (:func:`vibid.identify.linearity.linear_part
 
 from __future__ import annotations
 
-from vibid.cli.options import (add_identification_options, add_reference_options, profiled,
-                               reference_of)
+from vibid.cli.options import (
+    add_identification_options,
+    add_reference_options,
+    profiled,
+    reference_of,
+)
 
 
 def add_parser(sub):
@@ -26,20 +30,28 @@ def add_parser(sub):
         "with their standard deviations.",
     )
     p.add_argument("session", metavar="SESSION.h5", nargs="?", help="the session file")
-    p.add_argument("--afc", metavar="AFC.csv|AFC.uff",
-                   help="an AFC measured elsewhere instead of a session: AFC.csv (columns "
-                   "frequency_hz, re, im[, std]) or AFC.uff (UFF58; detected by content); "
-                   "needs --setup")
+    p.add_argument(
+        "--afc",
+        metavar="AFC.csv|AFC.uff",
+        help="an AFC measured elsewhere instead of a session: AFC.csv (columns "
+        "frequency_hz, re, im[, std]) or AFC.uff (UFF58; detected by content); "
+        "needs --setup",
+    )
     p.add_argument("--setup", metavar="SETUP.json", help="the declared setup of --afc")
     p.add_argument("--json", metavar="REPORT.json", help="write the report here")
-    p.add_argument("--report", metavar="DIR",
-                   help="also write a readable report.md with PNG figures (and report.json) "
-                   "into DIR")
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        help="also write a readable report.md with PNG figures (and report.json) into DIR",
+    )
     add_identification_options(p)
-    p.add_argument("--nonlinear-tops", action="store_true",
-                   help="fit the tops of resonances whose response depends on its amplitude "
-                   "too (by default they are left out: the plate model is linear, and their "
-                   "flanks hold the structure at small motion)")
+    p.add_argument(
+        "--nonlinear-tops",
+        action="store_true",
+        help="fit the tops of resonances whose response depends on its amplitude "
+        "too (by default they are left out: the plate model is linear, and their "
+        "flanks hold the structure at small motion)",
+    )
     add_reference_options(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -62,17 +74,29 @@ def run(args) -> int:
     with profiled(args.profile):
         data = _source(args)
         with search_progress(not args.no_progress) as progress:
-            identified = identify_afc(data, loop=not args.no_loop, candidates=candidates,
-                                      method=args.method, local=args.local,
-                                      restarts=args.restarts, seed=args.seed,
-                                      progress=progress, magnitude_only=args.magnitude_only,
-                                      nonlinear_tops=args.nonlinear_tops)
+            identified = identify_afc(
+                data,
+                loop=not args.no_loop,
+                candidates=candidates,
+                method=args.method,
+                local=args.local,
+                restarts=args.restarts,
+                seed=args.seed,
+                progress=progress,
+                magnitude_only=args.magnitude_only,
+                nonlinear_tops=args.nonlinear_tops,
+            )
         print(identified.summary)
     from vibid.report import plausibility_lines
 
-    report, paths = write_outputs(data, identified, json_path=args.json,
-                                  report_dir=args.report, session_path=args.session,
-                                  reference=reference)
+    report, paths = write_outputs(
+        data,
+        identified,
+        json_path=args.json,
+        report_dir=args.report,
+        session_path=args.session,
+        reference=reference,
+    )
     for line in plausibility_lines(report):  # never silent
         print(line)
     if args.json:
@@ -87,11 +111,13 @@ def run(args) -> int:
 def _source(args):
     """The :class:`~vibid.pipeline.SessionAfc` of a session file, or of --afc and --setup."""
     from vibid.errors import VibidError
-    from vibid.pipeline import SessionAfc, session_afc
+    from vibid.pipeline import session_afc
 
     if args.afc is None:
         if args.session is None:
-            raise VibidError("give a session file, or --afc AFC.csv|AFC.uff with --setup SETUP.json")
+            raise VibidError(
+                "give a session file, or --afc AFC.csv|AFC.uff with --setup SETUP.json"
+            )
         if args.setup is not None:
             raise VibidError("--setup goes with --afc; a session file holds its own setup")
         return session_afc(args.session)

@@ -19,17 +19,30 @@ from vibid.errors import VibidError
 
 
 def add_parser(sub):
-    p = sub.add_parser("modes", help="natural frequencies and decay factors of the plate",
-                       description="Natural frequencies and decay factors of the declared "
-                       "plate with its sensor (full FE model, complex eigenproblem).")
-    p.add_argument("source", metavar="SETUP.json|SESSION.h5",
-                   help="a setup JSON document or a session file")
-    p.add_argument("--params", nargs="+", required=True, metavar="NAME=VALUE",
-                   help="model parameters, e.g. D=17.97 nu=0.286 beta=0.003 (D in N·m); an "
-                   "effect's parameters add it, e.g. k_theta_N_per_rad=16000")
+    p = sub.add_parser(
+        "modes",
+        help="natural frequencies and decay factors of the plate",
+        description="Natural frequencies and decay factors of the declared "
+        "plate with its sensor (full FE model, complex eigenproblem).",
+    )
+    p.add_argument(
+        "source", metavar="SETUP.json|SESSION.h5", help="a setup JSON document or a session file"
+    )
+    p.add_argument(
+        "--params",
+        nargs="+",
+        required=True,
+        metavar="NAME=VALUE",
+        help="model parameters, e.g. D=17.97 nu=0.286 beta=0.003 (D in N·m); an "
+        "effect's parameters add it, e.g. k_theta_N_per_rad=16000",
+    )
     p.add_argument("--n", type=int, default=6, help="number of modes (default 6)")
-    p.add_argument("--accuracy", default="default", choices=("fast", "default", "fine"),
-                   help="discretisation preset (default: default)")
+    p.add_argument(
+        "--accuracy",
+        default="default",
+        choices=("fast", "default", "fine"),
+        help="discretisation preset (default: default)",
+    )
     p.add_argument("--json", metavar="OUT.json", help="also write the results as JSON")
     p.set_defaults(run=run)
 
@@ -45,7 +58,9 @@ def load_setup(path: str):
         try:
             from vibid.session import read_session
         except ImportError:
-            raise VibidError("reading session files needs vibid.session, which is not available") from None
+            raise VibidError(
+                "reading session files needs vibid.session, which is not available"
+            ) from None
         with read_session(p) as s:
             return s.setup
     try:

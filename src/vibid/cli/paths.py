@@ -56,4 +56,6 @@ def _try_writing_in(folder: str, shown: str) -> None:
             pass
     except OSError as exc:
         where = "this folder" if folder == shown else folder
-        raise VibidError(f"{shown}: cannot write in {where} ({exc.strerror or 'not writable'})") from None
+        raise VibidError(
+            f"{shown}: cannot write in {where} ({exc.strerror or 'not writable'})"
+        ) from None

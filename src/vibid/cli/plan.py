@@ -22,28 +22,59 @@ from vibid.errors import VibidError
 
 
 def add_parser(sub):
-    p = sub.add_parser("plan", help="plan a stepped sine: target uncertainty, least stand time",
-                       description="Choose frequencies, settle times and record lengths that "
-                       "reach the target standard uncertainties over the whole prior in the "
-                       "least stand time.")
+    p = sub.add_parser(
+        "plan",
+        help="plan a stepped sine: target uncertainty, least stand time",
+        description="Choose frequencies, settle times and record lengths that "
+        "reach the target standard uncertainties over the whole prior in the "
+        "least stand time.",
+    )
     p.add_argument("setup", metavar="SETUP.json", help="the declared setup")
-    p.add_argument("--target", nargs="+", required=True, metavar="NAME=STD[%]",
-                   help="standard uncertainty to reach, relative with %%, e.g. D=0.1%% nu=0.002")
-    p.add_argument("--prior", nargs="+", default=[], metavar="NAME=MEAN±STD[%]",
-                   help="normal priors, e.g. D=17±30%% nu=0.3±0.05 (+- for ±); a parameter "
-                   "not named is uniform over the setup's bounds")
-    p.add_argument("--band", metavar="LOW:HIGH", help="frequency band, Hz (default: the setup's span)")
-    p.add_argument("--stand-config", metavar="STAND.json",
-                   help="the stand's timing (record and settle rules); default: the defaults")
-    p.add_argument("--noise", type=float, metavar="REL",
-                   help="each channel's noise std relative to the base amplitude (default: "
-                   "the stand configuration's simulated.noise)")
-    p.add_argument("--max-stand-time", type=float, default=3600.0, metavar="S",
-                   help="stop adding steps at this stand time, s (default 3600)")
+    p.add_argument(
+        "--target",
+        nargs="+",
+        required=True,
+        metavar="NAME=STD[%]",
+        help="standard uncertainty to reach, relative with %%, e.g. D=0.1%% nu=0.002",
+    )
+    p.add_argument(
+        "--prior",
+        nargs="+",
+        default=[],
+        metavar="NAME=MEAN±STD[%]",
+        help="normal priors, e.g. D=17±30%% nu=0.3±0.05 (+- for ±); a parameter "
+        "not named is uniform over the setup's bounds",
+    )
+    p.add_argument(
+        "--band", metavar="LOW:HIGH", help="frequency band, Hz (default: the setup's span)"
+    )
+    p.add_argument(
+        "--stand-config",
+        metavar="STAND.json",
+        help="the stand's timing (record and settle rules); default: the defaults",
+    )
+    p.add_argument(
+        "--noise",
+        type=float,
+        metavar="REL",
+        help="each channel's noise std relative to the base amplitude (default: "
+        "the stand configuration's simulated.noise)",
+    )
+    p.add_argument(
+        "--max-stand-time",
+        type=float,
+        default=3600.0,
+        metavar="S",
+        help="stop adding steps at this stand time, s (default 3600)",
+    )
     p.add_argument("--draws", type=int, default=16, help="prior draws (default 16)")
     p.add_argument("--seed", type=int, default=0, help="seed of the prior draws")
-    p.add_argument("--magnitude-only", action="store_true", help="plan for an |H|-only identification")
-    p.add_argument("--out", required=True, metavar="PLANNED.json", help="where to write the planned setup")
+    p.add_argument(
+        "--magnitude-only", action="store_true", help="plan for an |H|-only identification"
+    )
+    p.add_argument(
+        "--out", required=True, metavar="PLANNED.json", help="where to write the planned setup"
+    )
     p.set_defaults(run=run)
 
 
@@ -68,11 +99,19 @@ def check_options(args):
     from vibid.cli.paths import check_output_file
     from vibid.parameters import MODEL_PARAMETERS
     from vibid.pipeline import read_setup
-    from vibid.planner.prior import (check_priors_in_box, check_stand_time_cap, parse_prior,
-                                     parse_targets)
+    from vibid.planner.prior import (
+        check_priors_in_box,
+        check_stand_time_cap,
+        parse_prior,
+        parse_targets,
+    )
 
     check_output_file(args.out, overwrite=True)
-    if os.path.exists(args.out) and os.path.exists(args.setup) and os.path.samefile(args.out, args.setup):
+    if (
+        os.path.exists(args.out)
+        and os.path.exists(args.setup)
+        and os.path.samefile(args.out, args.setup)
+    ):
         raise VibidError(f"--out {args.out}: is the setup itself; write the plan to another file")
     check_stand_time_cap(args.max_stand_time)
     if args.noise is not None and not (math.isfinite(args.noise) and args.noise > 0):
@@ -94,9 +133,18 @@ def run(args) -> int:
 
     setup, config, targets, priors, band = check_options(args)
     configure()
-    plan = plan_test(setup, config, targets, priors=priors, band_hz=band,
-                     noise=args.noise, n_draws=args.draws, seed=args.seed,
-                     max_stand_time_s=args.max_stand_time, magnitude=args.magnitude_only)
+    plan = plan_test(
+        setup,
+        config,
+        targets,
+        priors=priors,
+        band_hz=band,
+        noise=args.noise,
+        n_draws=args.draws,
+        seed=args.seed,
+        max_stand_time_s=args.max_stand_time,
+        magnitude=args.magnitude_only,
+    )
     text = planned_setup(setup, plan).to_json()
     tmp = f"{args.out}.tmp"
     try:
@@ -107,17 +155,25 @@ def run(args) -> int:
         raise VibidError(f"{args.out}: cannot write: {exc.strerror or exc}") from None
     print(comparison(plan))
     if plan.planned.stand_time_s > args.max_stand_time:
-        print(f"the plan's {plan.planned.stand_time_s:.1f} s of stand time exceed "
-              f"--max-stand-time {args.max_stand_time:g} s: the coarse sweep a plan starts "
-              "from, and the step that crosses the cap, are kept whole")
+        print(
+            f"the plan's {plan.planned.stand_time_s:.1f} s of stand time exceed "
+            f"--max-stand-time {args.max_stand_time:g} s: the coarse sweep a plan starts "
+            "from, and the step that crosses the cap, are kept whole"
+        )
     if not plan.reached_design:
-        print(f"the targets are not reached within {args.max_stand_time:g} s of stand time "
-              "in this band: the plan is the best found")
+        print(
+            f"the targets are not reached within {args.max_stand_time:g} s of stand time "
+            "in this band: the plan is the best found"
+        )
     elif not plan.reached:
-        print(f"the plan meets the targets at the draws it was chosen on, not at "
-              f"{100 * plan.quantile:g} % of others: the prior is too wide for a fixed plan to "
-              "find the resonances (narrow the prior, or let `vibid campaign --adaptive` find them)")
-    print(f"{args.out}: {len(plan.frequencies_hz)} steps; play it with `vibid campaign {args.out} …`")
+        print(
+            f"the plan meets the targets at the draws it was chosen on, not at "
+            f"{100 * plan.quantile:g} % of others: the prior is too wide for a fixed plan to "
+            "find the resonances (narrow the prior, or let `vibid campaign --adaptive` find them)"
+        )
+    print(
+        f"{args.out}: {len(plan.frequencies_hz)} steps; play it with `vibid campaign {args.out} …`"
+    )
     return 0
 
 
@@ -126,7 +182,8 @@ def comparison(plan) -> str:
     quantile over prior draws of each parameter's relative standard uncertainty."""
     q = plan.quantile
     head = f"{'':16}{'steps':>6}{'stand time':>12}" + "".join(
-        f"{'std ' + n + ' (median / ' + format(q * 100, 'g') + ' %)':>30}" for n in plan.names)
+        f"{'std ' + n + ' (median / ' + format(q * 100, 'g') + ' %)':>30}" for n in plan.names
+    )
     rows = [head]
     for pr in (plan.planned, plan.sweep):
         if pr is None:
@@ -135,12 +192,16 @@ def comparison(plan) -> str:
         for j in range(len(plan.names)):
             rel = pr.relative_std(j)
             cells.append(f"{_pct(np.median(rel))} / {_pct(np.quantile(rel, q))}")
-        rows.append(f"{pr.label:16}{pr.n_steps:>6}{pr.stand_time_s:>10.1f} s"
-                    + "".join(f"{c:>30}" for c in cells))
+        rows.append(
+            f"{pr.label:16}{pr.n_steps:>6}{pr.stand_time_s:>10.1f} s"
+            + "".join(f"{c:>30}" for c in cells)
+        )
     targets = ", ".join(str(t) for t in plan.targets)
-    rows.append(f"targets {targets}, over {len(plan.planned.draws)} prior draws the plan was "
-                "not chosen on; predicted from the model, its error and the noise (re-records "
-                "not counted)")
+    rows.append(
+        f"targets {targets}, over {len(plan.planned.draws)} prior draws the plan was "
+        "not chosen on; predicted from the model, its error and the noise (re-records "
+        "not counted)"
+    )
     return "\n".join(rows)
 
 

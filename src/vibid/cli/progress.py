@@ -20,8 +20,13 @@ def search_progress(enabled: bool = True):
     def progress(label: str, done: int, total: int, best: float | None) -> None:
         bar = bars.get(label)
         if bar is None:
-            bar = bars[label] = tqdm(total=total, desc=label, unit="gen" if best is not None
-                                     else "step", leave=False, dynamic_ncols=True)
+            bar = bars[label] = tqdm(
+                total=total,
+                desc=label,
+                unit="gen" if best is not None else "step",
+                leave=False,
+                dynamic_ncols=True,
+            )
         bar.update(done - bar.n)
         if best is not None:
             bar.set_postfix(best=f"{best:.4g}")

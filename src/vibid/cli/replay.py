@@ -10,8 +10,12 @@ run); with ``PREFECT_API_URL`` set, on that server, where the run and its artifa
 
 from __future__ import annotations
 
-from vibid.cli.options import (add_identification_options, add_reference_options, profiled,
-                               reference_of)
+from vibid.cli.options import (
+    add_identification_options,
+    add_reference_options,
+    profiled,
+    reference_of,
+)
 
 
 def add_parser(sub):
@@ -22,11 +26,16 @@ def add_parser(sub):
     )
     p.add_argument("session", metavar="SESSION.h5", help="the session file")
     p.add_argument("--json", metavar="REPORT.json", help="write the JSON report here")
-    p.add_argument("--report", metavar="DIR",
-                   help="write report.md, report.json and the PNG figures into this folder")
-    p.add_argument("--uff", metavar="AFC.uff",
-                   help="also write the AFC the identification uses as UFF58 (as vibid afc "
-                   "--uff)")
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        help="write report.md, report.json and the PNG figures into this folder",
+    )
+    p.add_argument(
+        "--uff",
+        metavar="AFC.uff",
+        help="also write the AFC the identification uses as UFF58 (as vibid afc --uff)",
+    )
     add_identification_options(p)
     add_reference_options(p)
     p.set_defaults(run=run)
@@ -57,13 +66,21 @@ def run(args) -> int:
 
     tie_temporary_server()  # a replay killed outright leaves no Prefect server behind
     with profiled(args.profile):
-        report = replay_flow(args.session, json_path=args.json, report_dir=args.report,
-                             uff_path=args.uff, loop=not args.no_loop,
-                             candidates=None if candidates is None else list(candidates),
-                             method=args.method, local=args.local, restarts=args.restarts,
-                             seed=args.seed, magnitude_only=args.magnitude_only,
-                             reference_E_pa=args.reference_E,
-                             reference_E_std_pa=args.reference_E_std)
+        report = replay_flow(
+            args.session,
+            json_path=args.json,
+            report_dir=args.report,
+            uff_path=args.uff,
+            loop=not args.no_loop,
+            candidates=None if candidates is None else list(candidates),
+            method=args.method,
+            local=args.local,
+            restarts=args.restarts,
+            seed=args.seed,
+            magnitude_only=args.magnitude_only,
+            reference_E_pa=args.reference_E,
+            reference_E_std_pa=args.reference_E_std,
+        )
     from vibid.report import plausibility_lines
 
     for line in plausibility_lines(report):  # never silent

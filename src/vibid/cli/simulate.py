@@ -22,19 +22,33 @@ from vibid.errors import VibidError
 
 
 def add_parser(sub):
-    p = sub.add_parser("simulate", help="record a session on the virtual stand",
-                       description=__doc__.split("\n\n")[1])
+    p = sub.add_parser(
+        "simulate",
+        help="record a session on the virtual stand",
+        description=__doc__.split("\n\n")[1],
+    )
     p.add_argument("setup", metavar="SETUP.json", help="the declared setup (with excitation)")
     p.add_argument("--out", required=True, metavar="S.h5", help="the session file to write")
-    p.add_argument("--params", nargs="+", metavar="NAME=VALUE",
-                   help="the plate's true material parameters (default: the middle of the "
-                   "setup's bounds)")
-    p.add_argument("--effect", nargs="+", default=[], metavar="NAME:PARAM=VALUE",
-                   help="effects in the data, e.g. channel_delay:tau_s=2e-5 or "
-                   "transverse_shear (an effect without parameters)")
-    p.add_argument("--noise", type=float, default=0.0004,
-                   help="noise std of each channel relative to the base amplitude "
-                   "(default 0.0004)")
+    p.add_argument(
+        "--params",
+        nargs="+",
+        metavar="NAME=VALUE",
+        help="the plate's true material parameters (default: the middle of the setup's bounds)",
+    )
+    p.add_argument(
+        "--effect",
+        nargs="+",
+        default=[],
+        metavar="NAME:PARAM=VALUE",
+        help="effects in the data, e.g. channel_delay:tau_s=2e-5 or "
+        "transverse_shear (an effect without parameters)",
+    )
+    p.add_argument(
+        "--noise",
+        type=float,
+        default=0.0004,
+        help="noise std of each channel relative to the base amplitude (default 0.0004)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the noise")
     p.set_defaults(run=run)
 
@@ -54,8 +68,9 @@ def _effects(items, scale=None) -> tuple[dict[str, float], tuple[str, ...]]:
     for item in items:
         name, sep, rest = item.partition(":")
         if name not in EFFECTS:
-            raise VibidError(f"--effect: unknown effect {name!r}, expected one of "
-                             f"{', '.join(EFFECTS)}")
+            raise VibidError(
+                f"--effect: unknown effect {name!r}, expected one of {', '.join(EFFECTS)}"
+            )
         option = f"--effect {name}"
         values = parse_values(rest.split(","), option) if sep else {}
         check_values(values, option, scale)
@@ -73,10 +88,10 @@ def run(args) -> int:
     from vibid.cli.modes import load_setup
     from vibid.cli.options import check_values, parse_values
     from vibid.cli.paths import check_output_file
-    from vibid.parameters import specimen_scale
     from vibid.hardware_mocks.simulated_session import StandConditions, simulate_session
     from vibid.identify import configure
     from vibid.identify.model.forward import plate_model_for
+    from vibid.parameters import specimen_scale
 
     if not (math.isfinite(args.noise) and args.noise >= 0):
         raise VibidError("--noise must be zero or positive")
@@ -92,25 +107,41 @@ def run(args) -> int:
         params = parse_values(args.params, "--params")
         check_values(params, "--params", scale)
     else:
-        params = {n: math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
-                  for n, (lo, hi) in setup.identification.bounds.items()
-                  if n in setup.identification.parameter_names}
+        params = {
+            n: math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
+            for n, (lo, hi) in setup.identification.bounds.items()
+            if n in setup.identification.parameter_names
+        }
     values, effects = _effects(args.effect, scale)
     if twice := sorted(set(params) & set(values)):
-        raise VibidError(f"{', '.join(twice)}: given by --params and by --effect; give "
-                         "each value once")
+        raise VibidError(
+            f"{', '.join(twice)}: given by --params and by --effect; give each value once"
+        )
     truth = params | values
     plate_model_for(truth, effects)  # every name known, one-line error otherwise
     configure()
     base = StandConditions()
     conditions = dataclasses.replace(
-        base, noise_std_m_s2=(args.noise * base.base_amplitude_m_s2,) * 2)
+        base, noise_std_m_s2=(args.noise * base.base_amplitude_m_s2,) * 2
+    )
     from vibid.cli.progress import search_progress
 
     with search_progress(sys.stderr.isatty()) as progress:
-        simulate_session(out, setup, truth, conditions=conditions, seed=args.seed,
-                         effects=effects, progress=progress)
-    sidecar.write_text(json.dumps({"parameters": truth, "effects": list(effects),
-                                   "noise": args.noise, "seed": args.seed}, indent=1) + "\n")
+        simulate_session(
+            out,
+            setup,
+            truth,
+            conditions=conditions,
+            seed=args.seed,
+            effects=effects,
+            progress=progress,
+        )
+    sidecar.write_text(
+        json.dumps(
+            {"parameters": truth, "effects": list(effects), "noise": args.noise, "seed": args.seed},
+            indent=1,
+        )
+        + "\n"
+    )
     print(f"{out}: {len(setup.excitation.frequencies_hz)} steps; truth in {sidecar}")
     return 0

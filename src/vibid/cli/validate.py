@@ -45,7 +45,9 @@ def summary(session) -> str:
     freqs = session.frequencies_hz()
     statuses = session.statuses()
     n = len(statuses)
-    counts = ", ".join(f"{statuses.count(k)} {k}" for k in ("ok", "overload", "aborted") if statuses.count(k))
+    counts = ", ".join(
+        f"{statuses.count(k)} {k}" for k in ("ok", "overload", "aborted") if statuses.count(k)
+    )
     span = f"{freqs.min():g}-{freqs.max():g} Hz" if n else "no frequencies"
     return (
         f"valid session, {n} step{'s' if n != 1 else ''}"

@@ -29,8 +29,9 @@ def embedded_server_defaults() -> None:
     """Settings for Prefect's embedded server unless the lab set them: no usage telemetry
     (an offline lab PC logs an error for it) and a start-up wait a busy PC meets."""
     os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
-    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS",
-                          str(EMBEDDED_SERVER_STARTUP_S))
+    os.environ.setdefault(
+        "PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", str(EMBEDDED_SERVER_STARTUP_S)
+    )
 
 
 # before any flow module imports Prefect, which reads its settings once, on import

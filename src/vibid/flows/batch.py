@@ -45,7 +45,7 @@ def report_names(session_paths) -> list[str]:
     stems = [Path(p).stem for p in session_paths]
     out = []
     for i, s in enumerate(stems):
-        out.append(s if stems.count(s) == 1 else f"{s}-{stems[:i + 1].count(s)}")
+        out.append(s if stems.count(s) == 1 else f"{s}-{stems[: i + 1].count(s)}")
     return out
 
 
@@ -55,9 +55,15 @@ def _one_line(exc: BaseException) -> str:
 
 
 @flow(name="batch-replay", task_runner=ThreadPoolTaskRunner())
-def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
-                 candidates: list[str] | str | None = None, restarts: int = RESTARTS,
-                 seed: int = SEED, magnitude_only: bool = False) -> BatchResult:
+def batch_replay(
+    session_paths: list[Path],
+    report_dir: Path,
+    loop: bool = True,
+    candidates: list[str] | str | None = None,
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    magnitude_only: bool = False,
+) -> BatchResult:
     """Replay every session (one task each, on the flow's task runner), then write the
     summary table. A session that fails is a row saying why; the others go on."""
     from prefect.artifacts import create_markdown_artifact, create_table_artifact
@@ -68,10 +74,18 @@ def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
     paths = [os.fspath(p) for p in session_paths]
     names = report_names(paths)
     os.makedirs(report_dir, exist_ok=True)
-    futures = [replay_task.with_options(task_run_name=f"replay-{name}").submit(
-        path, report_dir=os.path.join(report_dir, name), loop=loop, candidates=candidates,
-        restarts=restarts, seed=seed, magnitude_only=magnitude_only)
-        for path, name in zip(paths, names)]
+    futures = [
+        replay_task.with_options(task_run_name=f"replay-{name}").submit(
+            path,
+            report_dir=os.path.join(report_dir, name),
+            loop=loop,
+            candidates=candidates,
+            restarts=restarts,
+            seed=seed,
+            magnitude_only=magnitude_only,
+        )
+        for path, name in zip(paths, names)
+    ]
     reports, errors = [], []
     for name, fut in zip(names, futures):
         try:
@@ -89,17 +103,31 @@ def batch_replay(session_paths: list[Path], report_dir: Path, loop: bool = True,
         fh.write(summary_csv(rows))
     with open(md_path, "w", encoding="utf-8") as fh:
         fh.write(f"# Batch replay: {len(rows)} sessions\n\n{table}")
-    create_markdown_artifact(key="batch-replay-summary", markdown=table,
-                             description=f"summary of {len(rows)} replayed sessions")
-    create_table_artifact(key="batch-replay-table", table=rows,
-                          description="one row per session: parameters, std, effects, chi2")
+    create_markdown_artifact(
+        key="batch-replay-summary",
+        markdown=table,
+        description=f"summary of {len(rows)} replayed sessions",
+    )
+    create_table_artifact(
+        key="batch-replay-table",
+        table=rows,
+        description="one row per session: parameters, std, effects, chi2",
+    )
     logger.info("summary: %s, %s\n%s", csv_path, md_path, table)
     return BatchResult(tuple(paths), tuple(reports), tuple(errors), tuple(rows), csv_path, md_path)
 
 
-def batch_replay_flow(session_paths, *, report_dir, task_runner=None, loop: bool = True,
-                      candidates=None, restarts: int = RESTARTS, seed: int = SEED,
-                      magnitude_only: bool = False) -> BatchResult:
+def batch_replay_flow(
+    session_paths,
+    *,
+    report_dir,
+    task_runner=None,
+    loop: bool = True,
+    candidates=None,
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    magnitude_only: bool = False,
+) -> BatchResult:
     """Run :data:`batch_replay` on the task runner ``task_runner``: None or ``"threads"``
     (this machine's threads), ``"dask"`` (a temporary local Dask cluster), a Dask scheduler
     address (``"tcp://host:8786"``), or a ready Prefect task runner (e.g.
@@ -108,5 +136,11 @@ def batch_replay_flow(session_paths, *, report_dir, task_runner=None, loop: bool
 
     runner = make_task_runner(task_runner)
     return batch_replay.with_options(task_runner=runner)(
-        [Path(p) for p in session_paths], Path(report_dir), loop=loop, candidates=candidates,
-        restarts=restarts, seed=seed, magnitude_only=magnitude_only)
+        [Path(p) for p in session_paths],
+        Path(report_dir),
+        loop=loop,
+        candidates=candidates,
+        restarts=restarts,
+        seed=seed,
+        magnitude_only=magnitude_only,
+    )

@@ -45,9 +45,21 @@ def default_report_dir(out) -> str:
     return os.fspath(out.with_name(f"{out.stem}-report"))
 
 
-def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: bool = False,
-            retries: int = 2, retry_delay_s: float = 1.0, logger=None, live=None,
-            chooser=None, **campaign_options):
+def acquire(
+    setup,
+    *,
+    stand: str,
+    config,
+    out,
+    resume: bool = False,
+    realtime: bool = False,
+    retries: int = 2,
+    retry_delay_s: float = 1.0,
+    logger=None,
+    live=None,
+    chooser=None,
+    **campaign_options,
+):
     """Run the campaign, retrying a transient stand fault up to ``retries`` times as a
     resume (the stand reopened, the session continued from its first missing step).
     ``live``: a :class:`~vibid.flows.live.LiveAfc` each written step goes to (the
@@ -65,15 +77,31 @@ def acquire(setup, *, stand: str, config, out, resume: bool = False, realtime: b
             live.update(p)  # throttled; never raises
 
     for attempt in range(retries + 1):
-        logger.info("opening the %s stand%s", stand, " (solving the virtual specimen)"
-                    if stand == "simulated" else "")
+        logger.info(
+            "opening the %s stand%s",
+            stand,
+            " (solving the virtual specimen)" if stand == "simulated" else "",
+        )
         with open_stand(stand, setup, config, realtime=realtime) as st:
-            result = run_campaign(setup, st, out, config, resume=resume, progress=step_logged,
-                                  chooser=chooser, **campaign_options)
-        logger.info("campaign %s: %s %s (%d steps, stand time %s s)%s", result.path,
-                    result.run_status, result.reason, result.n_steps,
-                    "?" if result.stand_time_s is None else f"{result.stand_time_s:.1f}",
-                    f"; {result.stopped_because}" if result.stopped_because else "")
+            result = run_campaign(
+                setup,
+                st,
+                out,
+                config,
+                resume=resume,
+                progress=step_logged,
+                chooser=chooser,
+                **campaign_options,
+            )
+        logger.info(
+            "campaign %s: %s %s (%d steps, stand time %s s)%s",
+            result.path,
+            result.run_status,
+            result.reason,
+            result.n_steps,
+            "?" if result.stand_time_s is None else f"{result.stand_time_s:.1f}",
+            f"; {result.stopped_because}" if result.stopped_because else "",
+        )
         if not is_transient(result) or attempt == retries:
             return result
         logger.warning("%s; resuming (retry %d of %d)", result.reason, attempt + 1, retries)
@@ -91,8 +119,10 @@ def step_line(p) -> str:
     ``step 12/80: 225.00 Hz, |H| 3.412, phase -12.3 deg, ok (about 95 s left)``; nothing
     about the time left while it cannot be estimated (an adaptive campaign's steps to come
     are not known: ``eta_s`` nan)."""
-    line = (f"step {p.index + 1}/{p.n_steps}: {p.frequency_hz:.2f} Hz, |H| {p.h_abs:.4g}, "
-            f"phase {p.phase_deg:.1f} deg, {p.status}")
+    line = (
+        f"step {p.index + 1}/{p.n_steps}: {p.frequency_hz:.2f} Hz, |H| {p.h_abs:.4g}, "
+        f"phase {p.phase_deg:.1f} deg, {p.status}"
+    )
     if math.isfinite(p.eta_s):
         line += f" (about {p.eta_s:.0f} s left)"
     return line
@@ -113,8 +143,17 @@ def show_recorded(live, out) -> None:
         live.logger.warning("live AFC: the steps recorded before could not be read: %s", exc)
 
 
-def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, logger,
-                      restarts: int = RESTARTS, seed: int = SEED):
+def adaptive_campaign(
+    setup,
+    config,
+    adaptive: dict,
+    *,
+    loop: bool,
+    candidates,
+    logger,
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+):
     """The live AFC and the :class:`~vibid.planner.adaptive.AdaptiveCampaign` of an adaptive
     campaign: each batch's fit is drawn over the points and its decision logged."""
     from vibid.flows.live import LiveAfc
@@ -122,10 +161,18 @@ def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, 
     from vibid.pipeline import parse_candidates
     from vibid.planner.adaptive import AdaptiveCampaign, AdaptiveOptions
 
-    options = AdaptiveOptions.from_attribute(adaptive, plate_model(setup.identification.model).names)
-    live = LiveAfc(setup.specimen.name, 0, logger=logger, plan=(
-        f"adaptive: until {', '.join(map(str, options.targets))} or "
-        f"{options.max_stand_time_s:g} s of stand time, batches of {options.batch_size}"))
+    options = AdaptiveOptions.from_attribute(
+        adaptive, plate_model(setup.identification.model).names
+    )
+    live = LiveAfc(
+        setup.specimen.name,
+        0,
+        logger=logger,
+        plan=(
+            f"adaptive: until {', '.join(map(str, options.targets))} or "
+            f"{options.max_stand_time_s:g} s of stand time, batches of {options.batch_size}"
+        ),
+    )
 
     def on_fit(fit, n_steps, stand_time_s) -> None:
         from vibid.planner.adaptive import reached
@@ -134,20 +181,41 @@ def adaptive_campaign(setup, config, adaptive: dict, *, loop: bool, candidates, 
         live.show(note=f"after {n_steps} steps: {reached(fit, options.targets)[1]}")
 
     names = parse_candidates(candidates)
-    chooser = AdaptiveCampaign(setup, config, options, loop=loop, candidates=names,
-                               restarts=restarts, seed=seed, on_fit=on_fit,
-                               say=lambda line: logger.info("adaptive: %s", line))
+    chooser = AdaptiveCampaign(
+        setup,
+        config,
+        options,
+        loop=loop,
+        candidates=names,
+        restarts=restarts,
+        seed=seed,
+        on_fit=on_fit,
+        say=lambda line: logger.info("adaptive: %s", line),
+    )
     return live, chooser
 
 
 @flow(name="campaign")
-def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: Path | None = None,
-                  out: Path, report_dir: Path | None = None, resume: bool = False,
-                  realtime: bool = False, loop: bool = True,
-                  candidates: list[str] | str | None = None, retries: int = 2,
-                  operator: str | None = None, notes: str | None = None,
-                  temperature_c: float | None = None, restarts: int = RESTARTS,
-                  seed: int = SEED, magnitude_only: bool = False, adaptive: dict | None = None):
+def campaign_flow(
+    setup_path: Path,
+    *,
+    stand: str = "simulated",
+    stand_config: Path | None = None,
+    out: Path,
+    report_dir: Path | None = None,
+    resume: bool = False,
+    realtime: bool = False,
+    loop: bool = True,
+    candidates: list[str] | str | None = None,
+    retries: int = 2,
+    operator: str | None = None,
+    notes: str | None = None,
+    temperature_c: float | None = None,
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    magnitude_only: bool = False,
+    adaptive: dict | None = None,
+):
     """Record a session of the setup at ``setup_path`` on ``stand`` (``"simulated"`` or
     ``"ni"``, configured by the STAND.json ``stand_config``) into ``out``, then identify it
     and write the report into ``report_dir`` (default: ``<out stem>-report`` beside ``out``).
@@ -173,19 +241,52 @@ def campaign_flow(setup_path: Path, *, stand: str = "simulated", stand_config: P
 
     logger = run_logger()
     try:
-        return _campaign(setup_path, stand=stand, stand_config=stand_config, out=out,
-                         report_dir=report_dir, resume=resume, realtime=realtime, loop=loop,
-                         candidates=candidates, retries=retries, operator=operator, notes=notes,
-                         temperature_c=temperature_c, restarts=restarts, seed=seed,
-                         magnitude_only=magnitude_only, adaptive=adaptive, logger=logger)
+        return _campaign(
+            setup_path,
+            stand=stand,
+            stand_config=stand_config,
+            out=out,
+            report_dir=report_dir,
+            resume=resume,
+            realtime=realtime,
+            loop=loop,
+            candidates=candidates,
+            retries=retries,
+            operator=operator,
+            notes=notes,
+            temperature_c=temperature_c,
+            restarts=restarts,
+            seed=seed,
+            magnitude_only=magnitude_only,
+            adaptive=adaptive,
+            logger=logger,
+        )
     except VibidError as exc:
         logger.error("%s", exc)
         return Failed(message=str(exc), data=exc)
 
 
-def _campaign(setup_path, *, stand, stand_config, out, report_dir, resume, realtime, loop,
-              candidates, retries, operator, notes, temperature_c, restarts, seed,
-              magnitude_only, adaptive, logger):
+def _campaign(
+    setup_path,
+    *,
+    stand,
+    stand_config,
+    out,
+    report_dir,
+    resume,
+    realtime,
+    loop,
+    candidates,
+    retries,
+    operator,
+    notes,
+    temperature_c,
+    restarts,
+    seed,
+    magnitude_only,
+    adaptive,
+    logger,
+):
     """The body of :func:`campaign_flow` (its docstring), in the flow run."""
     from prefect.states import Failed
 
@@ -198,30 +299,58 @@ def _campaign(setup_path, *, stand, stand_config, out, report_dir, resume, realt
     if adaptive is None:
         live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
     else:
-        live, chooser = adaptive_campaign(setup, config, adaptive, loop=loop,
-                                          candidates=candidates, logger=logger,
-                                          restarts=restarts, seed=seed)
+        live, chooser = adaptive_campaign(
+            setup,
+            config,
+            adaptive,
+            loop=loop,
+            candidates=candidates,
+            logger=logger,
+            restarts=restarts,
+            seed=seed,
+        )
     if resume and os.path.exists(out):
         show_recorded(live, out)
-    result = acquire(setup, stand=stand, config=config, out=out, resume=resume,
-                     realtime=realtime, retries=retries, logger=logger, live=live,
-                     chooser=chooser, operator=operator, notes=notes,
-                     temperature_c=temperature_c)
+    result = acquire(
+        setup,
+        stand=stand,
+        config=config,
+        out=out,
+        resume=resume,
+        realtime=realtime,
+        retries=retries,
+        logger=logger,
+        live=live,
+        chooser=chooser,
+        operator=operator,
+        notes=notes,
+        temperature_c=temperature_c,
+    )
     if result.run_status != "complete":
-        message = (f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
-                   f"{result.n_steps} steps (resume to continue)")
+        message = (
+            f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
+            f"{result.n_steps} steps (resume to continue)"
+        )
         logger.error("%s", message)
         live.close(note=f"campaign {result.run_status}: {result.reason}")
         return Failed(message=message)
     report_dir = default_report_dir(out) if report_dir is None else report_dir
     data = afc_task(os.fspath(out))
-    identified = identify_task(data, loop=loop, candidates=candidates, restarts=restarts,
-                               seed=seed, magnitude_only=magnitude_only)
+    identified = identify_task(
+        data,
+        loop=loop,
+        candidates=candidates,
+        restarts=restarts,
+        seed=seed,
+        magnitude_only=magnitude_only,
+    )
     # the live AFC's last version shows the report's fit (on the report's fine grid,
     # computed once here)
     live.set_identified(identified.result, data.setup)
-    live.close(note="campaign complete; the identified model over the points"
-               + (f" ({result.stopped_because})" if result.stopped_because else ""))
+    live.close(
+        note="campaign complete; the identified model over the points"
+        + (f" ({result.stopped_because})" if result.stopped_because else "")
+    )
     # the folder gets report.json beside report.md
     report, _ = report_task(data, identified, report_dir=report_dir, session_path=out)
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)

@@ -22,7 +22,7 @@ import io
 import logging
 import math
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -36,8 +36,9 @@ def prefect_publish(key: str, markdown: str) -> None:
     """Publish ``markdown`` as a new version of the markdown artifact ``key``."""
     from prefect.artifacts import create_markdown_artifact
 
-    create_markdown_artifact(key=key, markdown=markdown,
-                             description="live AFC of the running campaign")
+    create_markdown_artifact(
+        key=key, markdown=markdown, description="live AFC of the running campaign"
+    )
 
 
 def _optional(p, *names) -> float | None:
@@ -61,9 +62,18 @@ class LiveAfc:
     monotonic) to :func:`time.monotonic`; ``max_share`` None turns the cost rule off.
     """
 
-    def __init__(self, specimen: str, n_steps: int, *, min_interval_s: float = 2.0,
-                 publish=None, clock=None, max_share: float | None = MAX_SHARE,
-                 logger=None, plan: str = ""):
+    def __init__(
+        self,
+        specimen: str,
+        n_steps: int,
+        *,
+        min_interval_s: float = 2.0,
+        publish=None,
+        clock=None,
+        max_share: float | None = MAX_SHARE,
+        logger=None,
+        plan: str = "",
+    ):
         from vibid.report import artifact_key
 
         self.specimen = specimen or "specimen"
@@ -85,14 +95,15 @@ class LiveAfc:
         self.last = None
         self.model: tuple[np.ndarray, np.ndarray, np.ndarray | None, str] | None = None
         self.note = ""
-        self.published = 0          # publications made
-        self.failed = False         # a publication failed (warned once)
+        self.published = 0  # publications made
+        self.failed = False  # a publication failed (warned once)
         self.costs: list[float] = []  # seconds per render + publish (failed ones too)
         self._next_at: float | None = None  # no publication before this clock time
-        self._dirty = False         # an update not published yet
+        self._dirty = False  # an update not published yet
         # the imports now, before the campaign, not in its first step (a few seconds)
         import matplotlib.backends.backend_agg  # noqa: F401
         import matplotlib.figure  # noqa: F401
+
         if publish is None:
             import prefect.artifacts  # noqa: F401
 
@@ -103,8 +114,12 @@ class LiveAfc:
             p = progress
             self.n_steps = int(getattr(p, "n_steps", self.n_steps) or self.n_steps)
             std = _optional(p, "h_std", "h_abs_std")
-            self.points[int(p.index)] = (float(p.frequency_hz), float(p.h_abs),
-                                         float(p.phase_deg), std)
+            self.points[int(p.index)] = (
+                float(p.frequency_hz),
+                float(p.h_abs),
+                float(p.phase_deg),
+                std,
+            )
             total = _optional(p, "stand_time_s")
             step = [_optional(p, n) for n in ("settle_s", "record_s")]
             if total is not None:
@@ -129,8 +144,12 @@ class LiveAfc:
             h = complex(p.h)
             if math.isfinite(p.commanded_hz) and math.isfinite(abs(h)):
                 std = float(p.std) if math.isfinite(p.std) else None
-                self.points[int(p.index)] = (float(p.commanded_hz), abs(h),
-                                             math.degrees(math.atan2(h.imag, h.real)), std)
+                self.points[int(p.index)] = (
+                    float(p.commanded_hz),
+                    abs(h),
+                    math.degrees(math.atan2(h.imag, h.real)),
+                    std,
+                )
         if stand_time_s is not None:
             self.stand_time_s = float(stand_time_s)
         self._dirty = bool(self.points)
@@ -209,8 +228,15 @@ class LiveAfc:
         ax1, ax2 = fig.subplots(2, 1, sharex=True)
         if std and all(s is not None for s in std):
             s = np.array(std, float)
-            ax1.fill_between(f, np.maximum(mag - 2 * s, mag * 1e-3), mag + 2 * s,
-                             color="C0", alpha=0.25, lw=0, label="±2 std")
+            ax1.fill_between(
+                f,
+                np.maximum(mag - 2 * s, mag * 1e-3),
+                mag + 2 * s,
+                color="C0",
+                alpha=0.25,
+                lw=0,
+                label="±2 std",
+            )
         ax1.plot(f, mag, "o", ms=3, color="C0", label="measured")
         ax2.plot(f, np.degrees(ph), "o", ms=3, color="C0")
         if model is not None:
@@ -224,8 +250,12 @@ class LiveAfc:
         ax2.set_ylabel("phase (deg)")
         ax2.set_xlabel("frequency (Hz)")
         ax1.legend(loc="upper right", fontsize=7)  # "best" searches: slow with many points
-        ax1.set_title(f"{self.specimen}: {len(self.points)} steps" if self.plan else
-                      f"{self.specimen}: {len(self.points)} of {self.n_steps} steps", fontsize=9)
+        ax1.set_title(
+            f"{self.specimen}: {len(self.points)} steps"
+            if self.plan
+            else f"{self.specimen}: {len(self.points)} of {self.n_steps} steps",
+            fontsize=9,
+        )
         for ax in (ax1, ax2):
             ax.grid(True, alpha=0.3)
         fig.subplots_adjust(left=0.13, right=0.97, top=0.93, bottom=0.11, hspace=0.08)
@@ -243,21 +273,27 @@ class LiveAfc:
         """The artifact's text: steps done and to go, times, the last step, the figure."""
         done = (int(self.last.index) + 1) if self.last is not None else len(self.points)
         done = max(done, len(self.points))
-        now = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        now = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
         lines = [f"# {self.specimen}: live AFC", ""]
         if self.plan:
-            lines += [f"- {self.plan}",
-                      f"- steps done {done} ({max(self.n_steps - done, 0)} more planned in this batch)"]
+            lines += [
+                f"- {self.plan}",
+                f"- steps done {done} ({max(self.n_steps - done, 0)} more planned in this batch)",
+            ]
         else:
-            lines.append(f"- steps done {done} of {self.n_steps} ({max(self.n_steps - done, 0)} to go)")
+            lines.append(
+                f"- steps done {done} of {self.n_steps} ({max(self.n_steps - done, 0)} to go)"
+            )
         if self.stand_time_s is not None:
             lines.append(f"- stand time so far: {self.stand_time_s:.1f} s")
         if self.eta_s is not None and done < self.n_steps:
             lines.append(f"- about {self.eta_s:.0f} s left")
         if self.last is not None:
             p = self.last
-            lines.append(f"- last step: {p.frequency_hz:.2f} Hz, |H| {p.h_abs:.4g}, "
-                         f"phase {p.phase_deg:.1f} deg, {getattr(p, 'status', '')}")
+            lines.append(
+                f"- last step: {p.frequency_hz:.2f} Hz, |H| {p.h_abs:.4g}, "
+                f"phase {p.phase_deg:.1f} deg, {getattr(p, 'status', '')}"
+            )
         if self.model is not None:
             lines.append(f"- drawn over the points: {self.model[3]}")
         if self.note:
@@ -292,5 +328,9 @@ class LiveAfc:
     def _warn(self, exc: BaseException) -> None:
         if not self.failed:
             self.failed = True
-            self.logger.warning("live AFC %s not published (the campaign goes on): %s: %s",
-                                self.key, type(exc).__name__, exc)
+            self.logger.warning(
+                "live AFC %s not published (the campaign goes on): %s: %s",
+                self.key,
+                type(exc).__name__,
+                exc,
+            )

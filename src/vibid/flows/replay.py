@@ -15,21 +15,46 @@ from prefect import flow, task
 from prefect.cache_policies import NO_CACHE
 
 from vibid.errors import VibidError
-from vibid.flows.tasks import (afc_file_task, afc_task, forwarded_logs, identify_task,
-                               progress_logger, publish_artifacts, report_task, run_logger,
-                               uff_task)
-from vibid.pipeline import (RESTARTS, SEED, identify_afc, require_converged, session_afc,
-                            write_outputs)
+from vibid.flows.tasks import (
+    afc_file_task,
+    afc_task,
+    forwarded_logs,
+    identify_task,
+    progress_logger,
+    publish_artifacts,
+    report_task,
+    run_logger,
+    uff_task,
+)
+from vibid.pipeline import (
+    RESTARTS,
+    SEED,
+    identify_afc,
+    require_converged,
+    session_afc,
+    write_outputs,
+)
 
 
 @flow(name="replay")
-def replay_flow(session_path: Path | None = None, *, afc_path: Path | None = None,
-                setup_path: Path | None = None, uff_path: Path | None = None,
-                json_path: Path | None = None, report_dir: Path | None = None,
-                loop: bool = True, candidates: list[str] | str | None = None,
-                method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                seed: int = SEED, magnitude_only: bool = False,
-                reference_E_pa: float | None = None, reference_E_std_pa: float = 0.0) -> dict:
+def replay_flow(
+    session_path: Path | None = None,
+    *,
+    afc_path: Path | None = None,
+    setup_path: Path | None = None,
+    uff_path: Path | None = None,
+    json_path: Path | None = None,
+    report_dir: Path | None = None,
+    loop: bool = True,
+    candidates: list[str] | str | None = None,
+    method: str = "global",
+    local: str = "newton",
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    magnitude_only: bool = False,
+    reference_E_pa: float | None = None,
+    reference_E_std_pa: float = 0.0,
+) -> dict:
     """Replay one session: the report of ``vibid identify SESSION`` with the same options.
 
     Parameters
@@ -63,32 +88,62 @@ def replay_flow(session_path: Path | None = None, *, afc_path: Path | None = Non
         data = afc_file_task(os.fspath(afc_path), os.fspath(setup_path))
     if uff_path is not None:
         uff_task(data, os.fspath(uff_path))
-    identified = identify_task(data, loop=loop, candidates=candidates, method=method,
-                               local=local, restarts=restarts, seed=seed,
-                               magnitude_only=magnitude_only)
-    report, _ = report_task(data, identified, json_path=json_path, report_dir=report_dir,
-                            session_path=session_path, reference=reference)
+    identified = identify_task(
+        data,
+        loop=loop,
+        candidates=candidates,
+        method=method,
+        local=local,
+        restarts=restarts,
+        seed=seed,
+        magnitude_only=magnitude_only,
+    )
+    report, _ = report_task(
+        data,
+        identified,
+        json_path=json_path,
+        report_dir=report_dir,
+        session_path=session_path,
+        reference=reference,
+    )
     publish_artifacts(report, specimen=data.setup.specimen.name, report_dir=report_dir)
     require_converged(identified)
     return report
 
 
-def replay_session(session_path, *, json_path=None, report_dir=None, loop: bool = True,
-                   candidates=None, method: str = "global", local: str = "newton",
-                   restarts: int = RESTARTS, seed: int = SEED,
-                   magnitude_only: bool = False) -> dict:
+def replay_session(
+    session_path,
+    *,
+    json_path=None,
+    report_dir=None,
+    loop: bool = True,
+    candidates=None,
+    method: str = "global",
+    local: str = "newton",
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    magnitude_only: bool = False,
+) -> dict:
     """The replay's stages as one plain function (no Prefect run needed): returns the
     report; a run that did not converge says so in it (``identification.converged``)."""
     logger = run_logger()
     data = session_afc(session_path)
     with forwarded_logs(logger):
-        identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
-                                  local=local, restarts=restarts, seed=seed,
-                                  progress=progress_logger(logger),
-                                  magnitude_only=magnitude_only)
+        identified = identify_afc(
+            data,
+            loop=loop,
+            candidates=candidates,
+            method=method,
+            local=local,
+            restarts=restarts,
+            seed=seed,
+            progress=progress_logger(logger),
+            magnitude_only=magnitude_only,
+        )
     logger.info("%s:\n%s", session_path, identified.summary)
-    report, _ = write_outputs(data, identified, json_path=json_path, report_dir=report_dir,
-                              session_path=session_path)
+    report, _ = write_outputs(
+        data, identified, json_path=json_path, report_dir=report_dir, session_path=session_path
+    )
     return report
 
 

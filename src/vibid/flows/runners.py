@@ -31,13 +31,16 @@ def make_task_runner(setting=None):
     if setting is None or setting == "threads":
         return ThreadPoolTaskRunner()
     if not isinstance(setting, str):
-        raise VibidError(f"task runner: expected 'threads', 'dask' or a Dask scheduler address, "
-                         f"got {setting!r}")
+        raise VibidError(
+            f"task runner: expected 'threads', 'dask' or a Dask scheduler address, got {setting!r}"
+        )
     from prefect_dask import DaskTaskRunner
 
     if setting == "dask":
         return DaskTaskRunner()
     if "://" in setting:
         return DaskTaskRunner(address=setting)
-    raise VibidError(f"task runner: expected 'threads', 'dask' or a Dask scheduler address "
-                     f"such as tcp://host:8786, got {setting!r}")
+    raise VibidError(
+        f"task runner: expected 'threads', 'dask' or a Dask scheduler address "
+        f"such as tcp://host:8786, got {setting!r}"
+    )

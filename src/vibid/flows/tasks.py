@@ -16,8 +16,17 @@ from contextlib import contextmanager
 from prefect import task
 from prefect.cache_policies import NO_CACHE
 
-from vibid.pipeline import (RESTARTS, SEED, Identified, SessionAfc, afc_file, identify_afc,
-                            session_afc, write_afc_uff, write_outputs)
+from vibid.pipeline import (
+    RESTARTS,
+    SEED,
+    Identified,
+    SessionAfc,
+    afc_file,
+    identify_afc,
+    session_afc,
+    write_afc_uff,
+    write_outputs,
+)
 
 
 def run_logger():
@@ -110,27 +119,55 @@ def uff_task(data: SessionAfc, uff_path: str) -> str:
 
 
 @task(name="identify", cache_policy=NO_CACHE)
-def identify_task(data: SessionAfc, *, loop: bool = True, candidates=None,
-                  method: str = "global", local: str = "newton", restarts: int = RESTARTS,
-                  seed: int = SEED, magnitude_only: bool = False) -> Identified:
+def identify_task(
+    data: SessionAfc,
+    *,
+    loop: bool = True,
+    candidates=None,
+    method: str = "global",
+    local: str = "newton",
+    restarts: int = RESTARTS,
+    seed: int = SEED,
+    magnitude_only: bool = False,
+) -> Identified:
     """Identification stage: the declared model, then the closed loop (with ``loop``)."""
     logger = run_logger()
     with forwarded_logs(logger):
-        identified = identify_afc(data, loop=loop, candidates=candidates, method=method,
-                                  local=local, restarts=restarts, seed=seed,
-                                  progress=progress_logger(logger),
-                                  magnitude_only=magnitude_only)
+        identified = identify_afc(
+            data,
+            loop=loop,
+            candidates=candidates,
+            method=method,
+            local=local,
+            restarts=restarts,
+            seed=seed,
+            progress=progress_logger(logger),
+            magnitude_only=magnitude_only,
+        )
     logger.info("%s", identified.summary)
     return identified
 
 
 @task(name="report", cache_policy=NO_CACHE)
-def report_task(data: SessionAfc, identified: Identified, *, json_path=None, report_dir=None,
-                session_path=None, reference=None) -> tuple[dict, dict]:
+def report_task(
+    data: SessionAfc,
+    identified: Identified,
+    *,
+    json_path=None,
+    report_dir=None,
+    session_path=None,
+    reference=None,
+) -> tuple[dict, dict]:
     """Report stage: the JSON report, and the readable report folder; (report, paths).
     ``reference``: a reference specimen's known modulus, which calibrates the clamp."""
-    report, paths = write_outputs(data, identified, json_path=json_path, report_dir=report_dir,
-                                  session_path=session_path, reference=reference)
+    report, paths = write_outputs(
+        data,
+        identified,
+        json_path=json_path,
+        report_dir=report_dir,
+        session_path=session_path,
+        reference=reference,
+    )
     for name, path in paths.items():
         run_logger().info("wrote %s", path)
     return report, paths
@@ -158,8 +195,10 @@ def figures_markdown(report_dir) -> str:
             continue
         if os.path.getsize(path) > MAX_EMBEDDED_PNG_BYTES:
             # too large for the artifact's markdown: name the file instead
-            lines += [f"**{caption}**: `{path}` (not embedded: "
-                      f"{os.path.getsize(path) / 1e6:.1f} MB)", ""]
+            lines += [
+                f"**{caption}**: `{path}` (not embedded: {os.path.getsize(path) / 1e6:.1f} MB)",
+                "",
+            ]
             continue
         with open(path, "rb") as f:
             lines += figures.figure_markdown(caption, png_data_uri(f.read()))
@@ -180,8 +219,9 @@ def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
     try:
         _publish(report, specimen, report_dir)
     except Exception as exc:  # noqa: BLE001 - the report is written; the UI's copy is not the job
-        run_logger().warning("the report's Prefect artifacts could not be published: %s",
-                             reason(exc))
+        run_logger().warning(
+            "the report's Prefect artifacts could not be published: %s", reason(exc)
+        )
 
 
 def _publish(report: dict, specimen: str, report_dir) -> None:
@@ -193,7 +233,13 @@ def _publish(report: dict, specimen: str, report_dir) -> None:
     if report_dir is not None:
         text += figures_markdown(report_dir)
         text += f"\nFigures and report.md: `{report_dir}`\n"
-    create_markdown_artifact(key=artifact_key(specimen, "report"), markdown=text,
-                             description=f"identification report of session {report['session_id']}")
-    create_table_artifact(key=artifact_key(specimen, "parameters"), table=parameter_table(report),
-                          description=f"identified values (SI units) of session {report['session_id']}")
+    create_markdown_artifact(
+        key=artifact_key(specimen, "report"),
+        markdown=text,
+        description=f"identification report of session {report['session_id']}",
+    )
+    create_table_artifact(
+        key=artifact_key(specimen, "parameters"),
+        table=parameter_table(report),
+        description=f"identified values (SI units) of session {report['session_id']}",
+    )

@@ -49,71 +49,118 @@ class DeviceLimits:
 
 @dataclass
 class _Channels:
-    task: "FakeTask"
+    task: FakeTask
 
-    def add_ai_accel_chan(self, physical_channel, name_to_assign_to_channel="",
-                          terminal_config=None, min_val=-5.0, max_val=5.0,
-                          units=AccelUnits.G, sensitivity=1000.0,
-                          sensitivity_units=AccelSensitivityUnits.MILLIVOLTS_PER_G,
-                          current_excit_source=ExcitationSource.INTERNAL,
-                          current_excit_val=0.004, custom_scale_name=""):
+    def add_ai_accel_chan(
+        self,
+        physical_channel,
+        name_to_assign_to_channel="",
+        terminal_config=None,
+        min_val=-5.0,
+        max_val=5.0,
+        units=AccelUnits.G,
+        sensitivity=1000.0,
+        sensitivity_units=AccelSensitivityUnits.MILLIVOLTS_PER_G,
+        current_excit_source=ExcitationSource.INTERNAL,
+        current_excit_val=0.004,
+        custom_scale_name="",
+    ):
         t = self.task
         t._check_open()
         lim = t.limits
         names = [f"{lim.device}/ai{k}" for k in range(lim.n_channels)]
         if physical_channel not in names:
-            raise DaqError(f"Physical channel specified does not exist on this device.\n"
-                           f"Physical Channel Name: {physical_channel}", PHYSICAL_CHANNEL_DOES_NOT_EXIST)
-        if units is not AccelUnits.G or sensitivity_units is not AccelSensitivityUnits.MILLIVOLTS_PER_G:
-            raise DaqError("Requested value is not a supported value for this property "
-                           "(the fake supports units g and mV/g).", INVALID_ATTRIBUTE_VALUE)
+            raise DaqError(
+                f"Physical channel specified does not exist on this device.\n"
+                f"Physical Channel Name: {physical_channel}",
+                PHYSICAL_CHANNEL_DOES_NOT_EXIST,
+            )
+        if (
+            units is not AccelUnits.G
+            or sensitivity_units is not AccelSensitivityUnits.MILLIVOLTS_PER_G
+        ):
+            raise DaqError(
+                "Requested value is not a supported value for this property "
+                "(the fake supports units g and mV/g).",
+                INVALID_ATTRIBUTE_VALUE,
+            )
         if not (sensitivity > 0 and min_val < max_val):
-            raise DaqError(f"Requested value is not a supported value for this property.\n"
-                           f"sensitivity {sensitivity}, range [{min_val}, {max_val}]", INVALID_ATTRIBUTE_VALUE)
+            raise DaqError(
+                f"Requested value is not a supported value for this property.\n"
+                f"sensitivity {sensitivity}, range [{min_val}, {max_val}]",
+                INVALID_ATTRIBUTE_VALUE,
+            )
         volts = max(abs(min_val), abs(max_val)) * sensitivity * 1e-3
         if volts > lim.max_input_v * (1 + 1e-9):
-            raise DaqError(f"Requested value is not a supported value for this property.\n"
-                           f"Range ±{max(abs(min_val), abs(max_val))} g at {sensitivity} mV/g "
-                           f"needs ±{volts:g} V; the device accepts ±{lim.max_input_v:g} V",
-                           INVALID_ATTRIBUTE_VALUE)
+            raise DaqError(
+                f"Requested value is not a supported value for this property.\n"
+                f"Range ±{max(abs(min_val), abs(max_val))} g at {sensitivity} mV/g "
+                f"needs ±{volts:g} V; the device accepts ±{lim.max_input_v:g} V",
+                INVALID_ATTRIBUTE_VALUE,
+            )
         iepe = current_excit_val if current_excit_source is ExcitationSource.INTERNAL else 0.0
         if not any(abs(iepe - c) < 1e-9 for c in lim.iepe_currents_a):
-            raise DaqError(f"Requested value is not a supported value for this property.\n"
-                           f"Excitation current {iepe} A; supported: {lim.iepe_currents_a}",
-                           INVALID_ATTRIBUTE_VALUE)
-        t.channels.append(dict(
-            physical_channel=physical_channel, name=name_to_assign_to_channel or physical_channel,
-            min_val=float(min_val), max_val=float(max_val), units=units, sensitivity=float(sensitivity),
-            sensitivity_units=sensitivity_units, current_excit_source=current_excit_source,
-            current_excit_val=float(current_excit_val)))
+            raise DaqError(
+                f"Requested value is not a supported value for this property.\n"
+                f"Excitation current {iepe} A; supported: {lim.iepe_currents_a}",
+                INVALID_ATTRIBUTE_VALUE,
+            )
+        t.channels.append(
+            dict(
+                physical_channel=physical_channel,
+                name=name_to_assign_to_channel or physical_channel,
+                min_val=float(min_val),
+                max_val=float(max_val),
+                units=units,
+                sensitivity=float(sensitivity),
+                sensitivity_units=sensitivity_units,
+                current_excit_source=current_excit_source,
+                current_excit_val=float(current_excit_val),
+            )
+        )
 
 
 @dataclass
 class _Timing:
-    task: "FakeTask"
+    task: FakeTask
     rate: float | None = None
     sample_mode: Any = None
     samps_per_chan: int | None = None
 
-    def cfg_samp_clk_timing(self, rate, source="", active_edge=None,
-                            sample_mode=AcquisitionType.FINITE, samps_per_chan=1000):
+    def cfg_samp_clk_timing(
+        self,
+        rate,
+        source="",
+        active_edge=None,
+        sample_mode=AcquisitionType.FINITE,
+        samps_per_chan=1000,
+    ):
         t = self.task
         t._check_open()
         if t.running:
             raise DaqError("The task is running; stop it before changing its timing.", INVALID_TASK)
         lo, hi = t.limits.rate_limits_hz
         if not lo <= rate <= hi:
-            raise DaqError(f"Requested value is not a supported value for this property.\n"
-                           f"Sample clock rate {rate} S/s; supported [{lo:g}, {hi:g}]", INVALID_ATTRIBUTE_VALUE)
+            raise DaqError(
+                f"Requested value is not a supported value for this property.\n"
+                f"Sample clock rate {rate} S/s; supported [{lo:g}, {hi:g}]",
+                INVALID_ATTRIBUTE_VALUE,
+            )
         if sample_mode is not AcquisitionType.FINITE or int(samps_per_chan) < 2:
-            raise DaqError("The fake task acquires finite records of at least 2 samples.",
-                           INVALID_ATTRIBUTE_VALUE)
-        self.rate, self.sample_mode, self.samps_per_chan = float(rate), sample_mode, int(samps_per_chan)
+            raise DaqError(
+                "The fake task acquires finite records of at least 2 samples.",
+                INVALID_ATTRIBUTE_VALUE,
+            )
+        self.rate, self.sample_mode, self.samps_per_chan = (
+            float(rate),
+            sample_mode,
+            int(samps_per_chan),
+        )
 
 
 @dataclass
 class _InStream:
-    task: "FakeTask"
+    task: FakeTask
     _overloaded: tuple[str, ...] = ()
     _asked: bool = False
 
@@ -141,7 +188,7 @@ class FakeTask:
     channels: list[dict] = field(default_factory=list)
     running: bool = False
     closed: bool = False
-    reads: list[int] = field(default_factory=list)   #: samples per channel of each read
+    reads: list[int] = field(default_factory=list)  #: samples per channel of each read
 
     def __post_init__(self):
         self.ai_channels = _Channels(self)
@@ -167,11 +214,15 @@ class FakeTask:
         self._check_open()
         n = self.timing.samps_per_chan
         if number_of_samples_per_channel not in (None, n):
-            raise DaqError(f"Requested {number_of_samples_per_channel} samples of a finite "
-                           f"acquisition of {n}.", INVALID_ATTRIBUTE_VALUE)
+            raise DaqError(
+                f"Requested {number_of_samples_per_channel} samples of a finite "
+                f"acquisition of {n}.",
+                INVALID_ATTRIBUTE_VALUE,
+            )
         if len(self.channels) != 2:
-            raise DaqError("The simulated stand has two accelerometers; the task must hold both.",
-                           INVALID_TASK)
+            raise DaqError(
+                "The simulated stand has two accelerometers; the task must hold both.", INVALID_TASK
+            )
         fs = self.timing.rate
         clock = self.source.clock
         start_s = clock.now_s()
@@ -193,7 +244,7 @@ class FakeTask:
         self.running = False
         self.closed = True
 
-    def __enter__(self) -> "FakeTask":
+    def __enter__(self) -> FakeTask:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -30,8 +30,8 @@ class Serial(SerialBase):
 
     def __init__(self, *args, **kwargs):
         self.instrument = None
-        self._incoming = bytearray()   # written by the host, not yet a whole line
-        self._outgoing = bytearray()   # replies waiting to be read
+        self._incoming = bytearray()  # written by the host, not yet a whole line
+        self._outgoing = bytearray()  # replies waiting to be read
         super().__init__(*args, **kwargs)
 
     def open(self) -> None:
@@ -45,8 +45,9 @@ class Serial(SerialBase):
         try:
             self.instrument = lookup(parts.netloc)
         except KeyError:
-            raise SerialException(f"could not open port {self.port}: no simulated generator "
-                                  f"named {parts.netloc!r}") from None
+            raise SerialException(
+                f"could not open port {self.port}: no simulated generator named {parts.netloc!r}"
+            ) from None
         if not self.instrument.connected:
             raise SerialException(f"could not open port {self.port}: device not connected")
         self._incoming.clear()
@@ -63,8 +64,10 @@ class Serial(SerialBase):
         if not self.is_open:
             raise PortNotOpenError()
         if not self.instrument.connected:
-            raise SerialException("device reports readiness to read but returned no data "
-                                  "(device disconnected or multiple access on port?)")
+            raise SerialException(
+                "device reports readiness to read but returned no data "
+                "(device disconnected or multiple access on port?)"
+            )
 
     def _deliver_late(self) -> None:
         """Replies the instrument held back arrive now (after the host's read timed out)."""

@@ -24,8 +24,8 @@ one decaying sinusoid on the response channel only.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

@@ -37,22 +37,27 @@ FAULT_KINDS = ("no_reply", "error", "drop")
 
 @dataclass
 class ScheduledFault:
-    kind: str                 #: one of FAULT_KINDS
-    at_step: int              #: the 0-based index of the frequency command it fires at
+    kind: str  #: one of FAULT_KINDS
+    at_step: int  #: the 0-based index of the frequency command it fires at
     at_index: int | None = None  #: or the campaign's step index it fires at (if given)
-    count: int = 1            #: no_reply: how many replies are lost
+    count: int = 1  #: no_reply: how many replies are lost
     code: int = -310
     message: str = "System error"
-    key: int = -1             #: its place in the stand configuration's list (for sim_fired)
+    key: int = -1  #: its place in the stand configuration's list (for sim_fired)
 
     @classmethod
-    def of(cls, fault: dict, key: int = -1) -> "ScheduledFault":
+    def of(cls, fault: dict, key: int = -1) -> ScheduledFault:
         """A fault of the stand configuration (``kind``, ``at_step`` or ``at_index``, ...)."""
         at_index = fault.get("at_index")
-        return cls(str(fault.get("kind")), int(fault.get("at_step", 0)),
-                   None if at_index is None else int(at_index), int(fault.get("count", 1)),
-                   int(fault.get("code", -310)), str(fault.get("message", "System error")),
-                   int(key))
+        return cls(
+            str(fault.get("kind")),
+            int(fault.get("at_step", 0)),
+            None if at_index is None else int(at_index),
+            int(fault.get("count", 1)),
+            int(fault.get("code", -310)),
+            str(fault.get("message", "System error")),
+            int(key),
+        )
 
     def due(self, command: int, step_index: int | None) -> bool:
         """Whether it fires at an instrument's ``command``-th frequency command (0-based),
@@ -134,7 +139,7 @@ class SimulatedGenerator:
         """Unplug the instrument: the port raises on its next read or write."""
         self.connected = False
 
-    def sim_left_playing(self, other: "SimulatedGenerator") -> None:
+    def sim_left_playing(self, other: SimulatedGenerator) -> None:
         """Start as ``other`` was left when its link went down: the same frequency, amplitude
         and output, played steadily (no transient until the next change). A reopened stand
         finds the generator still driving the shaker after a dropped connection."""
@@ -151,7 +156,9 @@ class SimulatedGenerator:
         into :attr:`sim_fired` then."""
         kind = fault.get("kind")
         if kind not in FAULT_KINDS:
-            raise ValueError(f"unknown fault kind {kind!r}, expected one of {', '.join(FAULT_KINDS)}")
+            raise ValueError(
+                f"unknown fault kind {kind!r}, expected one of {', '.join(FAULT_KINDS)}"
+            )
         self._faults.append(ScheduledFault.of(fault, key))
 
     # -- the instrument -----------------------------------------------------------------

@@ -48,16 +48,25 @@ import subprocess
 import sys
 import time
 import uuid
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from vibid.errors import VibidError
 
-__all__ = ["Fault", "FaultOutcome", "SoakError", "SoakResult", "Identification", "fault_plan",
-           "identify_session", "soak"]
+__all__ = [
+    "Fault",
+    "FaultOutcome",
+    "SoakError",
+    "SoakResult",
+    "Identification",
+    "fault_plan",
+    "identify_session",
+    "soak",
+]
 
 #: faults the soak knows: the virtual stand's (generator, DAQ) and SIGKILL of the process
 KINDS = ("no_reply", "error", "drop", "overload", "kill")
@@ -123,7 +132,7 @@ class SoakResult:
     runs: int
     seconds: float
     stand_time_s: float | None = None
-    orphans: int = 0   #: server processes a killed campaign process left behind (removed)
+    orphans: int = 0  #: server processes a killed campaign process left behind (removed)
     identification: Identification | None = None
     reference: Identification | None = None
     reference_stand_time_s: float | None = None
@@ -140,26 +149,34 @@ class SoakResult:
             got, total = kinds.get(o.fault.kind, (0, 0))
             kinds[o.fault.kind] = (got + o.survived, total + 1)
         by_kind = ", ".join(f"{k} {a}/{b}" for k, (a, b) in kinds.items())
-        lines = [f"faults survived: {self.survived} of {len(self.outcomes)} ({by_kind})",
-                 f"steps: {self.n_steps} in the file, duplicates {self.duplicates}, "
-                 f"campaign runs {self.runs}, orphaned processes removed {self.orphans}, stand time "
-                 + (f"{self.stand_time_s:.1f} s" if self.stand_time_s is not None else "?")
-                 + (f" (without faults {self.reference_stand_time_s:.1f} s)"
-                    if self.reference_stand_time_s is not None else "")]
+        lines = [
+            f"faults survived: {self.survived} of {len(self.outcomes)} ({by_kind})",
+            f"steps: {self.n_steps} in the file, duplicates {self.duplicates}, "
+            f"campaign runs {self.runs}, orphaned processes removed {self.orphans}, stand time "
+            + (f"{self.stand_time_s:.1f} s" if self.stand_time_s is not None else "?")
+            + (
+                f" (without faults {self.reference_stand_time_s:.1f} s)"
+                if self.reference_stand_time_s is not None
+                else ""
+            ),
+        ]
         for label, ident in (("soaked", self.identification), ("without faults", self.reference)):
             if ident is None:
                 continue
             errors = ", ".join(f"{n} {e:.2f}" for n, e in ident.error_std().items())
-            lines.append(f"{label}: chi2/dof {ident.chi2_dof:.3f}, unexplained_residual "
-                         f"{str(ident.unexplained).lower()}, effects "
-                         f"{', '.join(ident.effects) or 'none'}; |error|/std {errors}")
+            lines.append(
+                f"{label}: chi2/dof {ident.chi2_dof:.3f}, unexplained_residual "
+                f"{str(ident.unexplained).lower()}, effects "
+                f"{', '.join(ident.effects) or 'none'}; |error|/std {errors}"
+            )
         ident_s = sum(i.seconds for i in (self.identification, self.reference) if i is not None)
         lines.append(f"run time {self.seconds:.1f} s (identification {ident_s:.1f} s of it)")
         return "\n".join(lines)
 
 
-def fault_plan(n_steps: int, counts: dict[str, int], seed: int, *, gap: int = 4,
-               first: int = 1) -> tuple[Fault, ...]:
+def fault_plan(
+    n_steps: int, counts: dict[str, int], seed: int, *, gap: int = 4, first: int = 1
+) -> tuple[Fault, ...]:
     """``counts`` faults by kind at distinct random steps (from ``seed``), sorted, at least
     ``gap`` steps apart, from step ``first`` on and at least ``gap`` steps before the end
     (a killed process may have written a step or two beyond its kill step)."""
@@ -176,10 +193,14 @@ def fault_plan(n_steps: int, counts: dict[str, int], seed: int, *, gap: int = 4,
         raise ValueError(f"{t} faults at least {gap} steps apart do not fit in {n_steps} steps")
     picks = np.sort(rng.choice(room, size=t, replace=False))
     kinds = [str(k) for k in rng.permutation(kinds)]
-    return tuple(Fault(int(first + y + i * (gap - 1)), k) for i, (y, k) in enumerate(zip(picks, kinds)))
+    return tuple(
+        Fault(int(first + y + i * (gap - 1)), k) for i, (y, k) in enumerate(zip(picks, kinds))
+    )
 
 
-def identify_session(path, truth: dict[str, float], *, restarts: int = 2, seed: int = 0) -> Identification:
+def identify_session(
+    path, truth: dict[str, float], *, restarts: int = 2, seed: int = 0
+) -> Identification:
     """The identification the report would give (the closed loop included), against ``truth``."""
     from vibid.pipeline import identify_afc, session_afc
 
@@ -193,17 +214,33 @@ def identify_session(path, truth: dict[str, float], *, restarts: int = 2, seed: 
         from vibid.identify.fit.noise import explains
 
         unexplained, effects = explains(r) is False, ()
-    params = {n: (float(v), float(s), float(truth[n]))
-              for n, v, s in zip(r.parameter_names, r.values, r.std) if n in truth}
-    return Identification(float(r.chi2_reduced_reported), unexplained, params, effects,
-                          time.perf_counter() - t)
+    params = {
+        n: (float(v), float(s), float(truth[n]))
+        for n, v, s in zip(r.parameter_names, r.values, r.std)
+        if n in truth
+    }
+    return Identification(
+        float(r.chi2_reduced_reported), unexplained, params, effects, time.perf_counter() - t
+    )
 
 
-def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None = None,
-         cli: Sequence[str] | None = None, seed: int = 0,
-         identify: bool = True, reference: bool = False, restarts: int = 2,
-         expected_hz: Sequence[float] | None = None, max_runs: int | None = None,
-         log: Callable[[str], Any] | None = None, adaptive=None) -> SoakResult:
+def soak(
+    setup,
+    config,
+    out,
+    faults: Sequence[Fault],
+    *,
+    runner: Callable | None = None,
+    cli: Sequence[str] | None = None,
+    seed: int = 0,
+    identify: bool = True,
+    reference: bool = False,
+    restarts: int = 2,
+    expected_hz: Sequence[float] | None = None,
+    max_runs: int | None = None,
+    log: Callable[[str], Any] | None = None,
+    adaptive=None,
+) -> SoakResult:
     """Run ``setup``'s campaign on the simulated stand of ``config`` into ``out`` (a new
     file) through ``faults`` (:func:`fault_plan`), then check and identify it.
 
@@ -245,17 +282,22 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
     name = f"soak-{uuid.uuid4().hex[:12]}"
     injected = [f for f in faults if f.kind != "kill"]
     doc = _config_doc(config, name, injected)
-    live = StandConfig.from_dict(doc)                # with the faults, for in-process runs
-    child_path = out + ".soak-stand.json"            # a killed process's: the faults on its way
+    live = StandConfig.from_dict(doc)  # with the faults, for in-process runs
+    child_path = out + ".soak-stand.json"  # a killed process's: the faults on its way
     setup_path = out + ".soak-setup.json"
     Path(setup_path).write_text(setup.to_json())
-    want = (None if adaptive is not None else
-            np.asarray(setup.excitation.frequencies_hz if expected_hz is None else expected_hz, float))
+    want = (
+        None
+        if adaptive is not None
+        else np.asarray(
+            setup.excitation.frequencies_hz if expected_hz is None else expected_hz, float
+        )
+    )
     outcomes = {f: FaultOutcome(f) for f in faults}
-    by_key = dict(enumerate(injected))               # simulated.faults place -> fault
+    by_key = dict(enumerate(injected))  # simulated.faults place -> fault
     rng = np.random.default_rng(seed)
-    reported: list[int] = []                         # every step reported done, all runs
-    awaiting: list[Fault] = []   # faults whose output the next in-process run must switch off first
+    reported: list[int] = []  # every step reported done, all runs
+    awaiting: list[Fault] = []  # faults whose output the next in-process run must switch off first
     runs = orphans = 0
     max_runs = max_runs or len(faults) + 4
     t0 = time.perf_counter()
@@ -268,8 +310,11 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
     try:
         while True:
             done = _steps_in(out, want, reported)
-            if (os.path.exists(out) and (want is None or done == want.size)
-                    and _status(out) == "complete"):
+            if (
+                os.path.exists(out)
+                and (want is None or done == want.size)
+                and _status(out) == "complete"
+            ):
                 break
             runs += 1
             if runs > max_runs:
@@ -290,41 +335,53 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
                     outcomes[f].fired = now > f.index
                 o = outcomes[kill]
                 o.fired = o.ended_run = killed
-                o.note = (f"SIGKILL after step {kill.index} was reported" if killed
-                          else "the process ended before the signal")
+                o.note = (
+                    f"SIGKILL after step {kill.index} was reported"
+                    if killed
+                    else "the process ended before the signal"
+                )
                 struck = ", ".join(f"{f.kind}@{f.index}" for f in on_the_way if outcomes[f].fired)
-                note(f"run {runs}: process from step {done}: {o.note}; {now} steps in the file"
-                     f"{'; fired ' + struck if struck else ''}"
-                     f"{f'; {left} orphaned process(es) removed' if left else ''} "
-                     f"({time.perf_counter() - t_run:.1f} s)")
+                note(
+                    f"run {runs}: process from step {done}: {o.note}; {now} steps in the file"
+                    f"{'; fired ' + struck if struck else ''}"
+                    f"{f'; {left} orphaned process(es) removed' if left else ''} "
+                    f"({time.perf_counter() - t_run:.1f} s)"
+                )
                 if killed:
                     awaiting.append(kill)  # a killed process leaves the output as it was
                 continue
             result, fired, first_off, end_off, linked = _in_process_run(
-                runner, setup, live, out, name, reported)
+                runner, setup, live, out, name, reported
+            )
             for f in awaiting:
                 # the run before could not switch the output off (link down, process killed):
                 # this run's first command must, before any frequency is played
                 outcomes[f].output_off = first_off
                 if not first_off:
-                    raise SoakError(f"the run after {f.kind} at step {f.index} did not switch "
-                                    "the output off first")
+                    raise SoakError(
+                        f"the run after {f.kind} at step {f.index} did not switch "
+                        "the output off first"
+                    )
             awaiting.clear()
             struck = [by_key[k] for k in fired]
             for f in struck:
                 outcomes[f].fired = True
             fired_text = ", ".join(f"{f.kind}@{f.index}" for f in struck)
-            note(f"run {runs}: in process from step {done}: {result.run_status} {result.reason} "
-                 f"({result.n_steps} steps{'; fired ' + fired_text if struck else ''}; "
-                 f"{time.perf_counter() - t_run:.1f} s)")
+            note(
+                f"run {runs}: in process from step {done}: {result.run_status} {result.reason} "
+                f"({result.n_steps} steps{'; fired ' + fired_text if struck else ''}; "
+                f"{time.perf_counter() - t_run:.1f} s)"
+            )
             if result.run_status == "complete":
                 continue
             if result.run_status != "aborted" or not result.reason.startswith("stand fault:"):
                 raise SoakError(f"run {runs} ended {result.run_status}: {result.reason}")
             enders = [f for f in struck if f.kind != "overload"]
             if len(enders) != 1:
-                raise SoakError(f"run {runs}: a stand fault with {len(enders)} injected faults "
-                                f"firing: {result.reason}")
+                raise SoakError(
+                    f"run {runs}: a stand fault with {len(enders)} injected faults "
+                    f"firing: {result.reason}"
+                )
             o = outcomes[enders[0]]
             o.ended_run = True
             if linked:
@@ -340,13 +397,24 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
                 os.unlink(p)
     for o in outcomes.values():
         if o.fault.kind == "overload":
-            o.output_off = None  # the drive goes on: the clipped record is the step's or recorded again
+            o.output_off = (
+                None  # the drive goes on: the clipped record is the step's or recorded again
+            )
         o.survived = o.fired and (o.output_off is not False)
     with read_session(out) as s:
         n_file = len(s)
     duplicates = len(reported) - len(set(reported))
-    result = SoakResult(out, [outcomes[f] for f in faults], n_file, duplicates, runs,
-                        time.perf_counter() - t0, stand_time, orphans, log=lines)
+    result = SoakResult(
+        out,
+        [outcomes[f] for f in faults],
+        n_file,
+        duplicates,
+        runs,
+        time.perf_counter() - t0,
+        stand_time,
+        orphans,
+        log=lines,
+    )
     if duplicates:
         raise SoakError(f"{duplicates} steps reported done twice")
     truth = _truth(live)
@@ -357,8 +425,11 @@ def soak(setup, config, out, faults: Sequence[Fault], *, runner: Callable | None
         if os.path.exists(ref_out):
             os.unlink(ref_out)
         ref_config = StandConfig.from_dict(_config_doc(config, name + "-ref", []))
-        ref_runner = (runner if adaptive is None else
-                      _adaptive_runner(setup, ref_config, adaptive, lambda line: None))
+        ref_runner = (
+            runner
+            if adaptive is None
+            else _adaptive_runner(setup, ref_config, adaptive, lambda line: None)
+        )
         ref, _, _, _, _ = _in_process_run(ref_runner, setup, ref_config, ref_out, name + "-ref", [])
         if ref.run_status != "complete":
             raise SoakError(f"the run without faults ended {ref.run_status}: {ref.reason}")
@@ -377,17 +448,27 @@ def _adaptive_runner(setup, config, options, say):
     from vibid.acquisition.campaign import run_campaign
     from vibid.planner.adaptive import AdaptiveCampaign
 
-    chooser = AdaptiveCampaign(setup, config, options, seed=options.seed,
-                               say=lambda line: say(f"  adaptive: {line}"))
+    chooser = AdaptiveCampaign(
+        setup, config, options, seed=options.seed, say=lambda line: say(f"  adaptive: {line}")
+    )
     return partial(run_campaign, chooser=chooser)
 
 
 def _adaptive_args(options) -> list[str]:
     """``vibid campaign --adaptive``'s options for ``options``."""
     lo, hi = options.band_hz
-    return ["--target", *map(str, options.targets), "--band", f"{lo!r}:{hi!r}",
-            "--max-stand-time", repr(options.max_stand_time_s), "--batch",
-            str(options.batch_size), "--seed", str(options.seed)]
+    return [
+        "--target",
+        *map(str, options.targets),
+        "--band",
+        f"{lo!r}:{hi!r}",
+        "--max-stand-time",
+        repr(options.max_stand_time_s),
+        "--batch",
+        str(options.batch_size),
+        "--seed",
+        str(options.seed),
+    ]
 
 
 # -- one campaign run ----------------------------------------------------------------------------
@@ -401,8 +482,14 @@ def _in_process_run(runner, setup, config, out, name, reported):
     with open_stand("simulated", setup, config) as stand:
         virtual = lookup_stand(name)
         fired_before = set(virtual.instrument.sim_fired)
-        result = runner(setup, stand, out, config, resume=resume,
-                        progress=lambda p: reported.append(int(p.index)))
+        result = runner(
+            setup,
+            stand,
+            out,
+            config,
+            resume=resume,
+            progress=lambda p: reported.append(int(p.index)),
+        )
         inst = virtual.instrument
         end_off, linked = not inst.output_on, inst.connected
         fired = sorted(set(inst.sim_fired) - fired_before)
@@ -428,15 +515,33 @@ def _killed_run(out, setup_path, stand_path, cli, kill_index, rng):
     is removed after it."""
     import vibid
 
-    args = [sys.executable, "-m", "vibid", cli[0], setup_path, "--stand", "simulated",
-            "--stand-config", stand_path, "--out", out, *cli[1:]]
+    args = [
+        sys.executable,
+        "-m",
+        "vibid",
+        cli[0],
+        setup_path,
+        "--stand",
+        "simulated",
+        "--stand-config",
+        stand_path,
+        "--out",
+        out,
+        *cli[1:],
+    ]
     if os.path.exists(out):
         args.append("--resume")
     env = dict(os.environ)
     src = str(Path(vibid.__file__).resolve().parents[1])
     env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
-    child = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                             env=env, start_new_session=True)
+    child = subprocess.Popen(
+        args,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
     seen, times, killed = [], [], False
     try:
         for line in child.stderr:
@@ -526,8 +631,10 @@ def _steps_in(out, want, reported) -> int:
     n = got.size
     if want is not None and (n > want.size or not np.array_equal(got, want[:n])):
         bad = next(i for i in range(n) if i >= want.size or got[i] != want[i])
-        raise SoakError(f"step {bad} of the file is {got[bad]:g} Hz, not the setup's step "
-                        f"{bad} (each step once, in order)")
+        raise SoakError(
+            f"step {bad} of the file is {got[bad]:g} Hz, not the setup's step "
+            f"{bad} (each step once, in order)"
+        )
     if reported and max(reported) >= n:
         raise SoakError(f"step {max(reported)} was reported done but the file holds {n} steps")
     return n
@@ -549,8 +656,13 @@ def _config_doc(config, name: str, faults) -> dict:
     doc = json.loads(json.dumps(config.to_dict()))
     doc["generator"]["url"] = f"vibidsim://{name}"
     doc["simulated"]["faults"] = [
-        {"kind": f.kind, "at_index": f.index, **({"count": NO_REPLY_COUNT} if f.kind == "no_reply" else {})}
-        for f in faults]
+        {
+            "kind": f.kind,
+            "at_index": f.index,
+            **({"count": NO_REPLY_COUNT} if f.kind == "no_reply" else {}),
+        }
+        for f in faults
+    ]
     return doc
 
 

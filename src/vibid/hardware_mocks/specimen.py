@@ -38,8 +38,9 @@ class VirtualSpecimen:
         parameters of its own, such as ``transverse_shear`` on an isotropic plate).
     """
 
-    def __init__(self, setup: Setup, params: dict, *, f_max_hz: float, accuracy: str = "fine",
-                 effects=()):
+    def __init__(
+        self, setup: Setup, params: dict, *, f_max_hz: float, accuracy: str = "fine", effects=()
+    ):
         self.setup = setup
         self.f_max_hz = float(f_max_hz)
         self.params = dict(params)
@@ -47,8 +48,9 @@ class VirtualSpecimen:
         self.model = plate_model_for(self.params, effects).for_geometry(geometry)
         self.theta = theta_from_dict(self.model, self.params)
         D = np.asarray(self.model.moduli(self.theta), float)
-        disc = discretisation(geometry, accuracy, f_max_hz=float(f_max_hz),
-                              rigidity_n_m=float(min(D[0], D[3])))
+        disc = discretisation(
+            geometry, accuracy, f_max_hz=float(f_max_hz), rigidity_n_m=float(min(D[0], D[3]))
+        )
         self.matrices = model_matrices(geometry, disc, tuple(self.model.effects))
         self._cache: dict[float, complex] = {}
 

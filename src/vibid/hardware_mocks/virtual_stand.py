@@ -62,7 +62,12 @@ from vibid.acquisition.stand_config import StandConfig, StandConfigError
 from vibid.errors import VibidError
 from vibid.hardware_mocks.fake_daq import G_M_S2, DeviceLimits, FakeTask
 from vibid.hardware_mocks.records import Transient, synthetic_step
-from vibid.hardware_mocks.sim_generator import FAULT_KINDS, ScheduledFault, SimulatedGenerator, register
+from vibid.hardware_mocks.sim_generator import (
+    FAULT_KINDS,
+    ScheduledFault,
+    SimulatedGenerator,
+    register,
+)
 from vibid.hardware_mocks.simulated_session import StandConditions
 from vibid.hardware_mocks.specimen import VirtualSpecimen
 from vibid.setup_model import Setup
@@ -105,18 +110,26 @@ class VirtualStand:
         not scheduled again, and the ones that fire now are added.
     """
 
-    iepe_offset_m_s2: float = 0.5   #: offset when the IEPE excitation switches on, m/s²
-    iepe_settle_s: float = 0.2      #: its decay time, s
+    iepe_offset_m_s2: float = 0.5  #: offset when the IEPE excitation switches on, m/s²
+    iepe_settle_s: float = 0.2  #: its decay time, s
 
-    def __init__(self, setup: Setup, config: StandConfig, *, clock: Clock, accuracy: str = "fine",
-                 fired: set[int] | None = None):
+    def __init__(
+        self,
+        setup: Setup,
+        config: StandConfig,
+        *,
+        clock: Clock,
+        accuracy: str = "fine",
+        fired: set[int] | None = None,
+    ):
         sim = config.simulated
         self.setup = setup
         self.config = config
         self.clock = clock
         self.conditions = StandConditions()
-        self.instrument = SimulatedGenerator(clock, clock_offset_ppm=sim.clock_offset_ppm,
-                                             changed_at_s=clock.now_s())
+        self.instrument = SimulatedGenerator(
+            clock, clock_offset_ppm=sim.clock_offset_ppm, changed_at_s=clock.now_s()
+        )
         if fired is not None:
             self.instrument.sim_fired = fired  # shared: a fault that fired stays fired
         known = FAULT_KINDS + DAQ_FAULT_KINDS
@@ -133,9 +146,16 @@ class VirtualStand:
             else:
                 self.instrument.sim_schedule(fault, key=key)
         self.truth = true_parameters(config)
-        freqs = setup.excitation.frequencies_hz if setup.excitation else (setup.daq.sample_rate_hz / 2,)
-        self.specimen = VirtualSpecimen(setup, self.truth, f_max_hz=1.05 * max(freqs),
-                                        accuracy=accuracy, effects=tuple(config.simulated.effects))
+        freqs = (
+            setup.excitation.frequencies_hz if setup.excitation else (setup.daq.sample_rate_hz / 2,)
+        )
+        self.specimen = VirtualSpecimen(
+            setup,
+            self.truth,
+            f_max_hz=1.05 * max(freqs),
+            accuracy=accuracy,
+            effects=tuple(config.simulated.effects),
+        )
         self.noise_std_m_s2 = sim.noise * config.drive.target_base_m_s2
         self.daq_opened_at_s = clock.now_s()
         self._acquisitions = 0
@@ -146,8 +166,10 @@ class VirtualStand:
         """Solve the specimen now at every frequency the setup will play and at each mode's
         peak, so that recording does not have to (a paced stand keeps its timing)."""
         # the frequency as the driver sends it (12 significant digits), then as played
-        played = [self.instrument.played_at(float(format(f, ".12g")))
-                  for f in self.setup.excitation.frequencies_hz]
+        played = [
+            self.instrument.played_at(float(format(f, ".12g")))
+            for f in self.setup.excitation.frequencies_hz
+        ]
         f_n, _ = self.specimen.modes
         self.specimen.h(np.concatenate([played, f_n[f_n <= self.specimen.f_max_hz]]))
 
@@ -186,13 +208,22 @@ class VirtualStand:
         settled = (now - self.daq_opened_at_s) / self.iepe_settle_s
         iepe = self.iepe_offset_m_s2 * math.exp(-settled) if settled < TRANSIENT_DECAYS else 0.0
         base, response = synthetic_step(
-            f, complex(self.specimen.h(f)[0]), sample_rate_hz=sample_rate_hz, n_samples=n_samples,
-            base_amplitude_m_s2=amplitude, base_phase_rad=float(rng.uniform(0, 2 * np.pi)),
+            f,
+            complex(self.specimen.h(f)[0]),
+            sample_rate_hz=sample_rate_hz,
+            n_samples=n_samples,
+            base_amplitude_m_s2=amplitude,
+            base_phase_rad=float(rng.uniform(0, 2 * np.pi)),
             dc_m_s2=(c.dc_m_s2[0] + iepe, c.dc_m_s2[1] + iepe),
-            drift_m_s2_per_s=(c.drift_m_s2_per_s[0] - iepe / self.iepe_settle_s,
-                              c.drift_m_s2_per_s[1] - iepe / self.iepe_settle_s),
-            harmonics_db=c.harmonics_db, noise_std_m_s2=(self.noise_std_m_s2,) * 2,
-            transient=self._transient(now, rng), rng=rng)
+            drift_m_s2_per_s=(
+                c.drift_m_s2_per_s[0] - iepe / self.iepe_settle_s,
+                c.drift_m_s2_per_s[1] - iepe / self.iepe_settle_s,
+            ),
+            harmonics_db=c.harmonics_db,
+            noise_std_m_s2=(self.noise_std_m_s2,) * 2,
+            transient=self._transient(now, rng),
+            rng=rng,
+        )
         if self._overload_due():
             response = response + self._shock(n_samples, sample_rate_hz)
         return base, response
@@ -212,7 +243,9 @@ class VirtualStand:
         ``SHOCK_RANGES`` times the channel's range, in the middle of the record."""
         peak = SHOCK_RANGES * self.config.daq.range_g * G_M_S2
         t = (np.arange(n_samples) - n_samples // 2) / sample_rate_hz
-        return np.where((t >= 0) & (t < SHOCK_S), peak * np.sin(np.pi * np.clip(t, 0, SHOCK_S) / SHOCK_S), 0.0)
+        return np.where(
+            (t >= 0) & (t < SHOCK_S), peak * np.sin(np.pi * np.clip(t, 0, SHOCK_S) / SHOCK_S), 0.0
+        )
 
     def _transient(self, now_s: float, rng: np.random.Generator) -> Transient | None:
         gen = self.instrument
@@ -222,10 +255,16 @@ class VirtualStand:
             return None
         f_old, vpp_old, on_old = gen.previous
         shaker = self.config.simulated.shaker_m_s2_per_v
-        jump = abs(self._modal(gen.played_frequency_hz, f_n, gamma) * shaker * gen.drive_vpp
-                   - self._modal(f_old, f_n, gamma) * shaker * (vpp_old if on_old else 0.0))
-        return Transient(jump * math.exp(-gamma * elapsed), decay_s=1.0 / gamma,
-                         frequency_hz=f_n, phase_rad=float(rng.uniform(0, 2 * np.pi)))
+        jump = abs(
+            self._modal(gen.played_frequency_hz, f_n, gamma) * shaker * gen.drive_vpp
+            - self._modal(f_old, f_n, gamma) * shaker * (vpp_old if on_old else 0.0)
+        )
+        return Transient(
+            jump * math.exp(-gamma * elapsed),
+            decay_s=1.0 / gamma,
+            frequency_hz=f_n,
+            phase_rad=float(rng.uniform(0, 2 * np.pi)),
+        )
 
     def _modal(self, f_hz: float, f_n: float, gamma: float) -> complex:
         """The one-mode resonance of the mode at ``f_n`` (peak ``|H(f_n)|``) at ``f_hz``: base
@@ -281,8 +320,9 @@ def lookup_stand(name: str) -> VirtualStand:
     return _STANDS[name]
 
 
-def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = False,
-                         accuracy: str = "fine") -> Stand:
+def open_simulated_stand(
+    setup: Setup, config: StandConfig, *, realtime: bool = False, accuracy: str = "fine"
+) -> Stand:
     """The simulated stand: the real drivers in front of the virtual specimen.
 
     ``config.generator.url`` must be ``vibidsim://NAME``; ``realtime`` paces it on the wall
@@ -297,11 +337,18 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
     url = config.generator.url
     parts = urllib.parse.urlsplit(url)
     if parts.scheme != "vibidsim" or not parts.netloc:
-        raise StandConfigError(f"generator.url: the simulated stand needs vibidsim://NAME, got {url!r}")
+        raise StandConfigError(
+            f"generator.url: the simulated stand needs vibidsim://NAME, got {url!r}"
+        )
     left = _STANDS.get(parts.netloc)
     try:
-        virtual = VirtualStand(setup, config, clock=WallClock() if realtime else VirtualClock(),
-                               accuracy=accuracy, fired=_FIRED.setdefault(parts.netloc, set()))
+        virtual = VirtualStand(
+            setup,
+            config,
+            clock=WallClock() if realtime else VirtualClock(),
+            accuracy=accuracy,
+            fired=_FIRED.setdefault(parts.netloc, set()),
+        )
     except StandConfigError:
         raise
     except (ValueError, VibidError) as exc:  # a bad fault or parameter of the simulated section
@@ -315,13 +362,21 @@ def open_simulated_stand(setup: Setup, config: StandConfig, *, realtime: bool = 
         virtual.instrument.sim_left_playing(left.instrument)
     register(parts.netloc, virtual.instrument)
     _STANDS[parts.netloc] = virtual
-    generator = open_generator(url, baudrate=config.generator.baudrate,
-                               timeout_s=config.generator.timeout_s, max_vpp=config.drive.max_vpp)
+    generator = open_generator(
+        url,
+        baudrate=config.generator.baudrate,
+        timeout_s=config.generator.timeout_s,
+        max_vpp=config.drive.max_vpp,
+    )
     try:
         daq = NiDaq.from_setup(setup, config.daq, task_factory=virtual.task_factory)
     except BaseException:
         generator.close()
         raise
-    return SimulatedStand(generator, daq, virtual.clock,
-                          description=f"simulated stand {url} (virtual specimen, fake NI-DAQmx task)",
-                          virtual=virtual)
+    return SimulatedStand(
+        generator,
+        daq,
+        virtual.clock,
+        description=f"simulated stand {url} (virtual specimen, fake NI-DAQmx task)",
+        virtual=virtual,
+    )

@@ -82,29 +82,44 @@ from vibid.setup_model import RESPONSE_STD, SPECIMEN_STD
 #: The declared quantities a setup may give a standard uncertainty (the setup's own list of
 #: ``*_std`` fields, each beside the value it qualifies): budget name -> (setup block, value
 #: field, std field); the sensor's are named ``sensor_…``.
-DECLARED = {("sensor_" if block == "response" else "") + std.replace("_std", ""):
-            (block, std.replace("_std", ""), std)
-            for block, fields in (("specimen", SPECIMEN_STD), ("response", RESPONSE_STD))
-            for std in fields}
+DECLARED = {
+    ("sensor_" if block == "response" else "") + std.replace("_std", ""): (
+        block,
+        std.replace("_std", ""),
+        std,
+    )
+    for block, fields in (("specimen", SPECIMEN_STD), ("response", RESPONSE_STD))
+    for std in fields
+}
 
 
 #: How the report's sentences name the declared quantities.
-WORDS = {"thickness_m": "thickness", "length_m": "length", "width_m": "width",
-         "density_kg_m3": "density", "sensor_x_m": "sensor position (x)",
-         "sensor_y_m": "sensor position (y)", "sensor_mass_kg": "sensor mass"}
+WORDS = {
+    "thickness_m": "thickness",
+    "length_m": "length",
+    "width_m": "width",
+    "density_kg_m3": "density",
+    "sensor_x_m": "sensor position (x)",
+    "sensor_y_m": "sensor position (y)",
+    "sensor_mass_kg": "sensor mass",
+}
 
 
 #: How the report's sentences name the clamp's line's part.
-CLAMP_LINE_WORDS = ("the clamp's effective line, which these data cannot tell from the "
-                    "stiffness (a longer free span is a softer plate)")
+CLAMP_LINE_WORDS = (
+    "the clamp's effective line, which these data cannot tell from the "
+    "stiffness (a longer free span is a softer plate)"
+)
 
 
 #: How the report's sentences name the parts that are no declared quantity.
-PART_WORDS = {"fit": "the fit (the data's noise and the model's misfit)",
-              "discretisation": "the discretisation (the mesh's error, Richardson-extrapolated "
-                                "over three meshes)",
-              "model": "the choice of model (the loop's competitive models disagree)",
-              "clamp_line": CLAMP_LINE_WORDS}
+PART_WORDS = {
+    "fit": "the fit (the data's noise and the model's misfit)",
+    "discretisation": "the discretisation (the mesh's error, Richardson-extrapolated "
+    "over three meshes)",
+    "model": "the choice of model (the loop's competitive models disagree)",
+    "clamp_line": CLAMP_LINE_WORDS,
+}
 
 
 #: The relative step of the central differences in a declared quantity: a step of a whole
@@ -166,17 +181,20 @@ class Linearised:
 
         self.setup, self.result = setup, result
         model, self.theta = result.plate_model, np.asarray(result.values, float)
-        self.data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
-                             magnitude=result.magnitude)
+        self.data = fit_data(
+            result.frequency_hz, result.H, result.H_std, result.used, magnitude=result.magnitude
+        )
         # linear coordinates u = (theta - estimate) / half, whatever the prior box: an
         # estimate outside it (a bent nu) has its derivatives all the same
         sd = np.asarray(result.std, float)
-        self.half = np.where(np.isfinite(sd) & (sd > 0), sd,
-                             1e-3 * np.maximum(np.abs(self.theta), 1e-12))
+        self.half = np.where(
+            np.isfinite(sd) & (sd > 0), sd, 1e-3 * np.maximum(np.abs(self.theta), 1e-12)
+        )
         self.space = ParameterSpace.from_bounds(
-            model.names, {n: (v - h, v + h) for n, v, h in zip(model.names, self.theta,
-                                                                self.half)},
-            {n: ("linear",) for n in model.names})
+            model.names,
+            {n: (v - h, v + h) for n, v, h in zip(model.names, self.theta, self.half)},
+            {n: ("linear",) for n in model.names},
+        )
         self.u = self.space.to_u(self.theta)
         self.free = np.array([n not in held for n in model.names])
         self.hessian = self.problem(setup).hessian(self.u)[np.ix_(self.free, self.free)]
@@ -186,8 +204,9 @@ class Linearised:
         from vibid.identify.model.forward import build_forward_model
 
         f_used = self.data.frequency_hz[self.data.used]
-        fm = build_forward_model(setup, f_used, model=self.result.plate_model,
-                                 theta0=self.result.parameters)
+        fm = build_forward_model(
+            setup, f_used, model=self.result.plate_model, theta0=self.result.parameters
+        )
         return LeastSquaresProblem(fm, self.data, self.space, self.result.weights)
 
     def moved(self, move, step: float) -> np.ndarray:
@@ -208,12 +227,12 @@ def clamp_line(setup, loop, box: dict, linearised=None) -> dict[str, float]:
     uncertainty of the free length; else empty. ``box``: the setup's prior boxes (the free
     length's change ``dL_m``, else the catalogue's); ``linearised``: the final fit's
     :class:`Linearised` where the caller has it already (a function that returns it)."""
-    if loop is None or not loop.unexplained_residual or "length_m" in declared_uncertainties(
-            setup):
+    if loop is None or not loop.unexplained_residual or "length_m" in declared_uncertainties(setup):
         return {}
     final = loop.final
     if final.plate_model is None or {"free_length", "clamp_compliance"} & set(
-            final.plate_model.effect_names):
+        final.plate_model.effect_names
+    ):
         return {}
     lo, hi = box.get(DL.name, DL.bounds)
     prior = (hi - lo) / math.sqrt(12.0)  # a rectangular distribution over the box
@@ -225,8 +244,9 @@ def clamp_line(setup, loop, box: dict, linearised=None) -> dict[str, float]:
 
     shift = at.moved(longer, STEP * length)
     model = getattr(final.plate_model, "model", None) or final.model
-    keys, g, _ = sensitivities(model, list(final.parameter_names), at.theta,
-                               setup.specimen.thickness_m)
+    keys, g, _ = sensitivities(
+        model, list(final.parameter_names), at.theta, setup.specimen.thickness_m
+    )
     return {k: float(abs(v)) * prior for k, v in zip(keys, g @ shift)}
 
 
@@ -250,12 +270,16 @@ def loop_box(setup, loop) -> dict:
     for before, stage in zip(loop.stages, loop.stages[1:]):
         if (cand := by_name.get(stage.added)) is not None:
             used |= cand.bounds(used, before.result.parameters, before.diagnosis)
-    return declared | {n: tuple(b) for n, b in used.items() if n not in declared
-                       and getattr(known_parameter(n), "bounds", None) is None}
+    return declared | {
+        n: tuple(b)
+        for n, b in used.items()
+        if n not in declared and getattr(known_parameter(n), "bounds", None) is None
+    }
 
 
-def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
-                 box: dict | None = None) -> dict[str, float]:
+def model_spread(
+    loop, model: str, thickness_m: float, *, tau: float = 1.0, box: dict | None = None
+) -> dict[str, float]:
     """constant -> the between-model standard deviation across the loop's models of the
     final material (module doc); empty without a loop or where the final model explains
     the data. ``tau``: the final residual's autocorrelation time; ``box``: the prior box
@@ -271,12 +295,18 @@ def model_spread(loop, model: str, thickness_m: float, *, tau: float = 1.0,
     if box is not None and outside_prior(final, box):
         box = None  # the final model is outside it too: the box tells no model from another
     fits = [st.result for st in loop.stages] + list(loop.alternatives)
-    fits = [r for r in fits if getattr(r.plate_model, "model", None) == model
-            and math.isfinite(r.chi2_reduced_reported) and r.dof > 0
-            and (r is final or box is None or not outside_prior(r, box))]
+    fits = [
+        r
+        for r in fits
+        if getattr(r.plate_model, "model", None) == model
+        and math.isfinite(r.chi2_reduced_reported)
+        and r.dof > 0
+        and (r is final or box is None or not outside_prior(r, box))
+    ]
     c_hat = max(1.0, float(final.chi2_reduced_reported)) * max(1.0, float(tau))
-    qaic = np.array([r.chi2_reduced_reported * r.dof / c_hat + 2 * len(r.parameter_names)
-                     for r in fits])
+    qaic = np.array(
+        [r.chi2_reduced_reported * r.dof / c_hat + 2 * len(r.parameter_names) for r in fits]
+    )
     w = np.exp(-(qaic - qaic.min()) / 2.0)
     w /= w.sum()
     values = [constants(model, r.parameters, thickness_m) for r in fits]
@@ -328,14 +358,17 @@ def engineering_budget(setup, result, loop=None) -> dict:
     block = {}
     for k in keys:
         total = sum(v**2 for v in parts[k].values())
-        block[k] = {"value": float(base[k]),
-                    "std": float(math.sqrt(total)) if math.isfinite(total) else None}
+        block[k] = {
+            "value": float(base[k]),
+            "std": float(math.sqrt(total)) if math.isfinite(total) else None,
+        }
     block["budget"] = parts
     block["notes"] = [n for k in keys if (n := largest_part(k, parts[k], std))]
     if unknown := [WORDS.get(n, n) for n in DECLARED if n not in std]:
         block["notes"].append(
             f"the setup declares no uncertainty for the {', '.join(unknown)}: the budget "
-            "leaves them out (give the setup's *_std fields to have them counted)")
+            "leaves them out (give the setup's *_std fields to have them counted)"
+        )
     return block
 
 
@@ -375,17 +408,23 @@ def largest_part(constant: str, parts: dict, std_of: dict) -> str | None:
         need = u**2 - 0.75 * total**2
         if need > 0:
             unit = _unit(name)
-            text += (f"; know it to {_fmt(std_of[name] * math.sqrt(need) / u, unit)} "
-                     f"(now {_fmt(std_of[name], unit)}) to halve it")
+            text += (
+                f"; know it to {_fmt(std_of[name] * math.sqrt(need) / u, unit)} "
+                f"(now {_fmt(std_of[name], unit)}) to halve it"
+            )
         else:
             text += "; even knowing it exactly would not halve the total"
     elif name == "discretisation":
-        text += ("; a finer mesh (the forward model's accuracy \"fine\") would shrink it, "
-                 "at the cost of a slower fit")
+        text += (
+            '; a finer mesh (the forward model\'s accuracy "fine") would shrink it, '
+            "at the cost of a slower fit"
+        )
     elif name == "clamp_line":
-        text += ("; a reference strip of known modulus in the same clamp measures it "
-                 "(vibid identify --reference-E), and the setup's specimen.length_std_m "
-                 "then declares it")
+        text += (
+            "; a reference strip of known modulus in the same clamp measures it "
+            "(vibid identify --reference-E), and the setup's specimen.length_std_m "
+            "then declares it"
+        )
     return text
 
 

@@ -15,8 +15,8 @@ process does not trace them again.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 #: How many model structures (kernels) and fitted problems keep their compiled code.
 MAX_KERNELS = 8
@@ -66,6 +66,10 @@ def problem_functions(kernel, magnitude: bool = False):
     functions = compile_problem(kernel, magnitude)
     identity = identity_of(kernel)
     prefix = "problem.magnitude" if magnitude else "problem"
-    return replace(functions, **{
-        f.name: Persisted(getattr(functions, f.name), f"{prefix}.{f.name}", identity)
-        for f in fields(functions)})
+    return replace(
+        functions,
+        **{
+            f.name: Persisted(getattr(functions, f.name), f"{prefix}.{f.name}", identity)
+            for f in fields(functions)
+        },
+    )

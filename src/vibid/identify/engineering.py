@@ -21,9 +21,12 @@ def _constants(model: str, p: dict, h: float) -> dict:
         return {"E_Pa": 12 * D * (1 - nu**2) / h**3, "nu": nu, "G_Pa": 6 * D * (1 - nu) / h**3}
     if model in ("orthotropic", "monoclinic"):
         D11, D12, D22, D66 = p["D11"], p["D12"], p["D22"], p["D66"]
-        return {"E1_Pa": 12 * (D11 - D12**2 / D22) / h**3,
-                "E2_Pa": 12 * (D22 - D12**2 / D11) / h**3,
-                "G12_Pa": 12 * D66 / h**3, "nu12": D12 / D22}
+        return {
+            "E1_Pa": 12 * (D11 - D12**2 / D22) / h**3,
+            "E2_Pa": 12 * (D22 - D12**2 / D11) / h**3,
+            "G12_Pa": 12 * D66 / h**3,
+            "nu12": D12 / D22,
+        }
     return {}
 
 
@@ -57,8 +60,9 @@ def sensitivities(model: str, names, values, thickness_m: float):
     return keys, J, dh
 
 
-def engineering_constants(model: str, names, values, covariance, thickness_m: float,
-                          thickness_std_m: float = 0.0) -> dict:
+def engineering_constants(
+    model: str, names, values, covariance, thickness_m: float, thickness_std_m: float = 0.0
+) -> dict:
     """``{name: {"value", "std"}}``: the constants with the parameters' covariance and the
     thickness's standard uncertainty propagated through the conversion alone (moduli as
     h⁻³). The report's figure is the budget's (:mod:`vibid.identify.budget`), which also
@@ -74,6 +78,8 @@ def engineering_constants(model: str, names, values, covariance, thickness_m: fl
     out = {}
     for i, k in enumerate(keys):
         total = var[i] + (dh[i] * thickness_std_m) ** 2
-        out[k] = {"value": float(base[k]),
-                  "std": float(math.sqrt(total)) if np.isfinite(total) and total >= 0 else None}
+        out[k] = {
+            "value": float(base[k]),
+            "std": float(math.sqrt(total)) if np.isfinite(total) and total >= 0 else None,
+        }
     return out

@@ -91,17 +91,24 @@ class Linearity:
         if self.left_out_hz is None:
             return ""
         lo, hi = self.left_out_hz
-        return (f"left out of the fit: {lo:.4g}-{hi:.4g} Hz, the top of the resonance at "
-                f"{self.f_hz:.4g} Hz, whose response depends on its amplitude (a linear model "
-                "fits its flanks, where the motion is small)")
+        return (
+            f"left out of the fit: {lo:.4g}-{hi:.4g} Hz, the top of the resonance at "
+            f"{self.f_hz:.4g} Hz, whose response depends on its amplitude (a linear model "
+            "fits its flanks, where the motion is small)"
+        )
 
     def as_report(self) -> dict:
-        out = {"f_hz": self.f_hz, "n_points": self.n_points, "scatter": self.scatter,
-               "rms_by_pole_pairs": list(self.rms), "linear": self.linear, "note": self.note}
+        out = {
+            "f_hz": self.f_hz,
+            "n_points": self.n_points,
+            "scatter": self.scatter,
+            "rms_by_pole_pairs": list(self.rms),
+            "linear": self.linear,
+            "note": self.note,
+        }
         if self.flanks is not None:
             out["top"] = {"f_hz": self.top[0], "q": self.top[1]}
-            out["flanks"] = {"f_hz": self.flanks[0], "q": self.flanks[1],
-                             "rms": self.flanks[2]}
+            out["flanks"] = {"f_hz": self.flanks[0], "q": self.flanks[1], "rms": self.flanks[2]}
         if self.left_out_hz is not None:
             out["left_out_hz"] = list(self.left_out_hz)
         return out
@@ -118,8 +125,10 @@ def resonance_linearity(frequency_hz, H, peaks_hz) -> list[Linearity]:
         lo = max(fp * (1 - HALF_BAND), 0.5 * (fp + peaks[k - 1]) if k > 0 else 0.0)
         hi = min(fp * (1 + HALF_BAND), 0.5 * (fp + peaks[k + 1]) if k + 1 < peaks.size else np.inf)
         band = (f > lo) & (f < hi) & np.isfinite(H)
-        if band.sum() < 8 * (MAX_PAIRS + 1) or \
-                _half_power_points(f[band], H[band]) < POINTS_PER_BANDWIDTH:
+        if (
+            band.sum() < 8 * (MAX_PAIRS + 1)
+            or _half_power_points(f[band], H[band]) < POINTS_PER_BANDWIDTH
+        ):
             continue  # too few points, or a grid that does not resolve the resonance
         found = _test(f[band], H[band], fp)
         if found is not None:
@@ -173,25 +182,29 @@ def _test(f, H, fp) -> Linearity | None:
     if linear:
         n = next(k for k, r in enumerate(rms, start=1) if r <= limit)  # the fewest that fit
         best = rms[n - 1]
-        note = (f"the resonance at {fp:.4g} Hz is a linear one: {n} pole pair"
-                f"{'s fit' if n > 1 else ' fits'} it to {100 * best:.2g} % (scatter "
-                f"{100 * scatter:.2g} %)")
+        note = (
+            f"the resonance at {fp:.4g} Hz is a linear one: {n} pole pair"
+            f"{'s fit' if n > 1 else ' fits'} it to {100 * best:.2g} % (scatter "
+            f"{100 * scatter:.2g} %)"
+        )
     else:
-        note = (f"the resonance at {fp:.4g} Hz is no sum of linear modes: {len(rms)} pole pairs "
-                f"still leave {100 * best:.2g} % against a point-to-point scatter of "
-                f"{100 * scatter:.2g} % (1 pair: {100 * rms[0]:.2g} %)")
+        note = (
+            f"the resonance at {fp:.4g} Hz is no sum of linear modes: {len(rms)} pole pairs "
+            f"still leave {100 * best:.2g} % against a point-to-point scatter of "
+            f"{100 * scatter:.2g} % (1 pair: {100 * rms[0]:.2g} %)"
+        )
         top = tuple(float(v) for v in fits[0][1][0])
         flanks = flank_mode(f, H, *top)
         note += "; " + amplitude_sentence(top, flanks, limit)
         if amplitude_told(top, flanks, limit):
             width = FLANK_WIDTHS * top[0] / top[1]
             left_out = (top[0] - width, top[0] + width)
-    return Linearity(float(fp), int(f.size), scatter, tuple(rms), bool(linear), note, top,
-                     flanks, left_out)
+    return Linearity(
+        float(fp), int(f.size), scatter, tuple(rms), bool(linear), note, top, flanks, left_out
+    )
 
 
-def linear_part(frequency_hz, H, std=None,
-                used=None) -> tuple[np.ndarray, tuple[Linearity, ...]]:
+def linear_part(frequency_hz, H, std=None, used=None) -> tuple[np.ndarray, tuple[Linearity, ...]]:
     """The points a linear model can be asked to fit, and the test at each resolved
     resonance of the measured peaks (module doc): ``used`` (default: every finite point)
     less the tops whose response is shown to depend on its amplitude."""
@@ -236,21 +249,29 @@ def amplitude_told(top, flanks, limit: float) -> bool:
 
 def amplitude_sentence(top, flanks, limit: float) -> str:
     """What the flanks say of the amplitude dependence (module doc), in a lab's words."""
-    generic = ("the response depends on something a linear FRF does not hold, most likely "
-               "its amplitude (a clamp whose friction depends on the motion)")
+    generic = (
+        "the response depends on something a linear FRF does not hold, most likely "
+        "its amplitude (a clamp whose friction depends on the motion)"
+    )
     if flanks is None or flanks[2] > limit:
         return generic
     (f_top, q_top), (f_fl, q_fl, rms) = top, flanks
-    told = (f"on its flanks alone one linear mode fits to {100 * rms:.2g} %: Q {q_fl:.0f} at "
-            f"{f_fl:.5g} Hz, where the whole resonance needs Q {q_top:.0f} at {f_top:.5g} Hz")
+    told = (
+        f"on its flanks alone one linear mode fits to {100 * rms:.2g} %: Q {q_fl:.0f} at "
+        f"{f_fl:.5g} Hz, where the whole resonance needs Q {q_top:.0f} at {f_top:.5g} Hz"
+    )
     if q_fl > Q_RATIO * q_top and f_fl > f_top:
-        return (told + ": at large motion the structure is softer and more damped than at "
-                "small, as a joint is that sticks at small amplitude and slips at large (a "
-                "clamp's micro-slip; under a broadband excitation, whose amplitude varies, "
-                "such a stiffness also spreads the top over frequencies)")
+        return (
+            told + ": at large motion the structure is softer and more damped than at "
+            "small, as a joint is that sticks at small amplitude and slips at large (a "
+            "clamp's micro-slip; under a broadband excitation, whose amplitude varies, "
+            "such a stiffness also spreads the top over frequencies)"
+        )
     if q_fl * Q_RATIO < q_top:
-        return (told + ": the top is damped less than the flanks, as by a dry friction "
-                "that the motion outgrows")
+        return (
+            told + ": the top is damped less than the flanks, as by a dry friction "
+            "that the motion outgrows"
+        )
     return told + "; " + generic
 
 
@@ -277,8 +298,7 @@ def rational_fit(f, H, n) -> tuple[float, list[tuple[float, float]]] | None:
         vf = VectorFitting(nw)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            vf.vector_fit(n_poles_real=0, n_poles_cmplx=n, fit_constant=True,
-                          fit_proportional=True)
+            vf.vector_fit(n_poles_real=0, n_poles_cmplx=n, fit_constant=True, fit_proportional=True)
     except Exception:  # noqa: BLE001 - no fit, no verdict
         return None
     c0, c1 = complex(vf.constant_coeff[0]), complex(vf.proportional_coeff[0] * s0)
@@ -291,7 +311,7 @@ def rational_fit(f, H, n) -> tuple[float, list[tuple[float, float]]] | None:
     def model(x):
         out = (x[0] + 1j * x[1]) + (x[2] + 1j * x[3]) * s / s0
         for k in range(pairs):
-            a, b, rr, ri = x[4 + 4 * k:8 + 4 * k]
+            a, b, rr, ri = x[4 + 4 * k : 8 + 4 * k]
             out = out + (rr + 1j * ri) / (s - (-a + 1j * b)) + (rr - 1j * ri) / (s - (-a - 1j * b))
         return out
 
@@ -304,7 +324,11 @@ def rational_fit(f, H, n) -> tuple[float, list[tuple[float, float]]] | None:
     x0 = np.maximum(x0, lower)
     x = least_squares(residual, x0, bounds=(lower, np.inf), x_scale="jac", max_nfev=4000).x
     e = np.abs(model(x) - H) / np.abs(H)
-    poles = [(x[5 + 4 * k] / (2 * np.pi),
-              x[5 + 4 * k] / (2 * x[4 + 4 * k]) if x[4 + 4 * k] > 0 else math.inf)
-             for k in range(pairs)]
+    poles = [
+        (
+            x[5 + 4 * k] / (2 * np.pi),
+            x[5 + 4 * k] / (2 * x[4 + 4 * k]) if x[4 + 4 * k] > 0 else math.inf,
+        )
+        for k in range(pairs)
+    ]
     return float(np.sqrt(np.mean(e**2))), poles

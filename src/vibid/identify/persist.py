@@ -119,8 +119,10 @@ class Persisted:
             return self.fn(*args)
         leaves, tree = jax.tree_util.tree_flatten(args)
         try:
-            signature = (tree, tuple([(x.shape, x.dtype, getattr(x, "weak_type", False))
-                                      for x in leaves]))
+            signature = (
+                tree,
+                tuple([(x.shape, x.dtype, getattr(x, "weak_type", False)) for x in leaves]),
+            )
         except AttributeError:  # a Python number among the arguments
             return self.fn(*args)
         if any(isinstance(x, jax.core.Tracer) for x in leaves):
@@ -214,7 +216,7 @@ def _evict(where: str, keep: int = MAX_ARTEFACTS) -> None:
         if len(entries) <= keep:
             return
         entries.sort(key=lambda e: e.stat().st_mtime)
-        for e in entries[:len(entries) - keep]:
+        for e in entries[: len(entries) - keep]:
             Path(e.path).unlink(missing_ok=True)
     except OSError:
         pass

@@ -46,20 +46,30 @@ GPa = 1e9
 HANDBOOK: dict[str, dict[str, tuple[float, float]]] = {
     # carbon and stainless steels. Handbooks give E 190–215 GPa, ν 0.27–0.31; issue #26's
     # target is E 180–215 GPa, ν 0.25–0.33: the wider ranges are used.
-    "steel": {"E_Pa": (180 * GPa, 215 * GPa), "nu": (0.25, 0.33),
-              "G_Pa": (68 * GPa, 86 * GPa)},  # G = E/2(1+ν) over the E and ν ranges
+    "steel": {
+        "E_Pa": (180 * GPa, 215 * GPa),
+        "nu": (0.25, 0.33),
+        "G_Pa": (68 * GPa, 86 * GPa),
+    },  # G = E/2(1+ν) over the E and ν ranges
     # wrought aluminium alloys (1xxx–7xxx; Al–Li alloys, E up to ~80 GPa, lie above)
-    "aluminium": {"E_Pa": (68 * GPa, 73 * GPa), "nu": (0.32, 0.35),
-                  "G_Pa": (25 * GPa, 28 * GPa)},
+    "aluminium": {"E_Pa": (68 * GPa, 73 * GPa), "nu": (0.32, 0.35), "G_Pa": (25 * GPa, 28 * GPa)},
     # CP titanium and alpha/alpha-beta alloys (Ti-6Al-4V: E ≈ 114 GPa); ν: issue #26's range
-    "titanium": {"E_Pa": (100 * GPa, 125 * GPa), "nu": (0.28, 0.38),
-                 "G_Pa": (36 * GPa, 49 * GPa)},  # G = E/2(1+ν) over the E and ν ranges
+    "titanium": {
+        "E_Pa": (100 * GPa, 125 * GPa),
+        "nu": (0.28, 0.38),
+        "G_Pa": (36 * GPa, 49 * GPa),
+    },  # G = E/2(1+ν) over the E and ν ranges
     # CFRP depends on the lay-up, so its ranges are broad. Isotropic model: a
     # quasi-isotropic laminate (no G range: G follows from E and ν). Orthotropic model:
     # from a balanced woven laminate to unidirectional standard-modulus fibres.
-    "CFRP": {"E_Pa": (40 * GPa, 80 * GPa), "nu": (0.25, 0.35),
-             "E1_Pa": (40 * GPa, 200 * GPa), "E2_Pa": (5 * GPa, 80 * GPa),
-             "G12_Pa": (3 * GPa, 30 * GPa), "nu12": (0.02, 0.45)},
+    "CFRP": {
+        "E_Pa": (40 * GPa, 80 * GPa),
+        "nu": (0.25, 0.35),
+        "E1_Pa": (40 * GPa, 200 * GPa),
+        "E2_Pa": (5 * GPa, 80 * GPa),
+        "G12_Pa": (3 * GPa, 30 * GPa),
+        "nu12": (0.02, 0.45),
+    },
 }
 #: An isotropic material identified with an orthotropic model: E1 = E2 = E, G12 = G, ν12 = ν.
 _ISOTROPIC_NAME = {"E1_Pa": "E_Pa", "E2_Pa": "E_Pa", "G12_Pa": "G_Pa", "nu12": "nu"}
@@ -71,8 +81,15 @@ _SYNONYMS = {
     "CFRP": ("cfrp", "carbon fibre", "carbon fiber"),
 }
 _WEAK = ("carbon", "CFRP")  # "carbon" alone: CFRP, unless another class is named ("carbon steel")
-_SYMBOL = {"E_Pa": "E", "G_Pa": "G", "nu": "ν", "E1_Pa": "E1", "E2_Pa": "E2",
-           "G12_Pa": "G12", "nu12": "ν12"}
+_SYMBOL = {
+    "E_Pa": "E",
+    "G_Pa": "G",
+    "nu": "ν",
+    "E1_Pa": "E1",
+    "E2_Pa": "E2",
+    "G12_Pa": "G12",
+    "nu12": "ν12",
+}
 
 
 @dataclass(frozen=True)
@@ -80,9 +97,9 @@ class Plausibility:
     """What :func:`plausibility` found; ``material_class`` is a key of :data:`HANDBOOK`."""
 
     material_class: str | None
-    violations: tuple[str, ...]        # physically impossible values
+    violations: tuple[str, ...]  # physically impossible values
     outside_handbook: tuple[str, ...]  # constants outside their class's range
-    inside_handbook: tuple[str, ...]   # constants inside it
+    inside_handbook: tuple[str, ...]  # constants inside it
 
     def warnings(self) -> list[str]:
         return [*self.violations, *self.outside_handbook]
@@ -99,10 +116,17 @@ def material_class(specimen_name: str = "", material: str | None = None) -> str 
     return found.pop() if len(found) == 1 else None
 
 
-def plausibility(model: str, parameters: dict[str, float], std: dict[str, float],
-                 constants: dict[str, dict], *, specimen_name: str = "",
-                 material: str | None = None, specimen=None,
-                 sensor=None) -> Plausibility:
+def plausibility(
+    model: str,
+    parameters: dict[str, float],
+    std: dict[str, float],
+    constants: dict[str, dict],
+    *,
+    specimen_name: str = "",
+    material: str | None = None,
+    specimen=None,
+    sensor=None,
+) -> Plausibility:
     """Judge ``parameters`` (by name, N·m and 1) with their ``std`` and the engineering
     ``constants`` (``{name: {"value", "std"}}``, values may be None) of a ``model`` plate;
     ``specimen`` (``length_m``, ``width_m``, ``thickness_m``, ``density_kg_m3``: the declared
@@ -110,12 +134,18 @@ def plausibility(model: str, parameters: dict[str, float], std: dict[str, float]
     response ``sensor``'s mass (``mass_kg`` at ``x_m``) where given (module doc)."""
     p = {k: v for k, v in (parameters or {}).items() if _finite(v)}
     std = std or {}
-    known = {k: c for k, c in (constants or {}).items()  # the constants with a value
-             if isinstance(c, dict) and _finite(c.get("value"))}
+    known = {
+        k: c
+        for k, c in (constants or {}).items()  # the constants with a value
+        if isinstance(c, dict) and _finite(c.get("value"))
+    }
     violations = _violations(model, p, std)
     if not violations:  # else an impossible modulus is a consequence already said
-        violations += [f"{_show(k, c['value'], c.get('std'))} ≤ 0: not a possible modulus"
-                       for k, c in known.items() if k.endswith("_Pa") and c["value"] <= 0]
+        violations += [
+            f"{_show(k, c['value'], c.get('std'))} ≤ 0: not a possible modulus"
+            for k, c in known.items()
+            if k.endswith("_Pa") and c["value"] <= 0
+        ]
     cls = material_class(specimen_name, material)
     table = HANDBOOK.get(cls, {})
     inside, outside = [], []
@@ -124,8 +154,10 @@ def plausibility(model: str, parameters: dict[str, float], std: dict[str, float]
         if rng is not None and key in _SYMBOL:
             (inside if rng[0] <= c["value"] <= rng[1] else outside).append(
                 _compare(cls, key, c["value"], c.get("std"), rng)
-                + _declared_would_need(key, c["value"], c.get("std"), rng, specimen,
-                                       sensor_share(specimen, sensor)))
+                + _declared_would_need(
+                    key, c["value"], c.get("std"), rng, specimen, sensor_share(specimen, sensor)
+                )
+            )
     return Plausibility(cls, tuple(violations), tuple(outside), tuple(inside))
 
 
@@ -133,31 +165,42 @@ def _violations(model: str, p: dict[str, float], std: dict[str, float]) -> list[
     out = []
     if model == "isotropic":
         if "D" in p and p["D"] <= 0:
-            out.append(f"D = {_par('D', p, std)} N·m ≤ 0: a bending stiffness must be "
-                       "positive")
+            out.append(f"D = {_par('D', p, std)} N·m ≤ 0: a bending stiffness must be positive")
         if "nu" in p and not -1 < p["nu"] < 0.5:
             limit = 0.5 if p["nu"] >= 0.5 else -1.0
-            out.append(f"ν = {_par('nu', p, std)} is not a possible Poisson's ratio of an "
-                       f"isotropic material, which needs −1 < ν < 0.5"
-                       f"{_beyond(p['nu'], std.get('nu'), limit)}")
+            out.append(
+                f"ν = {_par('nu', p, std)} is not a possible Poisson's ratio of an "
+                f"isotropic material, which needs −1 < ν < 0.5"
+                f"{_beyond(p['nu'], std.get('nu'), limit)}"
+            )
     if all(k in p for k in ("D11", "D12", "D22", "D66")):
         D11, D12, D22, D66 = p["D11"], p["D12"], p["D22"], p["D66"]
         D16, D26 = p.get("D16", 0.0), p.get("D26", 0.0)
         why = [f"{k} = {p[k]:.4g} N·m ≤ 0" for k in ("D11", "D22", "D66") if p[k] <= 0]
         if D12**2 >= D11 * D22:
             why.append(f"D12² = {D12**2:.4g} ≥ D11·D22 = {D11 * D22:.4g} (N·m)²")
-        det = (D11 * (D22 * D66 - D26**2) - D12 * (D12 * D66 - D26 * D16)
-               + D16 * (D12 * D26 - D22 * D16))
+        det = (
+            D11 * (D22 * D66 - D26**2)
+            - D12 * (D12 * D66 - D26 * D16)
+            + D16 * (D12 * D26 - D22 * D16)
+        )
         if not why and det <= 0:
             why.append(f"its determinant {det:.4g} (N·m)³ ≤ 0 (D16, D26 too large)")
         if why:
-            matrix = ("[[D11, D12, D16], [D12, D22, D26], [D16, D26, D66]]" if "D16" in p
-                      or "D26" in p else "[[D11, D12, 0], [D12, D22, 0], [0, 0, D66]]")
-            out.append(f"the bending stiffness matrix {matrix} is not positive definite: "
-                       + "; ".join(why))
-    out += [f"{k} = {_par(k, p, std)} < 0{_beyond(v, std.get(k), 0.0)}: a loss factor "
-            f"cannot be negative, the plate would feed energy into its vibration"
-            for k, v in p.items() if k.startswith("beta") and v < 0]
+            matrix = (
+                "[[D11, D12, D16], [D12, D22, D26], [D16, D26, D66]]"
+                if "D16" in p or "D26" in p
+                else "[[D11, D12, 0], [D12, D22, 0], [0, 0, D66]]"
+            )
+            out.append(
+                f"the bending stiffness matrix {matrix} is not positive definite: " + "; ".join(why)
+            )
+    out += [
+        f"{k} = {_par(k, p, std)} < 0{_beyond(v, std.get(k), 0.0)}: a loss factor "
+        f"cannot be negative, the plate would feed energy into its vibration"
+        for k, v in p.items()
+        if k.startswith("beta") and v < 0
+    ]
     return out
 
 
@@ -183,8 +226,9 @@ def sensor_share(specimen, sensor) -> float:
     L = specimen.length_m
     m_strip = specimen.density_kg_m3 * L * specimen.width_m * specimen.thickness_m
     b = _CANTILEVER_ROOT * min(max(sensor.x_m / L, 0.0), 1.0)
-    sigma = ((math.cosh(_CANTILEVER_ROOT) + math.cos(_CANTILEVER_ROOT))
-             / (math.sinh(_CANTILEVER_ROOT) + math.sin(_CANTILEVER_ROOT)))
+    sigma = (math.cosh(_CANTILEVER_ROOT) + math.cos(_CANTILEVER_ROOT)) / (
+        math.sinh(_CANTILEVER_ROOT) + math.sin(_CANTILEVER_ROOT)
+    )
     phi = math.cosh(b) - math.cos(b) - sigma * (math.sinh(b) - math.sin(b))  # ∫φ² = L
     m_sensor = sensor.mass_kg * phi**2
     return m_sensor / (m_strip + m_sensor)
@@ -218,14 +262,22 @@ def _declared_would_need(key: str, value: float, sd, rng, specimen, mu: float = 
     denser = (r - mu) / (1 - mu) - 1
     longer = _factor(lambda c: c**3 * ((1 - mu) * c + mu) / r) - 1
     thinner = _factor(lambda c: r * c**3 / ((1 - mu) * c + mu)) - 1
-    clamp = (" (or a clamp less rigid than the model's); a clamp whose line lies inside its "
-             "jaws lengthens the free span: a reference strip of known modulus in the same "
-             "clamp measures it (vibid identify --reference-E)") if r > 1 else ""
-    return (f"; from bending resonances {_SYMBOL[key]} goes as ρ L⁴ / h²: "
-            f"{edge / GPa:g} GPa would need the declared density {100 * denser:+.0f} %, "
-            f"the free length {100 * longer:+.1f} % ({1e3 * specimen.length_m * longer:+.2g} "
-            f"mm) or the thickness {100 * thinner:+.1f} % "
-            f"({1e3 * specimen.thickness_m * thinner:+.2g} mm){clamp}")
+    clamp = (
+        (
+            " (or a clamp less rigid than the model's); a clamp whose line lies inside its "
+            "jaws lengthens the free span: a reference strip of known modulus in the same "
+            "clamp measures it (vibid identify --reference-E)"
+        )
+        if r > 1
+        else ""
+    )
+    return (
+        f"; from bending resonances {_SYMBOL[key]} goes as ρ L⁴ / h²: "
+        f"{edge / GPa:g} GPa would need the declared density {100 * denser:+.0f} %, "
+        f"the free length {100 * longer:+.1f} % ({1e3 * specimen.length_m * longer:+.2g} "
+        f"mm) or the thickness {100 * thinner:+.1f} % "
+        f"({1e3 * specimen.thickness_m * thinner:+.2g} mm){clamp}"
+    )
 
 
 def _beyond(value: float, sd, limit: float) -> str:
@@ -233,15 +285,18 @@ def _beyond(value: float, sd, limit: float) -> str:
     if not (_finite(sd) and sd > 0):
         return ""
     n = round(abs(value - limit) / sd, 1)
-    return (f" ({n:.1f} std {'above' if value > limit else 'below'} {limit:g}"
-            f"{': possible within its uncertainty' if n <= 2 else ''})")
+    return (
+        f" ({n:.1f} std {'above' if value > limit else 'below'} {limit:g}"
+        f"{': possible within its uncertainty' if n <= 2 else ''})"
+    )
 
 
 def _show(key: str, value: float, sd) -> str:
     """``E = 90.3 ± 2.1 GPa``: moduli in GPa, ratios plain; two significant digits of std."""
     # decimals: (fewest, most, without a std)
-    scale, unit, (fewest, most, plain) = ((GPa, " GPa", (1, 3, 1)) if key.endswith("_Pa")
-                                          else (1.0, "", (2, 4, 3)))
+    scale, unit, (fewest, most, plain) = (
+        (GPa, " GPa", (1, 3, 1)) if key.endswith("_Pa") else (1.0, "", (2, 4, 3))
+    )
     v, s = value / scale, (sd / scale if _finite(sd) and sd > 0 else None)
     d = plain if s is None else max(fewest, min(most, 1 - math.floor(math.log10(s))))
     pm = "" if s is None else f" ± {s:.{d}f}" if round(s, d) else f" ± {s:.1g}"

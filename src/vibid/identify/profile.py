@@ -29,8 +29,17 @@ from dataclasses import dataclass, field
 from vibid.heartbeat import stage
 
 #: The sections vibid marks, in the order a report lists them.
-SECTIONS = ("signal stage", "matrices", "reduced bases", "full-model checks", "global search",
-            "local fits", "model error", "loop scoring", "loop refits")
+SECTIONS = (
+    "signal stage",
+    "matrices",
+    "reduced bases",
+    "full-model checks",
+    "global search",
+    "local fits",
+    "model error",
+    "loop scoring",
+    "loop refits",
+)
 
 #: JAX's monitoring events of one compilation (jax/_src/dispatch.py).
 _TRACE_EVENT = "/jax/core/compile/jaxpr_trace_duration"
@@ -40,7 +49,7 @@ _CACHE_HIT_EVENT = "/jax/compilation_cache/cache_hits"
 
 #: The recording in progress: one per process, not per thread or context (a Prefect task's
 #: worker thread and JAX's compilation callbacks must reach it too).
-_active: "Profile | None" = None
+_active: Profile | None = None
 _listening = False
 #: Guards a recording's counters against two threads adding at once.
 _adding = threading.Lock()
@@ -72,22 +81,30 @@ class Profile:
     def table(self) -> str:
         """A few lines a person reads: each section's seconds and share of the wall time."""
         wall = self.wall_seconds or (time.perf_counter() - self.started)
-        lines = [f"profile: {wall:.1f} s in all",
-                 f"  {'compiling (JAX)':<22} {self.compile_seconds:7.1f} s  "
-                 f"{self.compilations} functions ({self.cache_hits} from the disk cache)"]
+        lines = [
+            f"profile: {wall:.1f} s in all",
+            f"  {'compiling (JAX)':<22} {self.compile_seconds:7.1f} s  "
+            f"{self.compilations} functions ({self.cache_hits} from the disk cache)",
+        ]
         names = [n for n in SECTIONS if n in self.seconds] + sorted(
-            n for n in self.seconds if n not in SECTIONS)
+            n for n in self.seconds if n not in SECTIONS
+        )
         for n in names:
             lines.append(f"  {n:<22} {self.seconds[n]:7.1f} s  {self.calls[n]} x")
         if any(self.seconds[n] > wall for n in names):
-            lines.append("  (a section run on several threads at once counts each thread's "
-                         "seconds)")
+            lines.append(
+                "  (a section run on several threads at once counts each thread's seconds)"
+            )
         return "\n".join(lines)
 
     def as_dict(self) -> dict:
-        return {"wall_s": self.wall_seconds, "compilations": self.compilations,
-                "compile_cache_hits": self.cache_hits, "compile_s": self.compile_seconds,
-                "sections_s": dict(self.seconds)}
+        return {
+            "wall_s": self.wall_seconds,
+            "compilations": self.compilations,
+            "compile_cache_hits": self.cache_hits,
+            "compile_s": self.compile_seconds,
+            "sections_s": dict(self.seconds),
+        }
 
 
 def _on_duration(event: str, duration: float, **_) -> None:
@@ -155,10 +172,13 @@ def section(name: str):
 
 def timed(name: str):
     """Decorator: every call of the function is a :func:`section` ``name``."""
+
     def wrap(fn):
         @functools.wraps(fn)
         def inner(*args, **kwargs):
             with section(name):
                 return fn(*args, **kwargs)
+
         return inner
+
     return wrap

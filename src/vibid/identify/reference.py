@@ -54,16 +54,21 @@ class Reference:
 
     def __post_init__(self):
         if not (math.isfinite(self.modulus_pa) and self.modulus_pa > 0):
-            raise VibidError(f"the reference modulus must be a positive number of Pa, not "
-                             f"{self.modulus_pa:g}")
+            raise VibidError(
+                f"the reference modulus must be a positive number of Pa, not {self.modulus_pa:g}"
+            )
         if not (math.isfinite(self.std_pa) and self.std_pa >= 0):
-            raise VibidError(f"the reference modulus's std must be 0 Pa or more, not "
-                             f"{self.std_pa:g}")
+            raise VibidError(
+                f"the reference modulus's std must be 0 Pa or more, not {self.std_pa:g}"
+            )
 
 
-def reference_from(modulus_pa: float | None, std_pa: float = 0.0, *,
-                   names: tuple[str, str] = ("reference_E_pa", "reference_E_std_pa")
-                   ) -> Reference | None:
+def reference_from(
+    modulus_pa: float | None,
+    std_pa: float = 0.0,
+    *,
+    names: tuple[str, str] = ("reference_E_pa", "reference_E_std_pa"),
+) -> Reference | None:
     """The :class:`Reference` of a known modulus and its std (Pa), None without a modulus;
     a std given without one is an error that names the two options (``names``: as the
     caller spells them, the CLI's ``--reference-E`` or the flow's keyword)."""
@@ -104,40 +109,52 @@ class ClampCalibration:
         known = f"{self.reference.modulus_pa / 1e9:g}"
         if self.reference.std_pa > 0:
             known += f" ± {self.reference.std_pa / 1e9:.2g}"
-        where = ("its line lies inside the jaws" if self.offset_m > 0
-                 else "its line lies out on the strip")
-        text = (f"reference specimen: with {symbol} known to be {known} GPa (identified "
-                f"{self.identified_pa / 1e9:.1f} ± {self.identified_std_pa / 1e9:.2g} GPa), "
-                f"the clamp's effective free length is {1e3 * self.free_length_m:.2f} ± "
-                f"{1e3 * self.free_length_std_m:.2f} mm (declared "
-                f"{1e3 * self.declared_length_m:.2f} mm: {1e3 * self.offset_m:+.2f} mm, "
-                f"{where}); for specimens in this clamp add {1e3 * self.offset_m:+.2f} mm to "
-                f"the declared length_m and the sensor's x_m (both measured from the jaws' "
-                f"edge) and declare length_std_m {self.free_length_std_m:.2g}")
+        where = (
+            "its line lies inside the jaws"
+            if self.offset_m > 0
+            else "its line lies out on the strip"
+        )
+        text = (
+            f"reference specimen: with {symbol} known to be {known} GPa (identified "
+            f"{self.identified_pa / 1e9:.1f} ± {self.identified_std_pa / 1e9:.2g} GPa), "
+            f"the clamp's effective free length is {1e3 * self.free_length_m:.2f} ± "
+            f"{1e3 * self.free_length_std_m:.2f} mm (declared "
+            f"{1e3 * self.declared_length_m:.2f} mm: {1e3 * self.offset_m:+.2f} mm, "
+            f"{where}); for specimens in this clamp add {1e3 * self.offset_m:+.2f} mm to "
+            f"the declared length_m and the sensor's x_m (both measured from the jaws' "
+            f"edge) and declare length_std_m {self.free_length_std_m:.2g}"
+        )
         lo, hi = self.box_m
         edge = 1e-3 * (hi - lo)
         if not self.converged:
             text += " (the refit did not converge: the free length is where it stopped)"
         elif not lo + edge < self.offset_m < hi - edge:
-            text += (f" (at the face of the free length's reach, {1e3 * lo:+.0f} to "
-                     f"{1e3 * hi:+.0f} mm: the clamp lies further off, or the reference "
-                     "modulus is not this specimen's)")
+            text += (
+                f" (at the face of the free length's reach, {1e3 * lo:+.0f} to "
+                f"{1e3 * hi:+.0f} mm: the clamp lies further off, or the reference "
+                "modulus is not this specimen's)"
+            )
         return text
 
     def as_report(self) -> dict:
-        return {"constant": self.constant, "modulus_Pa": self.reference.modulus_pa,
-                "modulus_std_Pa": self.reference.std_pa,
-                "identified_Pa": self.identified_pa,
-                "identified_std_Pa": self.identified_std_pa,
-                "declared_length_m": self.declared_length_m,
-                "free_length_m": self.free_length_m,
-                "free_length_std_m": self.free_length_std_m,
-                "chi2_change": self.chi2_change,
-                "converged": self.converged, "note": self.sentence()}
+        return {
+            "constant": self.constant,
+            "modulus_Pa": self.reference.modulus_pa,
+            "modulus_std_Pa": self.reference.std_pa,
+            "identified_Pa": self.identified_pa,
+            "identified_std_Pa": self.identified_std_pa,
+            "declared_length_m": self.declared_length_m,
+            "free_length_m": self.free_length_m,
+            "free_length_std_m": self.free_length_std_m,
+            "chi2_change": self.chi2_change,
+            "converged": self.converged,
+            "note": self.sentence(),
+        }
 
 
-def calibrate_free_length(setup, result, reference: Reference,
-                          local: str = "newton", box: dict | None = None) -> ClampCalibration:
+def calibrate_free_length(
+    setup, result, reference: Reference, local: str = "newton", box: dict | None = None
+) -> ClampCalibration:
     """The clamp's effective free length from a reference specimen (module doc): ``result``
     is the specimen's identification (the loop's final stage), ``setup`` its declared
     setup; ``box``: the prior boxes the loop used (:func:`vibid.identify.budget.loop_box`:
@@ -155,12 +172,19 @@ def calibrate_free_length(setup, result, reference: Reference,
     name = current.model
     key = MODULUS_ALONG_LENGTH.get(name)
     h = setup.specimen.thickness_m
-    identified = (engineering_constants(name, result.parameter_names, result.values,
-                                        result.covariance, h).get(key, {}) if key else {})
+    identified = (
+        engineering_constants(
+            name, result.parameter_names, result.values, result.covariance, h
+        ).get(key, {})
+        if key
+        else {}
+    )
     value = identified.get("value")
     if value is None or not math.isfinite(value) or value <= 0:
-        raise VibidError(f"no modulus along the length was identified ({name} model): a "
-                         "reference specimen cannot calibrate the clamp")
+        raise VibidError(
+            f"no modulus along the length was identified ({name} model): a "
+            "reference specimen cannot calibrate the clamp"
+        )
     model = current if "dL_m" in current.names else current.with_effect(FREE_LENGTH)
     names = list(model.names)
     scaled = [q.name for q in STIFFNESS[name] if q.name != "nu"]  # E is linear in them
@@ -172,10 +196,12 @@ def calibrate_free_length(setup, result, reference: Reference,
     for n in scaled:  # the reference's stiffnesses may lie beyond the declared box
         lo, hi = box[n]
         box[n] = (min(lo, at_reference[n] / 2), max(hi, at_reference[n] * 2))
-    data = fit_data(result.frequency_hz, result.H, result.H_std, result.used,
-                    magnitude=result.magnitude)
-    fm = build_forward_model(setup, data.frequency_hz[data.used], model=model,
-                             theta0=at_reference, bounds=box)
+    data = fit_data(
+        result.frequency_hz, result.H, result.H_std, result.used, magnitude=result.magnitude
+    )
+    fm = build_forward_model(
+        setup, data.frequency_hz[data.used], model=model, theta0=at_reference, bounds=box
+    )
     space = ParameterSpace.from_bounds(names, box, {q.name: q.kind for q in model.parameters})
     problem = LeastSquaresProblem(fm, data, space, result.weights)
     free = np.array([i for i, n in enumerate(names) if n not in held])
@@ -193,8 +219,9 @@ def calibrate_free_length(setup, result, reference: Reference,
     grad = dict(zip(material, g[keys.index(key)]))  # ∂E/∂θ
     lead = names.index(material[0])
     columns = [J[:, k] for k in free]
-    columns += [J[:, names.index(n)] - J[:, lead] * grad[n] / grad[material[0]]
-                for n in material[1:]]
+    columns += [
+        J[:, names.index(n)] - J[:, lead] * grad[n] / grad[material[0]] for n in material[1:]
+    ]
     A = np.column_stack(columns)
     cov = np.linalg.pinv(A.T @ A)
     # the data's part: dL's variance with the modulus held, scaled as the result's own
@@ -207,10 +234,18 @@ def calibrate_free_length(setup, result, reference: Reference,
     ref_rel = reference.std_pa / reference.modulus_pa
     std = math.sqrt(max(data_var, 0.0) + (slope * ref_rel) ** 2)
     L = setup.specimen.length_m
-    return ClampCalibration(key, L, L + float(theta[i]), std, float(value),
-                            identified["std"] if identified["std"] is not None else math.nan,
-                            reference,
-                            float(run.loss - result.chi2), box["dL_m"], bool(run.converged))
+    return ClampCalibration(
+        key,
+        L,
+        L + float(theta[i]),
+        std,
+        float(value),
+        identified["std"] if identified["std"] is not None else math.nan,
+        reference,
+        float(run.loss - result.chi2),
+        box["dL_m"],
+        bool(run.converged),
+    )
 
 
 def _covariance_scale(problem, result, names, start) -> float:

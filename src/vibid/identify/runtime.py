@@ -185,6 +185,8 @@ def require_x64() -> None:
     import jax
 
     if not jax.config.jax_enable_x64:
-        raise VibidError("vibid's plate model needs 64-bit JAX: call "
-                         "vibid.identify.runtime.configure() (or set JAX_ENABLE_X64=1) "
-                         "before using it")
+        raise VibidError(
+            "vibid's plate model needs 64-bit JAX: call "
+            "vibid.identify.runtime.configure() (or set JAX_ENABLE_X64=1) "
+            "before using it"
+        )

@@ -52,8 +52,9 @@ def threads() -> int:
         try:
             n = int(env)
         except ValueError:
-            raise VibidError(f"VIBID_THREADS must be a whole number of threads, got "
-                             f"{env!r}") from None
+            raise VibidError(
+                f"VIBID_THREADS must be a whole number of threads, got {env!r}"
+            ) from None
         if n < 1:
             raise VibidError(f"VIBID_THREADS must be 1 or more, got {n}")
         return n
@@ -106,6 +107,7 @@ def numpy_only(fn: Callable) -> Callable:
     """Mark ``fn`` as running no JAX code (numpy, scipy, scikit-fem only): while it runs,
     its thread lends the JAX turn to the others (module doc). Put it outside a profile's
     ``timed``: the section then counts the work, not the wait for the turn back."""
+
     @functools.wraps(fn)
     def lending(*args, **kwargs):
         with numpy_section():

@@ -23,8 +23,14 @@ from vibid.acquisition.stand_config import StandConfig
 from vibid.errors import VibidError
 from vibid.planner.design import Steps, data_std, greedy, met, sequence_settle
 from vibid.planner.information import information
-from vibid.planner.prior import (Target, check_stand_time_cap, parse_prior, parse_targets, prior_draws,
-                                 prior_std)
+from vibid.planner.prior import (
+    Target,
+    check_stand_time_cap,
+    parse_prior,
+    parse_targets,
+    prior_draws,
+    prior_std,
+)
 
 __all__ = ["Plan", "Prediction", "parse_prior", "parse_targets", "plan_test", "planned_setup"]
 
@@ -36,8 +42,8 @@ class Prediction:
     label: str
     n_steps: int
     stand_time_s: float
-    std: np.ndarray          #: (draws, p)
-    draws: np.ndarray        #: (draws, p)
+    std: np.ndarray  #: (draws, p)
+    draws: np.ndarray  #: (draws, p)
 
     def relative_std(self, j: int) -> np.ndarray:
         return self.std[:, j] / np.abs(self.draws[:, j])
@@ -51,29 +57,42 @@ class Plan:
     settle_s: np.ndarray
     record_s: np.ndarray
     planned: Prediction
-    sweep: Prediction | None   #: the setup's own stepped sine, for comparison
+    sweep: Prediction | None  #: the setup's own stepped sine, for comparison
     quantile: float
-    reached: bool              #: the targets are met in ``quantile`` of held-out draws
+    reached: bool  #: the targets are met in ``quantile`` of held-out draws
     reached_design: bool = True  #: ... of the draws the design was chosen on
 
 
-def plan_test(setup, config: StandConfig, targets, *, priors=None, band_hz=None,
-              noise: float | None = None, n_draws: int = 16, seed: int = 0,
-              quantile: float = 0.9, settle_quantile: float = 0.5, max_stand_time_s: float = 3600.0,
-              min_settle_s: float = 0.1, coarse_steps: int = 8,
-              magnitude: bool = False, n_check: int = 64) -> Plan:
+def plan_test(
+    setup,
+    config: StandConfig,
+    targets,
+    *,
+    priors=None,
+    band_hz=None,
+    noise: float | None = None,
+    n_draws: int = 16,
+    seed: int = 0,
+    quantile: float = 0.9,
+    settle_quantile: float = 0.5,
+    max_stand_time_s: float = 3600.0,
+    min_settle_s: float = 0.1,
+    coarse_steps: int = 8,
+    magnitude: bool = False,
+    n_check: int = 64,
+) -> Plan:
     """Plan the stepped sine of ``setup`` on the stand ``config`` (timing; ``noise``
-    defaults to ``config.simulated.noise``, each channel's noise relative to the base
-    amplitude). ``targets``/``priors``: parsed (:func:`parse_targets`, :func:`parse_prior`).
-    ``band_hz``: (low, high), default the setup's frequency span. The plan starts from
-    ``coarse_steps`` steps spread geometrically over the band (the identification's global
-    search finds the resonances on them), then adds the steps of most information per
-    second until the targets are met in ``quantile`` of ``n_draws`` prior draws. Each step
-settles as long as the ``settle_quantile`` of the draws needs (a step that is still ringing
-is recorded again by the campaign: the unsettled-record rule of
-:mod:`vibid.acquisition.plan`). The uncertainties it predicts, the plan's and the setup's
-sweep's, are those at ``n_check`` other draws of the prior (held out: a design fitted to
-its own draws flatters itself)."""
+        defaults to ``config.simulated.noise``, each channel's noise relative to the base
+        amplitude). ``targets``/``priors``: parsed (:func:`parse_targets`, :func:`parse_prior`).
+        ``band_hz``: (low, high), default the setup's frequency span. The plan starts from
+        ``coarse_steps`` steps spread geometrically over the band (the identification's global
+        search finds the resonances on them), then adds the steps of most information per
+        second until the targets are met in ``quantile`` of ``n_draws`` prior draws. Each step
+    settles as long as the ``settle_quantile`` of the draws needs (a step that is still ringing
+    is recorded again by the campaign: the unsettled-record rule of
+    :mod:`vibid.acquisition.plan`). The uncertainties it predicts, the plan's and the setup's
+    sweep's, are those at ``n_check`` other draws of the prior (held out: a design fitted to
+    its own draws flatters itself)."""
     from vibid.identify.model.forward import plate_model
 
     check_stand_time_cap(max_stand_time_s)
@@ -93,28 +112,46 @@ its own draws flatters itself)."""
     noise = config.simulated.noise if noise is None else noise
     priors = priors or {}
     draws = prior_draws(names, box, priors, n_draws, seed)
-    info = information(setup, names, draws, band_hz, noise=noise, extra_hz=sweep_f,
-                       magnitude=magnitude)
+    info = information(
+        setup, names, draws, band_hz, noise=noise, extra_hz=sweep_f, magnitude=magnitude
+    )
     n_cand = info.frequency_hz.size - sweep_f.size
     targeted = [names.index(t.name) for t in targets]
     t_std = np.array([[t.std_of(d[j]) for t, j in zip(targets, targeted)] for d in draws])
-    shortest = np.array([record_samples(f, fs, config.timing) / fs
-                         for f in info.frequency_hz[:n_cand]])
+    shortest = np.array(
+        [record_samples(f, fs, config.timing) / fs for f in info.frequency_hz[:n_cand]]
+    )
     P = np.diag(1.0 / prior_std(names, box, priors, draws.mean(axis=0)) ** 2)
     coarse = np.searchsorted(info.frequency_hz[:n_cand], np.geomspace(lo, hi, coarse_steps))
-    steps: Steps = greedy(info, np.arange(n_cand), shortest, t_std, targeted,
-                          np.broadcast_to(P, (len(draws),) + P.shape).copy(),
-                          floor_s=min_settle_s, cap_s=config.timing.max_settle_s,
-                          quantile=quantile, settle_quantile=settle_quantile,
-                          max_stand_time_s=max_stand_time_s,
-                          start=np.minimum(coarse, n_cand - 1))
+    steps: Steps = greedy(
+        info,
+        np.arange(n_cand),
+        shortest,
+        t_std,
+        targeted,
+        np.broadcast_to(P, (len(draws),) + P.shape).copy(),
+        floor_s=min_settle_s,
+        cap_s=config.timing.max_settle_s,
+        quantile=quantile,
+        settle_quantile=settle_quantile,
+        max_stand_time_s=max_stand_time_s,
+        start=np.minimum(coarse, n_cand - 1),
+    )
     # judged on draws the design did not see: a design fitted to its own few draws puts a
     # step on each draw's resonance and promises, at those draws, what it cannot keep at a
     # specimen between them (the truth): the prediction printed is the held-out one
     fresh = prior_draws(names, box, priors, n_check, seed + 1)
     plan_f = info.frequency_hz[steps.index]
-    check = information(setup, names, fresh, band_hz, noise=noise, magnitude=magnitude,
-                        extra_hz=np.concatenate([plan_f, sweep_f]), grid=False)
+    check = information(
+        setup,
+        names,
+        fresh,
+        band_hz,
+        noise=noise,
+        magnitude=magnitude,
+        extra_hz=np.concatenate([plan_f, sweep_f]),
+        grid=False,
+    )
     planned_std = data_std(check, np.arange(plan_f.size), steps.record_s)
     planned = Prediction("plan", len(steps.index), steps.stand_time_s, planned_std, fresh)
     sweep = None
@@ -122,15 +159,30 @@ its own draws flatters itself)."""
         # the same settle rule as the plan's (the campaign re-records a step that rings)
         idx = n_cand + np.arange(sweep_f.size)
         rec = np.array([c.record_s for c in plan_summary(setup, config).commands])
-        ringing = sequence_settle(info, idx, rec, floor_s=0.0, cap_s=config.timing.max_settle_s,
-                                  quantile=settle_quantile)
+        ringing = sequence_settle(
+            info, idx, rec, floor_s=0.0, cap_s=config.timing.max_settle_s, quantile=settle_quantile
+        )
         settle = np.maximum([exc.settle_at(i) for i in range(sweep_f.size)], ringing)
-        sweep = Prediction("setup's sweep", sweep_f.size, float(rec.sum() + settle.sum()),
-                           data_std(check, plan_f.size + np.arange(sweep_f.size), rec), fresh)
+        sweep = Prediction(
+            "setup's sweep",
+            sweep_f.size,
+            float(rec.sum() + settle.sum()),
+            data_std(check, plan_f.size + np.arange(sweep_f.size), rec),
+            fresh,
+        )
     t_fresh = np.array([[t.std_of(d[j]) for t, j in zip(targets, targeted)] for d in fresh])
-    return Plan(names, tuple(targets), plan_f, steps.settle_s, steps.record_s, planned, sweep,
-                quantile, met(planned_std, t_fresh, targeted, quantile) <= 1.0,
-                met(data_std(info, steps.index, steps.record_s), t_std, targeted, quantile) <= 1.0)
+    return Plan(
+        names,
+        tuple(targets),
+        plan_f,
+        steps.settle_s,
+        steps.record_s,
+        planned,
+        sweep,
+        quantile,
+        met(planned_std, t_fresh, targeted, quantile) <= 1.0,
+        met(data_std(info, steps.index, steps.record_s), t_std, targeted, quantile) <= 1.0,
+    )
 
 
 def planned_setup(setup, plan: Plan):
@@ -138,5 +190,6 @@ def planned_setup(setup, plan: Plan):
     from vibid.setup_model import Excitation
 
     r = lambda a: tuple(round(float(x), 6) for x in a)  # noqa: E731 - microsecond/µHz: plenty
-    return replace(setup, excitation=Excitation(r(plan.frequencies_hz), r(plan.settle_s),
-                                                r(plan.record_s)))
+    return replace(
+        setup, excitation=Excitation(r(plan.frequencies_hz), r(plan.settle_s), r(plan.record_s))
+    )

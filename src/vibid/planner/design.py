@@ -57,24 +57,46 @@ def met(std: np.ndarray, targets_std: np.ndarray, targeted, quantile: float) -> 
     return float(np.quantile(worst, quantile))
 
 
-def sequence_settle(info: Information, index, record_s, *, floor_s: float, cap_s: float,
-                    quantile: float) -> np.ndarray:
+def sequence_settle(
+    info: Information, index, record_s, *, floor_s: float, cap_s: float, quantile: float
+) -> np.ndarray:
     """Settle time of each step played in this order, s: the quantile over draws."""
     out = []
     for k, (i, T) in enumerate(zip(index, record_s)):
         prev = None if k == 0 else info.frequency_hz[index[k - 1]]
-        per_draw = [settle_s(info.frequency_hz[i], prev, info.s_1s[m, i] / np.sqrt(T), T,
-                             info.f_n[m], info.peak[m], info.beta[m])
-                     for m in range(len(info.beta))]
+        per_draw = [
+            settle_s(
+                info.frequency_hz[i],
+                prev,
+                info.s_1s[m, i] / np.sqrt(T),
+                T,
+                info.f_n[m],
+                info.peak[m],
+                info.beta[m],
+            )
+            for m in range(len(info.beta))
+        ]
         out.append(np.clip(np.quantile(per_draw, quantile), floor_s, cap_s))
     return np.asarray(out)
 
 
-def greedy(info: Information, candidates, shortest_record_s, targets_std: np.ndarray, targeted,
-           prior_information: np.ndarray, *, floor_s: float, cap_s: float, quantile: float,
-           settle_quantile: float,
-           max_stand_time_s: float, start=(), max_steps: int = 400,
-           measured: tuple = ((), ())) -> Steps:
+def greedy(
+    info: Information,
+    candidates,
+    shortest_record_s,
+    targets_std: np.ndarray,
+    targeted,
+    prior_information: np.ndarray,
+    *,
+    floor_s: float,
+    cap_s: float,
+    quantile: float,
+    settle_quantile: float,
+    max_stand_time_s: float,
+    start=(),
+    max_steps: int = 400,
+    measured: tuple = ((), ()),
+) -> Steps:
     """The steps (see the module docstring). ``candidates``: indices into ``info``;
     ``shortest_record_s`` (len(candidates),); ``targets_std`` (m, len(targeted));
     ``prior_information`` (m, p, p); ``start``: positions in ``candidates`` taken first, at
@@ -85,14 +107,28 @@ def greedy(info: Information, candidates, shortest_record_s, targets_std: np.nda
     steps at most (a batch)."""
     cand = np.asarray(candidates)
     mult = np.asarray(RECORD_MULTIPLES, float)
-    T = (np.asarray(shortest_record_s)[:, None] * mult[None, :]).ravel()       # (C,)
-    k_of = np.repeat(cand, mult.size)                                           # (C,)
-    s_T = info.s_1s[:, k_of] / np.sqrt(T)[None, :]                              # (m, C)
-    rest = np.array([[settle_s(info.frequency_hz[k], None, s_T[m, c], T[c], info.f_n[m],
-                               info.peak[m], info.beta[m]) for c, k in enumerate(k_of)]
-                     for m in range(len(info.beta))])
+    T = (np.asarray(shortest_record_s)[:, None] * mult[None, :]).ravel()  # (C,)
+    k_of = np.repeat(cand, mult.size)  # (C,)
+    s_T = info.s_1s[:, k_of] / np.sqrt(T)[None, :]  # (m, C)
+    rest = np.array(
+        [
+            [
+                settle_s(
+                    info.frequency_hz[k],
+                    None,
+                    s_T[m, c],
+                    T[c],
+                    info.f_n[m],
+                    info.peak[m],
+                    info.beta[m],
+                )
+                for c, k in enumerate(k_of)
+            ]
+            for m in range(len(info.beta))
+        ]
+    )
     cost = T + np.clip(np.quantile(rest, settle_quantile, axis=0), floor_s, cap_s)
-    F_c = fisher(info, k_of, T)                                                 # (m, C, p, p)
+    F_c = fisher(info, k_of, T)  # (m, C, p, p)
     A = prior_information.copy()
     chosen: dict[int, float] = {}
     spent = 0.0
@@ -103,12 +139,14 @@ def greedy(info: Information, candidates, shortest_record_s, targets_std: np.nda
 
     def psi(inv):  # (..., p, p) → Σ_j inv_jj / t²
         d = np.diagonal(inv, axis1=-2, axis2=-1)[..., targeted]
-        return np.sum(d / targets_std.reshape(targets_std.shape[0], *([1] * (d.ndim - 2)), -1) ** 2, axis=-1)
+        return np.sum(
+            d / targets_std.reshape(targets_std.shape[0], *([1] * (d.ndim - 2)), -1) ** 2, axis=-1
+        )
 
     m_index, m_record = (np.asarray(a) for a in measured)
     while len(chosen) < max_steps and spent < max_stand_time_s:
         now = psi(np.linalg.inv(A)).sum()
-        after = psi(np.linalg.inv(A[:, None] + F_c)).sum(axis=0)                 # (C,)
+        after = psi(np.linalg.inv(A[:, None] + F_c)).sum(axis=0)  # (C,)
         c = int(np.argmax((now - after) / cost))
         A = A + F_c[:, c]
         k = int(k_of[c])
@@ -121,5 +159,10 @@ def greedy(info: Information, candidates, shortest_record_s, targets_std: np.nda
             break
     index = np.array(sorted(chosen, key=lambda i: info.frequency_hz[i]))
     record = np.array([chosen[i] for i in index])
-    return Steps(index, record, sequence_settle(info, index, record, floor_s=floor_s,
-                                                cap_s=cap_s, quantile=settle_quantile))
+    return Steps(
+        index,
+        record,
+        sequence_settle(
+            info, index, record, floor_s=floor_s, cap_s=cap_s, quantile=settle_quantile
+        ),
+    )

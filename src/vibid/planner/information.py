@@ -43,7 +43,7 @@ class Information:
     beta: np.ndarray
 
 
-def fisher(info: "Information", index, record_s) -> np.ndarray:
+def fisher(info: Information, index, record_s) -> np.ndarray:
     """(m, n, p, p) information of steps ``index`` recorded ``record_s`` (n,) seconds."""
     var = info.s_1s[:, index] ** 2 / np.asarray(record_s, float)[None, :] + info.e[:, index] ** 2
     return info.G[:, index] / var[:, :, None, None]
@@ -70,7 +70,9 @@ def across_mode(f_n, beta, phases_deg=PHASES_DEG) -> np.ndarray:
     return f_n * np.sqrt(np.maximum(1.0 - b * t, 1e-12))
 
 
-def candidate_frequencies(band_hz, f_n: np.ndarray, beta: np.ndarray, n_grid: int = 240) -> np.ndarray:
+def candidate_frequencies(
+    band_hz, f_n: np.ndarray, beta: np.ndarray, n_grid: int = 240
+) -> np.ndarray:
     """A geometric grid over the band, and for every draw's every mode in the band, points
     across its half-power band evenly in phase (:func:`across_mode`): where the
     information may be."""
@@ -83,9 +85,21 @@ def candidate_frequencies(band_hz, f_n: np.ndarray, beta: np.ndarray, n_grid: in
     return f[(f >= lo) & (f <= hi)]
 
 
-def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
-                extra_hz=(), magnitude: bool = False, n_modes: int = 8, plate=None,
-                bounds: dict | None = None, more_hz=(), grid: bool = True) -> Information:
+def information(
+    setup,
+    names,
+    draws: np.ndarray,
+    band_hz,
+    *,
+    noise: float,
+    extra_hz=(),
+    magnitude: bool = False,
+    n_modes: int = 8,
+    plate=None,
+    bounds: dict | None = None,
+    more_hz=(),
+    grid: bool = True,
+) -> Information:
     """The information of the setup's plate over the prior's ``draws`` (m, p), at candidate
     frequencies in ``band_hz`` (and ``more_hz``, e.g. across a resonance the plate model
     does not have) followed by ``extra_hz`` (e.g. the setup's own sweep, or the steps
@@ -100,8 +114,9 @@ def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
 
     extra = np.asarray(extra_hz, float)
     f_top = max(band_hz[1], float(extra.max()) if extra.size else 0.0)
-    coarse = build_forward_model(setup, np.geomspace(band_hz[0], f_top, 64), model=plate,
-                                 bounds=bounds)
+    coarse = build_forward_model(
+        setup, np.geomspace(band_hz[0], f_top, 64), model=plate, bounds=bounds
+    )
     if tuple(coarse.parameter_names) != tuple(names):
         raise ValueError("the draws' parameters differ from the model's")
     f_n, peak = coarse.modes_batch(draws)
@@ -126,15 +141,27 @@ def information(setup, names, draws: np.ndarray, band_hz, *, noise: float,
             g = (np.conj(H)[:, None] * Jc).real / np.maximum(np.abs(H), 1e-300)[:, None]
             G = g[:, :, None] * g[:, None, :]
         else:
-            G = (np.einsum("ki,kj->kij", Jc.real, Jc.real) + np.einsum("ki,kj->kij", Jc.imag, Jc.imag))
+            G = np.einsum("ki,kj->kij", Jc.real, Jc.real) + np.einsum(
+                "ki,kj->kij", Jc.imag, Jc.imag
+            )
         s = noise_std(H, 1.0, setup.daq.sample_rate_hz, noise)
         per_s.append(G)
         dH_dD.append(Jc[:, 0])
         Hs.append(H)
         s1.append(s)
-    e = _model_error(model, np.median(draws, axis=0), np.asarray(Hs), np.asarray(dH_dD), draws[:, 0])
-    return Information(freqs, np.asarray(per_s), np.asarray(Hs), np.asarray(s1), np.asarray(e),
-                       np.asarray(f_n), np.asarray(peak), np.asarray(beta))
+    e = _model_error(
+        model, np.median(draws, axis=0), np.asarray(Hs), np.asarray(dH_dD), draws[:, 0]
+    )
+    return Information(
+        freqs,
+        np.asarray(per_s),
+        np.asarray(Hs),
+        np.asarray(s1),
+        np.asarray(e),
+        np.asarray(f_n),
+        np.asarray(peak),
+        np.asarray(beta),
+    )
 
 
 def _model_error(model, centre, H, dH_dD, D) -> np.ndarray:
@@ -142,7 +169,7 @@ def _model_error(model, centre, H, dH_dD, D) -> np.ndarray:
     parameter is the stiffness (``D`` or ``D11``)."""
     d, reduction = model.model_error_parts(centre)
     J = np.asarray(model.afc(centre + np.eye(centre.size)[0] * centre[0] * 1e-6))
-    sens = (J - np.asarray(model.afc(centre))) / 1e-6          # D ∂H/∂D at the median
+    sens = (J - np.asarray(model.afc(centre))) / 1e-6  # D ∂H/∂D at the median
     eps = float(np.real(np.vdot(sens, d)) / max(np.vdot(sens, sens).real, 1e-300))
     rel_red = float(np.max(reduction / np.maximum(np.abs(np.asarray(model.afc(centre))), 1e-300)))
     mesh = eps * np.abs(D[:, None] * dH_dD)

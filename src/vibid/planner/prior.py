@@ -38,7 +38,9 @@ class Target:
         return self.value * abs(theta_value) if self.relative else self.value
 
     def __str__(self) -> str:
-        return f"{self.name}={self.value * 100:g}%" if self.relative else f"{self.name}={self.value:g}"
+        return (
+            f"{self.name}={self.value * 100:g}%" if self.relative else f"{self.name}={self.value:g}"
+        )
 
 
 @dataclass(frozen=True)
@@ -79,10 +81,14 @@ def parse_prior(texts, names) -> dict[str, NormalPrior]:
     """``["D=17±30%", "nu=0.3+-0.05"]`` → normal priors by name."""
     out = {}
     for text in texts:
-        m = re.fullmatch(rf"\s*(\w+)\s*=\s*({_NUMBER})\s*(?:±|\+-|\+/-)\s*({_NUMBER})\s*(%?)\s*", text)
+        m = re.fullmatch(
+            rf"\s*(\w+)\s*=\s*({_NUMBER})\s*(?:±|\+-|\+/-)\s*({_NUMBER})\s*(%?)\s*", text
+        )
         if not m:
-            raise VibidError(f"--prior {text!r}: expected NAME=MEAN±STD or NAME=MEAN±STD% "
-                             "(e.g. D=17±30%; +- for ±)")
+            raise VibidError(
+                f"--prior {text!r}: expected NAME=MEAN±STD or NAME=MEAN±STD% "
+                "(e.g. D=17±30%; +- for ±)"
+            )
         name = m.group(1)
         mean, std = _finite(m.group(2), "--prior", text), _finite(m.group(3), "--prior", text)
         _known(name, names, "--prior")
@@ -90,8 +96,9 @@ def parse_prior(texts, names) -> dict[str, NormalPrior]:
             raise VibidError(f"--prior: {name} is given twice")
         std = std / 100 * abs(mean) if m.group(4) else std
         if not (std > 0 and math.isfinite(std)):
-            raise VibidError(f"--prior {text!r}: the standard deviation must be a positive "
-                             "finite number")
+            raise VibidError(
+                f"--prior {text!r}: the standard deviation must be a positive finite number"
+            )
         out[name] = NormalPrior(name, mean, std)
     return out
 
@@ -106,8 +113,9 @@ def _finite(number: str, option: str, text: str) -> float:
 
 def _known(name: str, names, option: str) -> None:
     if name not in names:
-        raise VibidError(f"{option}: {name} is not a parameter of the model "
-                         f"(its parameters: {', '.join(names)})")
+        raise VibidError(
+            f"{option}: {name} is not a parameter of the model (its parameters: {', '.join(names)})"
+        )
 
 
 def check_priors_in_box(priors: dict[str, NormalPrior], box: dict) -> None:
@@ -115,11 +123,15 @@ def check_priors_in_box(priors: dict[str, NormalPrior], box: dict) -> None:
     for p in priors.values():
         lo, hi = box[p.name]
         if not lo < p.mean < hi:
-            raise VibidError(f"--prior {p.name}: the mean {p.mean:g} is outside the setup's "
-                             f"bounds [{lo:g}, {hi:g}]")
+            raise VibidError(
+                f"--prior {p.name}: the mean {p.mean:g} is outside the setup's "
+                f"bounds [{lo:g}, {hi:g}]"
+            )
 
 
-def prior_draws(names, box: dict, priors: dict[str, NormalPrior], n: int, seed: int = 0) -> np.ndarray:
+def prior_draws(
+    names, box: dict, priors: dict[str, NormalPrior], n: int, seed: int = 0
+) -> np.ndarray:
     """(n, p) parameter vectors drawn from the prior, inside ``box``."""
     from scipy.stats import norm, qmc
 

@@ -35,7 +35,11 @@ def settle_s(f_hz, f_prev_hz, noise, record_s, f_n, peak, beta):
     if f_prev_hz is not None:
         jump = jump - one_mode(f_prev_hz, f_n, peak, beta)
     tau = 1.0 / (np.pi * f_n * beta)
-    detuning = np.pi * np.abs(np.asarray(f_hz, float)[..., None] - f_n) * np.asarray(record_s, float)[..., None]
+    detuning = (
+        np.pi
+        * np.abs(np.asarray(f_hz, float)[..., None] - f_n)
+        * np.asarray(record_s, float)[..., None]
+    )
     passed = np.minimum(1.0, 1.0 / np.maximum(detuning, 1e-300))
     ratio = passed * np.abs(jump) / (LEFT_OVER * np.asarray(noise, float)[..., None])
     return np.max(tau * np.log(np.maximum(ratio, 1.0)), axis=-1)

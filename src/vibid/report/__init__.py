@@ -32,8 +32,24 @@ from vibid.report.markdown import summary_markdown
 from vibid.report.values import Quantity, parameter_table, quantities
 
 __all__ = [
-    "FIGURES", "FORMAT", "FORMAT_VERSION", "REPORT_JSON", "REPORT_MD", "Quantity",
-    "ReportFigure", "artifact_key", "build_report", "console_summary", "draw_figures",
-    "parameter_table", "plausibility_lines", "quantities", "summary_csv", "summary_markdown",
-    "summary_row", "summary_table_markdown", "write_lab_report", "write_report",
+    "FIGURES",
+    "FORMAT",
+    "FORMAT_VERSION",
+    "REPORT_JSON",
+    "REPORT_MD",
+    "Quantity",
+    "ReportFigure",
+    "artifact_key",
+    "build_report",
+    "console_summary",
+    "draw_figures",
+    "parameter_table",
+    "plausibility_lines",
+    "quantities",
+    "summary_csv",
+    "summary_markdown",
+    "summary_row",
+    "summary_table_markdown",
+    "write_lab_report",
+    "write_report",
 ]

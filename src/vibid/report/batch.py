@@ -17,10 +17,15 @@ def summary_row(name: str, report: dict | None, *, error: str = "") -> dict[str,
     if report is None:
         return {"session": name, "status": f"failed: {error}"}
     stages = report["loop"]["stages"]
-    row: dict[str, Any] = {"session": name, "session_id": report["session_id"],
-                           "status": "ok" if report.get("identification", {}).get("converged", True)
-                           else "not converged", "model": report["model"],
-                           "effects": " ".join(e["name"] for e in report["effects"]) or "none"}
+    row: dict[str, Any] = {
+        "session": name,
+        "session_id": report["session_id"],
+        "status": "ok"
+        if report.get("identification", {}).get("converged", True)
+        else "not converged",
+        "model": report["model"],
+        "effects": " ".join(e["name"] for e in report["effects"]) or "none",
+    }
     for q in quantities(report):
         if q.source == "engineering":
             continue
@@ -54,16 +59,23 @@ def summary_table_markdown(rows: Sequence[dict]) -> str:
     """The batch summary as a markdown table: parameters as ``value ± std`` with units,
     the effects found, χ²/dof before → after."""
     params = [c for c in _columns(rows) if f"{c}_std" in _columns(rows)]
-    head = ["session", "status", "model",
-            *[p if unit_of(p) == "1" else f"{p} ({unit_of(p).replace(' ', '·')})" for p in params],
-            "effects", "χ²/dof before → after"]
+    head = [
+        "session",
+        "status",
+        "model",
+        *[p if unit_of(p) == "1" else f"{p} ({unit_of(p).replace(' ', '·')})" for p in params],
+        "effects",
+        "χ²/dof before → after",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [str(r.get("session", "")), str(r.get("status", "")), str(r.get("model", ""))]
         cells += [with_std(r[p], r.get(f"{p}_std")) if r.get(p) is not None else "" for p in params]
         cells.append(str(r.get("effects", "")))
-        cells.append(f"{chi2_text(r.get('chi2_reduced_before'))} → "
-                     f"{chi2_text(r.get('chi2_reduced_after'))}"
-                     if "chi2_reduced_before" in r else "")
+        cells.append(
+            f"{chi2_text(r.get('chi2_reduced_before'))} → {chi2_text(r.get('chi2_reduced_after'))}"
+            if "chi2_reduced_before" in r
+            else ""
+        )
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

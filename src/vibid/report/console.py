@@ -18,19 +18,22 @@ def console_summary(report: dict) -> str:
     for q in quantities(report):
         if q.source == "engineering":
             continue
-        lines.append(f"  {q.name:<20} {q.reading}"
-                     + ("" if q.source == "model" else f"   ({q.source})"))
+        lines.append(
+            f"  {q.name:<20} {q.reading}" + ("" if q.source == "model" else f"   ({q.source})")
+        )
     names = [e["name"] for e in report["effects"]]
     if names:
-        lines.append("effects found: " + ", ".join(
-            f"{n} ({meaning_of(n)})" for n in names))
+        lines.append("effects found: " + ", ".join(f"{n} ({meaning_of(n)})" for n in names))
     elif report["loop"]["unexplained_residual"]:
-        lines.append("effects found: none, and the residual is above the noise "
-                     "(unexplained_residual)")
+        lines.append(
+            "effects found: none, and the residual is above the noise (unexplained_residual)"
+        )
     else:
         lines.append("effects found: none needed (the declared model fits to the noise level)")
-    lines.append(f"chi2/dof: {chi2_text(stages[0]['chi2_reduced'])} (declared model) -> "
-                 f"{chi2_text(stages[-1]['chi2_reduced'])} (final)")
+    lines.append(
+        f"chi2/dof: {chi2_text(stages[0]['chi2_reduced'])} (declared model) -> "
+        f"{chi2_text(stages[-1]['chi2_reduced'])} (final)"
+    )
     lines += plausibility_lines(report)
     return "\n".join(lines)
 
@@ -41,7 +44,9 @@ def plausibility_lines(report: dict) -> list[str]:
     reference specimen says of the clamp (:mod:`vibid.identify.reference`); then, one line
     each, the stages the report could not do (:func:`vibid.report.not_done.not_done_lines`)."""
     pl = report.get("plausibility") or {}
-    return ([f"NOT PHYSICAL: {v}" for v in pl.get("violations", [])]
-            + [f"implausible: {v}" for v in pl.get("outside_handbook", [])]
-            + ([report["reference"]["note"]] if "reference" in report else [])
-            + not_done_lines(report))
+    return (
+        [f"NOT PHYSICAL: {v}" for v in pl.get("violations", [])]
+        + [f"implausible: {v}" for v in pl.get("outside_handbook", [])]
+        + ([report["reference"]["note"]] if "reference" in report else [])
+        + not_done_lines(report)
+    )

@@ -75,9 +75,11 @@ def free_length_share(result) -> str | None:
         return None
     share = C[i, j] ** 2 / (C[i, i] * C[j, j])
     known = math.sqrt(max(C[i, i] * (1.0 - share), 0.0))
-    return (f"free_length: dL carries {100 * share:.0f} % of the variance of {stiff} (and so "
-            f"of E): with dL known, {stiff}'s std would be {known:.3g} instead of "
-            f"{math.sqrt(C[i, i]):.3g} N m")
+    return (
+        f"free_length: dL carries {100 * share:.0f} % of the variance of {stiff} (and so "
+        f"of E): with dL known, {stiff}'s std would be {known:.3g} instead of "
+        f"{math.sqrt(C[i, i]):.3g} N m"
+    )
 
 
 def plausibility_block(model: str, result, constants: dict, setup, loop) -> tuple[dict, list]:
@@ -87,20 +89,30 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
     from vibid.identify.plausibility import plausibility
 
     sp = setup.specimen
-    found = plausibility(model, result.parameters, result.parameter_std,
-                         constants,
-                         specimen_name=sp.name, material=sp.material, specimen=sp,
-                         sensor=setup.sensors.response)
+    found = plausibility(
+        model,
+        result.parameters,
+        result.parameter_std,
+        constants,
+        specimen_name=sp.name,
+        material=sp.material,
+        specimen=sp,
+        sensor=setup.sensors.response,
+    )
     if loop is None:
         tried = " (the closed loop did not run)"
     else:
         names = sorted({s.name for rnd in loop.rounds for s in rnd})
-        tried = (f" (the closed loop tried {', '.join(names) or 'no candidate'}"
-                 f" and added {', '.join(loop.effects) or 'none'})")
-    block = {"material_class": found.material_class,
-             "violations": [v + tried for v in found.violations],
-             "outside_handbook": list(found.outside_handbook),
-             "inside_handbook": list(found.inside_handbook)}
+        tried = (
+            f" (the closed loop tried {', '.join(names) or 'no candidate'}"
+            f" and added {', '.join(loop.effects) or 'none'})"
+        )
+    block = {
+        "material_class": found.material_class,
+        "violations": [v + tried for v in found.violations],
+        "outside_handbook": list(found.outside_handbook),
+        "inside_handbook": list(found.inside_handbook),
+    }
     return block, block["violations"] + block["outside_handbook"]
 
 
@@ -116,8 +128,10 @@ def linearity_block(result, tests=None) -> list[dict]:
         if result.magnitude:
             return []
         std = None if result.H_std is None else np.asarray(result.H_std)
-        tests = [replace(t, left_out_hz=None)
-                 for t in linear_part(result.frequency_hz, result.H, std, result.used)[1]]
+        tests = [
+            replace(t, left_out_hz=None)
+            for t in linear_part(result.frequency_hz, result.H, std, result.used)[1]
+        ]
     return [t.as_report() for t in tests]
 
 
@@ -156,8 +170,11 @@ def _loop_block(loop) -> tuple[list, dict]:
             entry["instance"] = t.instance
         entry["parameters"] = {
             (split_instance(q.name)[0] if t.instance is not None else q.name): {
-                "value": _num(final.parameters[q.name]), "std": _num(std[q.name])}
-            for q in t.parameters}
+                "value": _num(final.parameters[q.name]),
+                "std": _num(std[q.name]),
+            }
+            for q in t.parameters
+        }
         effects.append(entry)
     stages = []
     for st in loop.stages:
@@ -166,21 +183,40 @@ def _loop_block(loop) -> tuple[list, dict]:
         if st.alternatives:
             block["alternatives"] = [
                 {k: (_num(v) if isinstance(v, float) else v) for k, v in a.items()}
-                for a in st.alternatives]
+                for a in st.alternatives
+            ]
         stages.append(block)
-    rounds = [[{"candidate": sc.name, "score": _num(sc.score), "dof": sc.dof,
-                "p_value": _num(sc.p_value), "collinearity": _num(sc.collinearity),
-                "delta_chi2": _num(sc.delta_chi2), "kept": sc.kept,
-                "log_evidence": _num(sc.log_evidence), "probability": _num(sc.probability),
+    rounds = [
+        [
+            {
+                "candidate": sc.name,
+                "score": _num(sc.score),
+                "dof": sc.dof,
+                "p_value": _num(sc.p_value),
+                "collinearity": _num(sc.collinearity),
+                "delta_chi2": _num(sc.delta_chi2),
+                "kept": sc.kept,
+                "log_evidence": _num(sc.log_evidence),
+                "probability": _num(sc.probability),
                 "estimated": sc.estimated,
-                "verdict": sc.verdict.value, "note": sc.note}
-               for sc in rnd] for rnd in loop.rounds]
-    block = {"stages": stages, "unexplained_residual": bool(loop.unexplained_residual),
-             "criterion": loop.criterion,
-             "rounds": rounds, "seconds": _num(loop.seconds)}
+                "verdict": sc.verdict.value,
+                "note": sc.note,
+            }
+            for sc in rnd
+        ]
+        for rnd in loop.rounds
+    ]
+    block = {
+        "stages": stages,
+        "unexplained_residual": bool(loop.unexplained_residual),
+        "criterion": loop.criterion,
+        "rounds": rounds,
+        "seconds": _num(loop.seconds),
+    }
     if any(st.diagnosis is not None for st in loop.stages):
-        block["diagnosis"] = [[] if st.diagnosis is None else st.diagnosis.as_report()
-                              for st in loop.stages]
+        block["diagnosis"] = [
+            [] if st.diagnosis is None else st.diagnosis.as_report() for st in loop.stages
+        ]
     return effects, block
 
 
@@ -193,9 +229,13 @@ def discretisation_block(result) -> dict[str, Any] | None:
     info, bias = getattr(result, "discretisation", None), result.model_error_bias
     if info is None or bias is None:
         return None
-    return {"meshes": list(info.meshes), "order": _num(info.order), "factor": _num(info.factor),
-            "limited": bool(info.limited),
-            "bias": {n: _num(b) for n, b in zip(result.parameter_names, bias)}}
+    return {
+        "meshes": list(info.meshes),
+        "order": _num(info.order),
+        "factor": _num(info.factor),
+        "limited": bool(info.limited),
+        "bias": {n: _num(b) for n, b in zip(result.parameter_names, bias)},
+    }
 
 
 def fit_constants(setup, result) -> dict:
@@ -206,14 +246,28 @@ def fit_constants(setup, result) -> dict:
 
     model = getattr(result.plate_model, "model", None) or result.model
     sp = setup.specimen
-    return engineering_constants(model, result.parameter_names, result.values,
-                                 result.covariance, sp.thickness_m,
-                                 getattr(sp, "thickness_std_m", None) or 0.0)
+    return engineering_constants(
+        model,
+        result.parameter_names,
+        result.values,
+        result.covariance,
+        sp.thickness_m,
+        getattr(sp, "thickness_std_m", None) or 0.0,
+    )
 
 
-def build_report(result, *, session_id: str = "", declared_model: str | None = None,
-                 afc: dict | None = None, loop=None, setup=None,
-                 linearity=None, reference=None, not_done=()) -> dict[str, Any]:
+def build_report(
+    result,
+    *,
+    session_id: str = "",
+    declared_model: str | None = None,
+    afc: dict | None = None,
+    loop=None,
+    setup=None,
+    linearity=None,
+    reference=None,
+    not_done=(),
+) -> dict[str, Any]:
     """The report of one identification: with ``loop`` (a
     :class:`~vibid.identify.loop.LoopResult`) every stage of the closed loop and the
     effects it added, ``result`` then being its final stage; without, the declared model
@@ -241,20 +295,26 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
     effect_params = set()
     if loop is not None:
         effect_params = {q.name for t in _effect_terms(loop) for q in t.parameters}
-    params = {n: {"value": _num(v), "std": _num(s)}
-              for n, v, s in zip(result.parameter_names, result.values, result.std)
-              if n not in effect_params}
+    params = {
+        n: {"value": _num(v), "std": _num(s)}
+        for n, v, s in zip(result.parameter_names, result.values, result.std)
+        if n not in effect_params
+    }
     warnings = list(result.warnings) + (list(loop.warnings) if loop is not None else [])
     shared = free_length_share(result)
     if shared:
         warnings.append(shared)
     if not result.noise_known:
-        warnings.append("the AFC's uncertainty is unknown: the fit cannot be tested against "
-                        "the noise (unexplained_residual is false by default)")
+        warnings.append(
+            "the AFC's uncertainty is unknown: the fit cannot be tested against "
+            "the noise (unexplained_residual is false by default)"
+        )
     if loop is None:
         effects = []
-        loop_block = {"stages": [_stage_block(None, result)],
-                      "unexplained_residual": unexplained(result)}
+        loop_block = {
+            "stages": [_stage_block(None, result)],
+            "unexplained_residual": unexplained(result),
+        }
     else:
         effects, loop_block = _loop_block(loop)
     model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
@@ -269,19 +329,22 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
 
         block = attempt("uncertainty budget", not_done, engineering_budget, setup, result, loop)
         if block is None:  # the constants with the fit's std alone
-            block = attempt("engineering constants", not_done, fit_constants, setup, result,
-                            default={})
+            block = attempt(
+                "engineering constants", not_done, fit_constants, setup, result, default={}
+            )
         if block:
             budget, notes = block.pop("budget", None), block.pop("notes", [])
-            extra["engineering"] = {k: {"value": _num(v["value"]),
-                                        "std": None if v["std"] is None else _num(v["std"])}
-                                    for k, v in block.items()}
+            extra["engineering"] = {
+                k: {"value": _num(v["value"]), "std": None if v["std"] is None else _num(v["std"])}
+                for k, v in block.items()
+            }
             if budget is not None:
                 extra["engineering"]["budget"] = {
-                    k: {part: _num(u) for part, u in parts.items()}
-                    for k, parts in budget.items()}
-        found = attempt("plausibility", not_done, plausibility_block, model, result, block,
-                        setup, loop)
+                    k: {part: _num(u) for part, u in parts.items()} for k, parts in budget.items()
+                }
+        found = attempt(
+            "plausibility", not_done, plausibility_block, model, result, block, setup, loop
+        )
         if found is not None:
             extra["plausibility"], said = found
             warnings.extend(said)
@@ -308,28 +371,45 @@ def build_report(result, *, session_id: str = "", declared_model: str | None = N
             "data": "magnitude" if result.magnitude else "complex",
             "chi2": _num(result.chi2),
             "chi2_reduced_data_weights": _num(result.chi2_reduced_data_weights),
-            "model_error_std": None if result.model_error_bias is None else {
-                n: _num(abs(b)) for n, b in zip(result.parameter_names, result.model_error_bias)},
+            "model_error_std": None
+            if result.model_error_bias is None
+            else {n: _num(abs(b)) for n, b in zip(result.parameter_names, result.model_error_bias)},
             "discretisation": discretisation_block(result),
             "dof": int(result.dof),
             "parameter_names": list(result.parameter_names),
             "covariance": [_nums(row) for row in result.covariance],
             "correlation": [_nums(row) for row in result.correlation],
-            "global_search": None if g is None else {
+            "global_search": None
+            if g is None
+            else {
                 "restart_best": [dict(zip(result.parameter_names, _nums(t))) for t in g.theta],
                 "restart_loss": _nums(g.loss),
                 "evaluations": int(g.n_evaluations),
             },
-            "local_runs": [{"method": r.method, "status": r.status.value, "message": r.message,
-                            "chi2": _num(r.loss), "iterations": r.n_iterations}
-                           for r in result.local_results[:10]],
+            "local_runs": [
+                {
+                    "method": r.method,
+                    "status": r.status.value,
+                    "message": r.message,
+                    "chi2": _num(r.loss),
+                    "iterations": r.n_iterations,
+                }
+                for r in result.local_results[:10]
+            ],
             "seconds": _num(result.seconds),
             # the engineering constants' budget in words: each one's largest part
             "uncertainty_notes": list(notes),
-        } | ({} if result.magnitude_only_std_ratio is None else {
-            # each std over the complex fit's of the same points (both Fisher informations)
-            "magnitude_only_std_ratio": {n: _num(v) for n, v in
-                                         result.magnitude_only_std_ratio.items()}}),
+        }
+        | (
+            {}
+            if result.magnitude_only_std_ratio is None
+            else {
+                # each std over the complex fit's of the same points (both Fisher informations)
+                "magnitude_only_std_ratio": {
+                    n: _num(v) for n, v in result.magnitude_only_std_ratio.items()
+                }
+            }
+        ),
     }
 
 
@@ -356,7 +436,9 @@ def write_report(report: dict, path) -> None:
         if tmp is not None and os.path.exists(tmp):
             os.remove(tmp)
         if isinstance(exc, OSError):
-            raise VibidError(f"{os.fspath(path)}: cannot write the report ({exc.strerror or exc})") from None
+            raise VibidError(
+                f"{os.fspath(path)}: cannot write the report ({exc.strerror or exc})"
+            ) from None
         raise
 
 

@@ -78,8 +78,11 @@ def fine_model(setup, result, *, n_points: int = FINE_POINTS):
 def values_text(report: dict) -> str:
     """The identified values with units, one a line, for the AFC figure's box (the
     engineering constants in Pa only)."""
-    return "\n".join(f"{q.name:>7} = {q.reading}" for q in quantities(report)
-                     if q.source != "engineering" or q.name.endswith("_Pa"))
+    return "\n".join(
+        f"{q.name:>7} = {q.reading}"
+        for q in quantities(report)
+        if q.source != "engineering" or q.name.endswith("_Pa")
+    )
 
 
 def _flagged(afc) -> list:
@@ -104,14 +107,29 @@ def _stage_residual(label, result, diagnosis=None):
     from vibid.report.plots import StageResidual
 
     u = np.asarray(result.used, bool)
-    w = (np.asarray(result.H_std)[u] if result.H_std is not None
-         else result.weights if result.weights is not None else np.ones(int(u.sum())))
+    w = (
+        np.asarray(result.H_std)[u]
+        if result.H_std is not None
+        else result.weights
+        if result.weights is not None
+        else np.ones(int(u.sum()))
+    )
     r = (np.asarray(result.H)[u] - np.asarray(result.model_afc)[u]) / np.asarray(w, float)
-    features = tuple((float(f.f_hz), f"{f.kind} {f.f_hz:.4g} Hz")
-                     for f in getattr(diagnosis, "features", ()) if np.isfinite(f.f_hz))
+    features = tuple(
+        (float(f.f_hz), f"{f.kind} {f.f_hz:.4g} Hz")
+        for f in getattr(diagnosis, "features", ())
+        if np.isfinite(f.f_hz)
+    )
     trend = "; ".join(f.note for f in getattr(diagnosis, "features", ()) if f.kind == "trend")
-    return StageResidual(label, np.asarray(result.frequency_hz, float)[u], r.real, r.imag,
-                         float(result.chi2_reduced_reported), features, trend)
+    return StageResidual(
+        label,
+        np.asarray(result.frequency_hz, float)[u],
+        r.real,
+        r.imag,
+        float(result.chi2_reduced_reported),
+        features,
+        trend,
+    )
 
 
 def _stages(identified) -> list[tuple[str, Any, Any]]:
@@ -132,14 +150,23 @@ def draw_afc(source: Source):
     grid, Hm, natural = fine_model(data.setup, source.identified.result)
     name = data.setup.specimen.name or "specimen"
     return afc_figure(
-        np.asarray(measured.frequency_hz)[used], np.asarray(measured.H)[used],
+        np.asarray(measured.frequency_hz)[used],
+        np.asarray(measured.H)[used],
         None if measured.std is None else np.asarray(measured.std)[used],
-        model_frequency_hz=grid, model_H=Hm, natural_hz=natural, flagged=_flagged(measured),
+        model_frequency_hz=grid,
+        model_H=Hm,
+        natural_hz=natural,
+        flagged=_flagged(measured),
         values_text=values_text(report),
-        left_out_hz=[t.left_out_hz for t in getattr(source.identified, "linearity", ())
-                     if t.left_out_hz is not None],
+        left_out_hz=[
+            t.left_out_hz
+            for t in getattr(source.identified, "linearity", ())
+            if t.left_out_hz is not None
+        ],
         title=f"{name}: measured AFC and the identified model ({report['model']}"
-              + "".join(f" + {e['name']}" for e in report["effects"]) + ")")
+        + "".join(f" + {e['name']}" for e in report["effects"])
+        + ")",
+    )
 
 
 def draw_residuals(source: Source):
@@ -148,7 +175,8 @@ def draw_residuals(source: Source):
 
     return residual_figure(
         [_stage_residual(label, r, d) for label, r, d in _stages(source.identified)],
-        title="normalised residual (measured − model) / std, loop stage by stage")
+        title="normalised residual (measured − model) / std, loop stage by stage",
+    )
 
 
 def draw_convergence(source: Source):
@@ -156,8 +184,10 @@ def draw_convergence(source: Source):
     history."""
     from vibid.report.plots import convergence_figure
 
-    histories = [(label, [[h.loss for h in run.history] for run in r.local_results])
-                 for label, r, _ in _stages(source.identified)]
+    histories = [
+        (label, [[h.loss for h in run.history] for run in r.local_results])
+        for label, r, _ in _stages(source.identified)
+    ]
     if not any(len(h) for _, runs in histories for h in runs):
         return None
     return convergence_figure(histories, title="local optimiser: χ² per iteration")
@@ -165,13 +195,24 @@ def draw_convergence(source: Source):
 
 #: The report's figures, in the order report.md and the Prefect UI show them.
 FIGURES: tuple[ReportFigure, ...] = (
-    ReportFigure("afc.png", "Measured AFC (±2 std) and the identified model on a fine grid; "
-                 "natural frequencies dotted, flagged steps crossed, bands left out of the "
-                 "fit shaded", draw_afc),
-    ReportFigure("residuals.png",
-                 "Normalised residual with its ±2 band, before and after each effect", draw_residuals),
-    ReportFigure("convergence.png", "The local optimiser's χ² per iteration", draw_convergence,
-                 absent="(No convergence figure: the optimiser recorded no iteration history.)"),
+    ReportFigure(
+        "afc.png",
+        "Measured AFC (±2 std) and the identified model on a fine grid; "
+        "natural frequencies dotted, flagged steps crossed, bands left out of the "
+        "fit shaded",
+        draw_afc,
+    ),
+    ReportFigure(
+        "residuals.png",
+        "Normalised residual with its ±2 band, before and after each effect",
+        draw_residuals,
+    ),
+    ReportFigure(
+        "convergence.png",
+        "The local optimiser's χ² per iteration",
+        draw_convergence,
+        absent="(No convergence figure: the optimiser recorded no iteration history.)",
+    ),
 )
 
 
@@ -185,16 +226,30 @@ def draw_figures(data, identified, report: dict, not_done: list | None = None) -
     if not_done is None:
         drawn = {fig.file: fig.draw(source) for fig in FIGURES}
     else:
-        drawn = {fig.file: attempt("figures", not_done, fig.draw, source, about=fig.file)
-                 for fig in FIGURES}
+        drawn = {
+            fig.file: attempt("figures", not_done, fig.draw, source, about=fig.file)
+            for fig in FIGURES
+        }
     return {file: fig for file, fig in drawn.items() if fig is not None}
 
 
 #: Characters of a caption its image's alt text leaves out or replaces: markdown would
 #: read them as syntax, HTML escapes them (the Prefect UI showed ``optimiser&#39;s``).
-_ALT_REPLACED = str.maketrans({"'": "’", "&": "and", '"': None, "<": None, ">": None,
-                               "[": None, "]": None, "*": None, "_": None, "`": None,
-                               "\\": None})
+_ALT_REPLACED = str.maketrans(
+    {
+        "'": "’",
+        "&": "and",
+        '"': None,
+        "<": None,
+        ">": None,
+        "[": None,
+        "]": None,
+        "*": None,
+        "_": None,
+        "`": None,
+        "\\": None,
+    }
+)
 
 
 def alt_text(caption: str) -> str:

@@ -18,8 +18,14 @@ REPORT_MD = "report.md"
 REPORT_JSON = "report.json"
 
 
-def write_lab_report(report_dir: str | os.PathLike, data, identified, report: dict, *,
-                     session_path: str | None = None) -> dict[str, str]:
+def write_lab_report(
+    report_dir: str | os.PathLike,
+    data,
+    identified,
+    report: dict,
+    *,
+    session_path: str | None = None,
+) -> dict[str, str]:
     """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``
     (created); return their paths by file name. Figures that cannot be drawn, or a
     report.md that cannot be made, are left out in one line of ``report``'s ``not_done``
@@ -27,13 +33,21 @@ def write_lab_report(report_dir: str | os.PathLike, data, identified, report: di
     os.makedirs(report_dir, exist_ok=True)
     paths = {}
     not_done = report.setdefault(NOT_DONE, [])
-    figs = attempt("figures", not_done, draw_figures, data, identified, report, not_done,
-                   default={})
+    figs = attempt(
+        "figures", not_done, draw_figures, data, identified, report, not_done, default={}
+    )
     for name, fig in figs.items():
         paths[name] = save_png(fig, os.path.join(report_dir, name))
     name = data.setup.specimen.name or "specimen"
-    text = attempt("report.md", not_done, summary_markdown, report, figures=list(figs),
-                   session_path=session_path, title=f"{name}: identification report")
+    text = attempt(
+        "report.md",
+        not_done,
+        summary_markdown,
+        report,
+        figures=list(figs),
+        session_path=session_path,
+        title=f"{name}: identification report",
+    )
     if text is not None:
         paths[REPORT_MD] = os.path.join(report_dir, REPORT_MD)
         with open(paths[REPORT_MD], "w", encoding="utf-8") as fh:

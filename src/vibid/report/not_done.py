@@ -61,12 +61,15 @@ def attempt(stage: str, not_done: list, fn, *args, default=None, about: str = ""
         return fn(*args, **kwargs)
     except Exception as exc:  # the fit's result stays; the report says why
         log.debug("report stage %r could not be done", stage, exc_info=True)
-        not_done.append({"stage": stage,
-                         "reason": f"{about}: {reason(exc)}" if about else reason(exc)})
+        not_done.append(
+            {"stage": stage, "reason": f"{about}: {reason(exc)}" if about else reason(exc)}
+        )
         return default
 
 
 def not_done_lines(report: dict) -> list[str]:
     """One console line per stage the report could not do (its ``not_done``)."""
-    return [f"not done: {e['stage']} ({STAGES.get(e['stage'], 'left out')}): {e['reason']}"
-            for e in report.get(NOT_DONE) or ()]
+    return [
+        f"not done: {e['stage']} ({STAGES.get(e['stage'], 'left out')}): {e['reason']}"
+        for e in report.get(NOT_DONE) or ()
+    ]

@@ -56,10 +56,19 @@ def phase_near(phase_rad, reference_rad):
     return phase_rad - 2 * np.pi * np.round((phase_rad - reference_rad) / (2 * np.pi))
 
 
-def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
-               natural_hz: Sequence[float] = (), flagged: Sequence[Flagged] = (),
-               values_text: str = "", title: str = "",
-               left_out_hz: Sequence[tuple[float, float]] = ()):
+def afc_figure(
+    frequency_hz,
+    H,
+    std,
+    *,
+    model_frequency_hz,
+    model_H,
+    natural_hz: Sequence[float] = (),
+    flagged: Sequence[Flagged] = (),
+    values_text: str = "",
+    title: str = "",
+    left_out_hz: Sequence[tuple[float, float]] = (),
+):
     """|H| and phase against frequency: the measured points with ±2 std error bars (their
     standard uncertainty per real and imaginary part, ``std``; None if unknown), the model
     as a line on its own (fine) grid ``model_frequency_hz``, the model's natural
@@ -83,31 +92,66 @@ def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
     ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
 
     ax_mag.semilogy(fm, np.abs(Hm), "-", color="C1", lw=1.2, label="identified model")
-    ax_mag.errorbar(f, np.abs(H), yerr=2 * s, fmt="o", ms=3, color="C0", elinewidth=0.9,
-                    capsize=2, label="measured (±2 std)")
+    ax_mag.errorbar(
+        f,
+        np.abs(H),
+        yerr=2 * s,
+        fmt="o",
+        ms=3,
+        color="C0",
+        elinewidth=0.9,
+        capsize=2,
+        label="measured (±2 std)",
+    )
     ph = phase_near(np.angle(H), np.interp(f, fm, ph_model))
     ph_err = 2 * s / np.maximum(np.abs(H), 1e-300)
     ax_ph.plot(fm, np.degrees(ph_model), "-", color="C1", lw=1.2)
-    ax_ph.errorbar(f, np.degrees(ph), yerr=np.degrees(ph_err), fmt="o", ms=3, color="C0",
-                   elinewidth=0.9, capsize=2)
+    ax_ph.errorbar(
+        f,
+        np.degrees(ph),
+        yerr=np.degrees(ph_err),
+        fmt="o",
+        ms=3,
+        color="C0",
+        elinewidth=0.9,
+        capsize=2,
+    )
     for i, fx in enumerate(flagged):
         p = phase_near(np.angle(fx.H), np.interp(fx.frequency_hz, fm, ph_model))
         kw = {"label": "flagged, not used"} if i == 0 else {}
         ax_mag.plot(fx.frequency_hz, max(abs(fx.H), 1e-300), "x", color="C3", ms=7, mew=1.5, **kw)
-        ax_mag.annotate(fx.label, (fx.frequency_hz, max(abs(fx.H), 1e-300)), fontsize=7,
-                        color="C3", xytext=(3, 6), textcoords="offset points")
+        ax_mag.annotate(
+            fx.label,
+            (fx.frequency_hz, max(abs(fx.H), 1e-300)),
+            fontsize=7,
+            color="C3",
+            xytext=(3, 6),
+            textcoords="offset points",
+        )
         ax_ph.plot(fx.frequency_hz, np.degrees(p), "x", color="C3", ms=7, mew=1.5)
     for i, (lo, hi) in enumerate(left_out_hz):
         for ax in (ax_mag, ax_ph):
-            kw = {"label": "left out of the fit (response depends on its amplitude)"} if (
-                i == 0 and ax is ax_mag) else {}
+            kw = (
+                {"label": "left out of the fit (response depends on its amplitude)"}
+                if (i == 0 and ax is ax_mag)
+                else {}
+            )
             ax.axvspan(lo, hi, color="0.85", zorder=0, **kw)
     for k, fn in enumerate(natural_hz, start=1):
         for ax in (ax_mag, ax_ph):
             ax.axvline(fn, color="0.5", ls=":", lw=0.9)
-        ax_mag.annotate(f"f{k} = {fn:.4g} Hz", (fn, 1.0), xycoords=("data", "axes fraction"),
-                        rotation=90, fontsize=7, color="0.35", va="top", ha="right",
-                        xytext=(-2, -3), textcoords="offset points")
+        ax_mag.annotate(
+            f"f{k} = {fn:.4g} Hz",
+            (fn, 1.0),
+            xycoords=("data", "axes fraction"),
+            rotation=90,
+            fontsize=7,
+            color="0.35",
+            va="top",
+            ha="right",
+            xytext=(-2, -3),
+            textcoords="offset points",
+        )
     ax_mag.set_ylabel(f"|H| ({H_UNIT})")
     ax_mag.grid(True, which="both", alpha=0.3)
     ax_mag.legend(loc="lower left", fontsize=8)
@@ -119,9 +163,16 @@ def afc_figure(frequency_hz, H, std, *, model_frequency_hz, model_H,
     if values_text:
         # beside the axes, never over the data
         fig.tight_layout(rect=(0, 0, 0.74, 1))
-        fig.text(0.75, 0.9, "identified\n" + values_text, ha="left", va="top", fontsize=8,
-                 family="monospace",
-                 bbox={"boxstyle": "round", "fc": "white", "ec": "0.6", "alpha": 0.9})
+        fig.text(
+            0.75,
+            0.9,
+            "identified\n" + values_text,
+            ha="left",
+            va="top",
+            fontsize=8,
+            family="monospace",
+            bbox={"boxstyle": "round", "fc": "white", "ec": "0.6", "alpha": 0.9},
+        )
     else:
         fig.tight_layout()
     return fig
@@ -140,15 +191,31 @@ def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
         ax.plot(st.frequency_hz, st.im, "s-", ms=3, lw=0.7, color="C1", label="Im")
         ax.axhline(0, color="0.4", lw=0.6)
         for k, (f_hz, text) in enumerate(st.features):
-            ax.axvline(f_hz, color="C3", lw=1.0, ls="--",
-                       label="diagnosed feature" if k == 0 else None)
-            ax.annotate(text, (f_hz, 1.0), xycoords=("data", "axes fraction"),
-                        rotation=90, va="top", ha="right", fontsize=7, color="C3")
+            ax.axvline(
+                f_hz, color="C3", lw=1.0, ls="--", label="diagnosed feature" if k == 0 else None
+            )
+            ax.annotate(
+                text,
+                (f_hz, 1.0),
+                xycoords=("data", "axes fraction"),
+                rotation=90,
+                va="top",
+                ha="right",
+                fontsize=7,
+                color="C3",
+            )
         if st.trend:
             # wrapped to the panel and kept out of the layout: a long note laid out as one
             # line squeezed every panel to a sliver
-            note = ax.text(0.02, 0.02, textwrap.fill("trend: " + st.trend, 62),
-                           transform=ax.transAxes, fontsize=7, color="C3", va="bottom")
+            note = ax.text(
+                0.02,
+                0.02,
+                textwrap.fill("trend: " + st.trend, 62),
+                transform=ax.transAxes,
+                fontsize=7,
+                color="C3",
+                va="bottom",
+            )
             note.set_in_layout(False)
         if np.nanmax(np.abs(np.concatenate([st.re, st.im])), initial=0.0) > 20:
             # linear within the band, logarithmic beyond: a misfit of thousands of std and
@@ -165,8 +232,7 @@ def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
     return fig
 
 
-def convergence_figure(stages: Sequence[tuple[str, Sequence[Sequence[float]]]], *,
-                       title: str = ""):
+def convergence_figure(stages: Sequence[tuple[str, Sequence[Sequence[float]]]], *, title: str = ""):
     """χ² against iteration of the local optimiser: per loop stage (label, the loss
     histories of its local runs, the run that gave the answer first), one panel each."""
     n = max(1, len(stages))
@@ -181,8 +247,9 @@ def convergence_figure(stages: Sequence[tuple[str, Sequence[Sequence[float]]]], 
             if i == 0:
                 ax.semilogy(it, losses, "o-", ms=3, lw=1.5, color="C0", label="answer")
             else:
-                ax.semilogy(it, losses, "-", lw=0.8, color="0.6",
-                            label="other starts" if i == 1 else None)
+                ax.semilogy(
+                    it, losses, "-", lw=0.8, color="0.6", label="other starts" if i == 1 else None
+                )
         ax.set_title(label, fontsize=9)
         ax.set_xlabel("iteration (count)")
         ax.set_ylabel("χ² (dimensionless)")
@@ -214,4 +281,3 @@ def save_png(fig, path: str | os.PathLike, *, dpi: int = 110) -> str:
     """Write ``fig`` as a PNG; return its path."""
     fig.savefig(path, dpi=dpi, format="png")
     return os.fspath(path)
-

@@ -104,17 +104,34 @@ class Quantity:
 def quantities(report: dict) -> list[Quantity]:
     """Every identified quantity of ``report``: the model's parameters, the effects'
     parameters, the engineering constants, in that order."""
-    rows = [Quantity(n, p["value"], p["std"], unit_of(n), "model")
-            for n, p in report["parameters"].items()]
-    rows += [Quantity(flat_name(e, n), p["value"], p["std"], unit_of(n), e["name"])
-             for e in report["effects"] for n, p in e["parameters"].items()]
-    rows += [Quantity(n, p["value"], p["std"], unit_of(n), "engineering")
-             for n, p in engineering_of(report).items()]
+    rows = [
+        Quantity(n, p["value"], p["std"], unit_of(n), "model")
+        for n, p in report["parameters"].items()
+    ]
+    rows += [
+        Quantity(flat_name(e, n), p["value"], p["std"], unit_of(n), e["name"])
+        for e in report["effects"]
+        for n, p in e["parameters"].items()
+    ]
+    rows += [
+        Quantity(n, p["value"], p["std"], unit_of(n), "engineering")
+        for n, p in engineering_of(report).items()
+    ]
     return rows
 
 
 def parameter_table(report: dict) -> list[dict[str, Any]]:
     """The Prefect UI's parameter table: one row per :func:`quantities` entry, with its
     meaning and ``value ± std`` as report.md writes them, and the bare numbers (SI units)."""
-    return [{"quantity": q.name, "meaning": q.meaning, "value ± std": q.text, "unit": q.unit,
-             "source": q.source, "value": q.value, "std": q.std} for q in quantities(report)]
+    return [
+        {
+            "quantity": q.name,
+            "meaning": q.meaning,
+            "value ± std": q.text,
+            "unit": q.unit,
+            "source": q.source,
+            "value": q.value,
+            "std": q.std,
+        }
+        for q in quantities(report)
+    ]

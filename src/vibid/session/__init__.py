@@ -10,6 +10,16 @@ from vibid.session.validate import Problem, file_problems
 from vibid.session.writer import SessionWriter, utc_now
 
 __all__ = [
-    "FORMAT", "FORMAT_VERSION", "STEP_STATUSES", "Session", "SessionFileError", "Step",
-    "load_setup", "read_session", "Problem", "file_problems", "SessionWriter", "utc_now",
+    "FORMAT",
+    "FORMAT_VERSION",
+    "STEP_STATUSES",
+    "Session",
+    "SessionFileError",
+    "Step",
+    "load_setup",
+    "read_session",
+    "Problem",
+    "file_problems",
+    "SessionWriter",
+    "utc_now",
 ]

@@ -81,8 +81,9 @@ def run_status_of(attrs, n_steps: int, n_frequencies: int) -> tuple[str, str]:
     if ADAPTIVE in attrs:
         return "interrupted", f"stopped before closing the session, {n_steps} steps recorded"
     if n_steps < n_frequencies:
-        return "interrupted", (f"stopped before closing the session, {n_steps} of "
-                               f"{n_frequencies} steps recorded")
+        return "interrupted", (
+            f"stopped before closing the session, {n_steps} of {n_frequencies} steps recorded"
+        )
     return "complete", ""
 
 
@@ -107,7 +108,6 @@ def setup_digest_problem(attrs) -> str | None:
     if text(attrs[SETUP_DIGEST]) != setup_digest(text(attrs["setup"])):
         return "the setup does not match its checksum (the file is damaged)"
     return None
-
 
 
 def adaptive_document(attrs) -> dict | None:

@@ -29,9 +29,9 @@ import mmap
 import multiprocessing
 import os
 import struct
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable, Iterator
 
 import numpy as np
 
@@ -40,8 +40,17 @@ from vibid.errors import VibidError
 DAMAGED = "the file is damaged"
 
 #: What the HDF5 library (through h5py) raises when a file's bytes are not what it expects.
-LIBRARY_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError,
-                  UnicodeDecodeError, OverflowError, MemoryError)
+LIBRARY_ERRORS = (
+    OSError,
+    RuntimeError,
+    KeyError,
+    ValueError,
+    TypeError,
+    IndexError,
+    UnicodeDecodeError,
+    OverflowError,
+    MemoryError,
+)
 
 
 @dataclass(frozen=True)
@@ -70,7 +79,7 @@ def damage_reason(exc: BaseException) -> str:
     """What an exception of the HDF5 library says about the file, in a few words."""
     text = " ".join(str(exc).split()).strip("'\"")
     # h5py puts the innermost reason in parentheses: "Can't synchronously read data (wrong B-tree signature)"
-    detail = text[text.rfind("(") + 1:].rstrip(")") if "(" in text else text
+    detail = text[text.rfind("(") + 1 :].rstrip(")") if "(" in text else text
     low = text.lower()
     if "filter returned failure" in low or "checksum" in low:
         return f"checksum mismatch ({DAMAGED})"
@@ -163,7 +172,9 @@ def heap_problem(path: str | os.PathLike) -> Problem | None:
             at = mm.find(_GCOL)
             while at >= 0:
                 if _collection_loops(mm, at, size):
-                    return Problem("/", f"global heap collection at byte {at} is corrupted ({DAMAGED})")
+                    return Problem(
+                        "/", f"global heap collection at byte {at} is corrupted ({DAMAGED})"
+                    )
                 at = mm.find(_GCOL, at + 1)
     return None
 
@@ -192,7 +203,9 @@ def _collection_loops(mm, at: int, file_size: int) -> bool:
 PROBE_TIMEOUT_S = 120.0
 
 
-def survives(read: Callable[[str], object], path: str, *, timeout_s: float | None = None) -> Problem | None:
+def survives(
+    read: Callable[[str], object], path: str, *, timeout_s: float | None = None
+) -> Problem | None:
     """Run ``read(path)`` in a child process; None if it finished, else why it did not
     (within ``timeout_s``, default :data:`PROBE_TIMEOUT_S`).
 
@@ -212,11 +225,16 @@ def survives(read: Callable[[str], object], path: str, *, timeout_s: float | Non
     if child.exitcode is None:
         child.kill()
         child.join()
-        return Problem("/", f"the HDF5 library did not finish reading the file's structure in "
-                           f"{timeout_s:g} s ({DAMAGED})")
+        return Problem(
+            "/",
+            f"the HDF5 library did not finish reading the file's structure in "
+            f"{timeout_s:g} s ({DAMAGED})",
+        )
     if child.exitcode != 0:
         how = f"signal {-child.exitcode}" if child.exitcode < 0 else f"exit code {child.exitcode}"
-        return Problem("/", f"the HDF5 library crashed reading the file's structure ({how}; {DAMAGED})")
+        return Problem(
+            "/", f"the HDF5 library crashed reading the file's structure ({how}; {DAMAGED})"
+        )
     return None
 
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import h5py
 import numpy as np
@@ -59,8 +59,9 @@ class Session:
             #: whether the file says how it ended (else ``run_status`` is inferred from the step count)
             self.run_status_written = fmt.RUN_STATUS in attrs
             #: seconds the specimen was driven (written when the session was closed), or None
-            self.stand_time_s = (float(attrs[fmt.STAND_TIME_S]) if fmt.STAND_TIME_S in attrs
-                                 else None)
+            self.stand_time_s = (
+                float(attrs[fmt.STAND_TIME_S]) if fmt.STAND_TIME_S in attrs else None
+            )
             #: the ``adaptive`` document of a campaign that chose its steps as it went, or None
             self.adaptive = fmt.adaptive_document(attrs)
         with reading(path, f"/{fmt.STEPS_GROUP}"):
@@ -68,7 +69,9 @@ class Session:
         n_freq = len(self.setup.excitation.frequencies_hz) if self.setup.excitation else 0
         with reading(path, "/"):
             #: ``complete``, ``interrupted`` or ``aborted``, and why (empty when complete)
-            self.run_status, self.run_status_reason = fmt.run_status_of(attrs, len(self._names), n_freq)
+            self.run_status, self.run_status_reason = fmt.run_status_of(
+                attrs, len(self._names), n_freq
+            )
 
     def __len__(self) -> int:
         return len(self._names)
@@ -89,19 +92,25 @@ class Session:
         for label, x in (("base", base), ("response", response)):
             bad = np.count_nonzero(~np.isfinite(x))
             if bad:
-                raise SessionFileError(self.path, [Problem(f"{where}/{label}", f"{bad} samples are NaN or infinite")])
+                raise SessionFileError(
+                    self.path, [Problem(f"{where}/{label}", f"{bad} samples are NaN or infinite")]
+                )
         temperature = None
         with reading(self.path, where):
             if "temperature_c" in a:
                 temperature = float(a["temperature_c"])
-        return Step(index, frequency_hz, sample_rate_hz, t0_utc, status, base, response, temperature)
+        return Step(
+            index, frequency_hz, sample_rate_hz, t0_utc, status, base, response, temperature
+        )
 
     def step_attributes(self, index: int) -> dict:
         """Every attribute of step ``index`` (the format's and vibid's own), without samples."""
         where = f"/{fmt.STEPS_GROUP}/{self._names[index]}"
         with reading(self.path, where):
             g = self._file[where]
-            return {k: (fmt.text(v) if isinstance(v, (str, bytes)) else v) for k, v in g.attrs.items()}
+            return {
+                k: (fmt.text(v) if isinstance(v, (str, bytes)) else v) for k, v in g.attrs.items()
+            }
 
     def steps(self) -> Iterator[Step]:
         """Every step in the order acquired, read one at a time."""
@@ -132,7 +141,7 @@ class Session:
     def close(self) -> None:
         close_quietly(self._file)
 
-    def __enter__(self) -> "Session":
+    def __enter__(self) -> Session:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -176,4 +185,3 @@ def load_setup(path: str | os.PathLike) -> Setup:
         return parse_setup(doc)
     except SetupError as exc:
         raise VibidError(f"{path}: {exc.problems[0]}") from None
-

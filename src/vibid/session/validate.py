@@ -11,15 +11,23 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import h5py
 import numpy as np
 
 from vibid.session import format as fmt
-from vibid.session.hdf5io import (LIBRARY_ERRORS, Problem, SessionFileError, close_quietly, heap_problem, reading,
-                                  storage_problem, survives)
+from vibid.session.hdf5io import (
+    LIBRARY_ERRORS,
+    Problem,
+    SessionFileError,
+    close_quietly,
+    heap_problem,
+    reading,
+    storage_problem,
+    survives,
+)
 from vibid.setup_model import SetupError, parse_setup
 
 
@@ -96,7 +104,9 @@ def hdf5_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Probl
                 yield p
         if not root_ok:
             return  # without a readable header, step problems would only add noise
-        for name in f.attrs:  # vibid's own and the optional ones are read too: they must be readable
+        for (
+            name
+        ) in f.attrs:  # vibid's own and the optional ones are read too: they must be readable
             with reading(f.filename, f"/@{name}"):
                 f.attrs[name]
         yield from steps_problems(f, check_samples=check_samples)
@@ -137,9 +147,14 @@ def _root_problems(f: h5py.File) -> Iterator[Problem]:
         version = _as_int(attrs["format_version"])
         readable = ", ".join(str(v) for v in fmt.READABLE_VERSIONS)
         if version is None:
-            yield Problem("/@format_version", f"must be an integer, got {_describe(attrs['format_version'])}")
+            yield Problem(
+                "/@format_version", f"must be an integer, got {_describe(attrs['format_version'])}"
+            )
         elif version not in fmt.READABLE_VERSIONS:
-            yield Problem("/@format_version", f"version {version} is not supported; this vibid reads version {readable}")
+            yield Problem(
+                "/@format_version",
+                f"version {version} is not supported; this vibid reads version {readable}",
+            )
     for name in ("created_utc", "session_id", "software"):
         if name in attrs:
             value = _as_str(attrs[name])
@@ -164,8 +179,10 @@ def _optional_root_problems(attrs) -> Iterator[Problem]:
     if fmt.RUN_STATUS in attrs:
         value = _as_str(attrs[fmt.RUN_STATUS])
         if value is not None and value not in fmt.RUN_STATUSES:
-            yield Problem(f"/@{fmt.RUN_STATUS}",
-                          f"unknown run status {value!r}, expected one of {', '.join(fmt.RUN_STATUSES)}")
+            yield Problem(
+                f"/@{fmt.RUN_STATUS}",
+                f"unknown run status {value!r}, expected one of {', '.join(fmt.RUN_STATUSES)}",
+            )
     if fmt.ADAPTIVE in attrs:
         try:
             fmt.adaptive_document(attrs)
@@ -174,8 +191,10 @@ def _optional_root_problems(attrs) -> Iterator[Problem]:
     if fmt.STAND_TIME_S in attrs:
         value = _as_float(attrs[fmt.STAND_TIME_S])
         if value is None or not (np.isfinite(value) and value >= 0):
-            yield Problem(f"/@{fmt.STAND_TIME_S}",
-                          f"must be a finite number >= 0, got {_describe(attrs[fmt.STAND_TIME_S])}")
+            yield Problem(
+                f"/@{fmt.STAND_TIME_S}",
+                f"must be a finite number >= 0, got {_describe(attrs[fmt.STAND_TIME_S])}",
+            )
 
 
 def _setup_digest_problems(attrs) -> Iterator[Problem]:
@@ -192,7 +211,9 @@ def _setup_problems(raw) -> Iterator[Problem]:
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        yield Problem("/@setup", f"not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})")
+        yield Problem(
+            "/@setup", f"not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
+        )
         return
     try:
         setup = parse_setup(doc)
@@ -220,7 +241,9 @@ def steps_problems(f: h5py.File, *, check_samples: bool = True) -> Iterator[Prob
     for expected, name in enumerate(n for n in names if fmt.is_step_name(n)):
         where = f"/{fmt.STEPS_GROUP}/{name}"
         if name != fmt.step_name(expected):
-            yield Problem(where, f"step out of sequence: {fmt.step_name(expected)} is missing before it")
+            yield Problem(
+                where, f"step out of sequence: {fmt.step_name(expected)} is missing before it"
+            )
             return  # every later name is off by the same gap; one line says it
         with reading(f.filename, where):
             step = steps[name]
@@ -262,16 +285,25 @@ def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -
         if value is None:
             yield Problem(f"{where}@status", f"must be a string, got {_describe(attrs['status'])}")
         elif value not in fmt.STEP_STATUSES:
-            yield Problem(f"{where}@status", f"unknown status {value!r}, expected one of {', '.join(fmt.STEP_STATUSES)}")
+            yield Problem(
+                f"{where}@status",
+                f"unknown status {value!r}, expected one of {', '.join(fmt.STEP_STATUSES)}",
+            )
 
     if "temperature_c" in attrs:
         value = _as_float(attrs["temperature_c"])
         if value is None or not np.isfinite(value):
-            yield Problem(f"{where}@temperature_c", f"must be a finite number, got {_describe(attrs['temperature_c'])}")
+            yield Problem(
+                f"{where}@temperature_c",
+                f"must be a finite number, got {_describe(attrs['temperature_c'])}",
+            )
     if fmt.SETTLE_S in attrs:
         value = _as_float(attrs[fmt.SETTLE_S])
         if value is None or not (np.isfinite(value) and value >= 0):
-            yield Problem(f"{where}@{fmt.SETTLE_S}", f"must be a finite number >= 0, got {_describe(attrs[fmt.SETTLE_S])}")
+            yield Problem(
+                f"{where}@{fmt.SETTLE_S}",
+                f"must be a finite number >= 0, got {_describe(attrs[fmt.SETTLE_S])}",
+            )
 
     lengths = {}
     for name in fmt.STEP_DATASETS:
@@ -279,10 +311,14 @@ def step_problems(step: h5py.Group, where: str, *, check_samples: bool = True) -
         with reading(step.file.filename, path):
             yield from _dataset_problems(step, name, path, lengths, check_samples)
     if len(lengths) == 2 and lengths["response"] != lengths["base"]:
-        yield Problem(f"{where}/response", f"length {lengths['response']} differs from base {lengths['base']}")
+        yield Problem(
+            f"{where}/response", f"length {lengths['response']} differs from base {lengths['base']}"
+        )
 
 
-def _dataset_problems(step: h5py.Group, name: str, path: str, lengths: dict, check_samples: bool) -> Iterator[Problem]:
+def _dataset_problems(
+    step: h5py.Group, name: str, path: str, lengths: dict, check_samples: bool
+) -> Iterator[Problem]:
     if name not in step:
         yield Problem(path, "missing dataset")
         return
@@ -310,7 +346,9 @@ def _dataset_problems(step: h5py.Group, name: str, path: str, lengths: dict, che
 
 
 def _count_non_finite(ds: h5py.Dataset, chunk: int = 1 << 22) -> int:
-    return int(sum(np.count_nonzero(~np.isfinite(ds[i : i + chunk])) for i in range(0, ds.shape[0], chunk)))
+    return int(
+        sum(np.count_nonzero(~np.isfinite(ds[i : i + chunk])) for i in range(0, ds.shape[0], chunk))
+    )
 
 
 # -- attribute types -------------------------------------------------------------------

@@ -35,8 +35,8 @@ import signal
 import sys
 import time
 import uuid
-from datetime import datetime, timezone
-from typing import Callable
+from collections.abc import Callable
+from datetime import UTC, datetime
 
 import h5py
 import numpy as np
@@ -57,7 +57,7 @@ _TMP_SUFFIX = ".vibid-tmp"
 
 def utc_now() -> str:
     """The current UTC time in ISO 8601, microseconds included."""
-    return datetime.now(timezone.utc).isoformat()
+    return datetime.now(UTC).isoformat()
 
 
 class SessionWriter:
@@ -78,16 +78,26 @@ class SessionWriter:
         at least one frequency), so an adaptive campaign stopped before it leaves no file.
     """
 
-    def __init__(self, path: str | os.PathLike, setup: Setup, *, session_id: str | None = None,
-                 created_utc: str | None = None, software: str | None = None,
-                 operator: str | None = None, notes: str | None = None,
-                 adaptive: dict | None = None):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        setup: Setup,
+        *,
+        session_id: str | None = None,
+        created_utc: str | None = None,
+        software: str | None = None,
+        operator: str | None = None,
+        notes: str | None = None,
+        adaptive: dict | None = None,
+    ):
         self.path = os.fspath(path)
         if os.path.exists(self.path):
             raise VibidError(f"{self.path}: already exists; a session file is never overwritten")
         if setup.excitation is None:
-            raise VibidError("a session needs the setup's excitation (the stepped sine it "
-                             "records); only an imported AFC's setup leaves it out")
+            raise VibidError(
+                "a session needs the setup's excitation (the stepped sine it "
+                "records); only an imported AFC's setup leaves it out"
+            )
         self.setup = setup
         self.session_id = session_id or str(uuid.uuid4())
         self.n_steps = 0
@@ -122,7 +132,7 @@ class SessionWriter:
         return self.path + _TMP_SUFFIX
 
     @classmethod
-    def resume(cls, path: str | os.PathLike) -> "SessionWriter":
+    def resume(cls, path: str | os.PathLike) -> SessionWriter:
         """Reopen an existing session (e.g. after a crash) to append further steps.
 
         The file is running again: its ``run_status`` is removed until :meth:`close`.
@@ -156,10 +166,19 @@ class SessionWriter:
         """Whether the file is there (an adaptive session's is created with its first step)."""
         return self._header is None
 
-    def append(self, *, frequency_hz: float, sample_rate_hz: float, base: np.ndarray,
-               response: np.ndarray, status: str = "ok", t0_utc: str | None = None,
-               temperature_c: float | None = None, settle_s: float | None = None,
-               extra_attrs: dict | None = None) -> int:
+    def append(
+        self,
+        *,
+        frequency_hz: float,
+        sample_rate_hz: float,
+        base: np.ndarray,
+        response: np.ndarray,
+        status: str = "ok",
+        t0_utc: str | None = None,
+        temperature_c: float | None = None,
+        settle_s: float | None = None,
+        extra_attrs: dict | None = None,
+    ) -> int:
         """Write one complete step and return its index. Nothing is written if it is invalid.
 
         ``temperature_c`` (°C) and ``settle_s`` (s the drive ran at this frequency before the
@@ -171,7 +190,9 @@ class SessionWriter:
         if status not in fmt.STEP_STATUSES:
             raise VibidError(f"step status {status!r} is not one of {', '.join(fmt.STEP_STATUSES)}")
         if base.ndim != 1 or response.shape != base.shape or base.size == 0:
-            raise VibidError(f"step records must be 1-D and of equal length, got {base.shape} and {response.shape}")
+            raise VibidError(
+                f"step records must be 1-D and of equal length, got {base.shape} and {response.shape}"
+            )
         extra = dict(extra_attrs or {})
         if bad := [k for k in extra if not k.startswith("vibid_")]:
             raise VibidError(f"own step attributes must start with 'vibid_': {', '.join(bad)}")
@@ -192,8 +213,9 @@ class SessionWriter:
             # one chunk per record, with a checksum (a flipped sample is refused, not
             # fitted) and a NaN fill (a chunk whose address is lost reads as NaN, refused)
             for label, x in (("base", base), ("response", response)):
-                g.create_dataset(label, data=_float_samples(x), chunks=x.shape, fletcher32=True,
-                                 fillvalue=np.nan)
+                g.create_dataset(
+                    label, data=_float_samples(x), chunks=x.shape, fletcher32=True, fillvalue=np.nan
+                )
 
         change, create = add_step, False
         if self.adaptive is not None:
@@ -219,7 +241,9 @@ class SessionWriter:
         one-line ``reason`` when it is not complete, and its stand time (:func:`vibid.session.format.stand_time_s`).
         The file stays valid either way."""
         if run_status not in fmt.RUN_STATUSES:
-            raise VibidError(f"run status {run_status!r} is not one of {', '.join(fmt.RUN_STATUSES)}")
+            raise VibidError(
+                f"run status {run_status!r} is not one of {', '.join(fmt.RUN_STATUSES)}"
+            )
         if not self.exists:
             self.stand_time_s = None
             return  # an adaptive session that recorded no step: there is no file to close
@@ -238,7 +262,7 @@ class SessionWriter:
 
         self._commit(mark, phase_tag="close")
 
-    def __enter__(self) -> "SessionWriter":
+    def __enter__(self) -> SessionWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -250,7 +274,9 @@ class SessionWriter:
             self.close("aborted", f"{exc_type.__name__}: {exc}")
 
     # -- the one way the file changes ------------------------------------------------------
-    def _commit(self, change: Callable[[h5py.File], None], *, phase_tag: str, create: bool = False) -> None:
+    def _commit(
+        self, change: Callable[[h5py.File], None], *, phase_tag: str, create: bool = False
+    ) -> None:
         """Apply ``change`` to a copy of the file and put the copy in its place atomically."""
         tmp = self._tmp
         _kill_point(phase_tag, "before_copy")
@@ -273,8 +299,9 @@ class SessionWriter:
             _fsync_dir(os.path.dirname(os.path.abspath(self.path)))
         except OSError as exc:
             _remove(tmp)
-            raise VibidError(f"{self.path}: cannot write the session file "
-                             f"({exc.strerror or exc})") from None
+            raise VibidError(
+                f"{self.path}: cannot write the session file ({exc.strerror or exc})"
+            ) from None
         except BaseException:
             _remove(tmp)
             raise
@@ -292,8 +319,9 @@ def recorded_setup(setup: Setup, frequencies_hz) -> Setup:
     exc = setup.excitation
     settle = exc.settle_s if not isinstance(exc.settle_s, tuple) else min(exc.settle_s)
     record = exc.record_s if not isinstance(exc.record_s, tuple) else None
-    return replace(setup, excitation=Excitation(tuple(float(f) for f in frequencies_hz),
-                                                float(settle), record))
+    return replace(
+        setup, excitation=Excitation(tuple(float(f) for f in frequencies_hz), float(settle), record)
+    )
 
 
 def _write_setup(f: h5py.File, setup: Setup) -> None:
@@ -314,7 +342,9 @@ def _remove(path: str) -> None:
 
 
 def _fsync_file(path: str) -> None:
-    fd = os.open(path, os.O_RDWR | getattr(os, "O_BINARY", 0))  # Windows commits only writable handles
+    fd = os.open(
+        path, os.O_RDWR | getattr(os, "O_BINARY", 0)
+    )  # Windows commits only writable handles
     try:
         os.fsync(fd)
     finally:

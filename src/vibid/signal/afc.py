@@ -17,15 +17,25 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Collection, Iterable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 from vibid.signal.basis import Layout
-from vibid.signal.flags import (CHANNELS, Flag, FlagThresholds, FreeVibration, decay_z,
-                               flat_top_fraction, free_vibration, quality_flags, settling_chi2)
+from vibid.signal.flags import (
+    CHANNELS,
+    Flag,
+    FlagThresholds,
+    FreeVibration,
+    decay_z,
+    flat_top_fraction,
+    free_vibration,
+    quality_flags,
+    settling_chi2,
+)
 from vibid.signal.harmonic import fit_harmonics, max_harmonics
 from vibid.signal.ratio import phasor_ratio
 
@@ -190,7 +200,7 @@ class AfcTable:
     def status(self) -> tuple[str, ...]:
         return tuple(p.status for p in self.points)
 
-    def by_frequency(self) -> "AfcTable":
+    def by_frequency(self) -> AfcTable:
         """The points sorted by commanded frequency (a stable sort: equal frequencies keep
         their step order). The identification reads an AFC this way; a session keeps the
         order acquired, which an adaptive campaign does not choose by frequency."""
@@ -239,7 +249,11 @@ def afc_from_records(
     groups: dict[tuple[int, int], list[_Step]] = defaultdict(list)
     for position, raw in enumerate(steps):
         step = _Step.of(raw, position)
-        k = int(max_harmonics(step.frequency_hz, step.sample_rate_hz, n_harmonics)) if step.problem is None else 1
+        k = (
+            int(max_harmonics(step.frequency_hz, step.sample_rate_hz, n_harmonics))
+            if step.problem is None
+            else 1
+        )
         layout = Layout(drift_degree, k)
         if step.problem is None and step.base.size < 2 * layout.n_model + 2:
             step = step.with_problem(f"record of {step.base.size} samples is too short")
@@ -248,7 +262,9 @@ def afc_from_records(
         else:
             groups[(step.base.size, k)].append(step)
     for (_, k), members in groups.items():
-        for point in _fit_group(members, Layout(drift_degree, k), thresholds, frozenset(ignore_flags)):
+        for point in _fit_group(
+            members, Layout(drift_degree, k), thresholds, frozenset(ignore_flags)
+        ):
             points[point.index] = point
     return AfcTable(tuple(points[i] for i in sorted(points)))
 
@@ -264,7 +280,7 @@ class _Step:
     problem: str | None = None
 
     @classmethod
-    def of(cls, raw, position: int) -> "_Step":
+    def of(cls, raw, position: int) -> _Step:
         index = getattr(raw, "index", None)
         index = position if index is None else int(index)
         f, fs = float(raw.frequency_hz), float(raw.sample_rate_hz)
@@ -275,17 +291,28 @@ class _Step:
         if not (np.isfinite(fs) and fs > 0 and np.isfinite(f) and 0 < f < fs / 2):
             problem = f"frequency {f!r} Hz is not within (0, fs/2) for fs = {fs!r} Hz"
         elif base.ndim != 1 or response.ndim != 1 or base.size != response.size:
-            problem = f"base {base.shape} and response {response.shape} are not two records of one length"
+            problem = (
+                f"base {base.shape} and response {response.shape} are not two records of one length"
+            )
         elif not (np.all(np.isfinite(base)) and np.all(np.isfinite(response))):
             problem = "records hold non-finite samples"
         return step if problem is None else step.with_problem(problem)
 
-    def with_problem(self, problem: str) -> "_Step":
-        return _Step(self.index, self.frequency_hz, self.sample_rate_hz, self.status, self.base,
-                     self.response, problem)
+    def with_problem(self, problem: str) -> _Step:
+        return _Step(
+            self.index,
+            self.frequency_hz,
+            self.sample_rate_hz,
+            self.status,
+            self.base,
+            self.response,
+            problem,
+        )
 
 
-def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: frozenset) -> list[AfcPoint]:
+def _fit_group(
+    steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: frozenset
+) -> list[AfcPoint]:
     x = np.stack([np.stack([s.base, s.response]) for s in steps])
     n = x.shape[-1]
     f = np.array([s.frequency_hz for s in steps])
@@ -310,11 +337,20 @@ def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: 
     amp_chi2, h_chi2 = settling_chi2(fit.half_phasors_m_s2, fit.half_cov)
     ringing = _ringing(x, fit, f, fs, layout, thr)
     flags = quality_flags(
-        status=[s.status for s in steps], flat_top=flat,
-        amplitude_change_chi2=amp_chi2, h_change_chi2=h_chi2,
-        estimate_snr_db=est_snr_db, thd_db=thd_db, harmonic_chi2=harmonic_chi2,
-        harmonic_dof=2 * (layout.n_harmonics - 1), clock_offset_ppm=ppm, clock_std_ppm=ppm_std,
-        cycles=f * n / fs, converged=fit.converged, thresholds=thr, ringing=ringing,
+        status=[s.status for s in steps],
+        flat_top=flat,
+        amplitude_change_chi2=amp_chi2,
+        h_change_chi2=h_chi2,
+        estimate_snr_db=est_snr_db,
+        thd_db=thd_db,
+        harmonic_chi2=harmonic_chi2,
+        harmonic_dof=2 * (layout.n_harmonics - 1),
+        clock_offset_ppm=ppm,
+        clock_std_ppm=ppm_std,
+        cycles=f * n / fs,
+        converged=fit.converged,
+        thresholds=thr,
+        ringing=ringing,
     )
     with np.errstate(invalid="ignore"):
         std_re, std_im = np.sqrt(cov_h[:, 0, 0]), np.sqrt(cov_h[:, 1, 1])
@@ -322,20 +358,36 @@ def _fit_group(steps: list[_Step], layout: Layout, thr: FlagThresholds, ignore: 
     points = []
     for i, s in enumerate(steps):
         used = s.status == "ok" and all(fl.name in ignore for fl in flags[i])
-        points.append(AfcPoint(
-            index=s.index, status=s.status, commanded_hz=s.frequency_hz,
-            frequency_hz=float(fit.frequency_hz[i]), frequency_std_hz=float(fit.frequency_std_hz[i]),
-            clock_offset_ppm=float(ppm[i]), sample_rate_hz=s.sample_rate_hz, n_samples=n,
-            h=complex(h[i]), std_re=float(std_re[i]), std_im=float(std_im[i]),
-            cov_re_im=float(cov_h[i, 0, 1]),
-            amplitude_m_s2=pair(amp, i), phase_rad=pair(np.angle(fund), i),
-            offset_m_s2=pair(fit.offset_m_s2, i), drift_m_s2_per_s=pair(fit.drift_m_s2_per_s, i),
-            noise_std_m_s2=pair(fit.noise_std_m_s2, i), snr_db=pair(snr_db, i),
-            estimate_snr_db=pair(est_snr_db, i), thd_db=pair(thd_db, i),
-            amplitude_change_chi2=pair(amp_chi2, i), h_change_chi2=float(h_chi2[i]),
-            flat_top_fraction=pair(flat, i),
-            iterations=int(fit.iterations[i]), flags=flags[i], used=used,
-        ))
+        points.append(
+            AfcPoint(
+                index=s.index,
+                status=s.status,
+                commanded_hz=s.frequency_hz,
+                frequency_hz=float(fit.frequency_hz[i]),
+                frequency_std_hz=float(fit.frequency_std_hz[i]),
+                clock_offset_ppm=float(ppm[i]),
+                sample_rate_hz=s.sample_rate_hz,
+                n_samples=n,
+                h=complex(h[i]),
+                std_re=float(std_re[i]),
+                std_im=float(std_im[i]),
+                cov_re_im=float(cov_h[i, 0, 1]),
+                amplitude_m_s2=pair(amp, i),
+                phase_rad=pair(np.angle(fund), i),
+                offset_m_s2=pair(fit.offset_m_s2, i),
+                drift_m_s2_per_s=pair(fit.drift_m_s2_per_s, i),
+                noise_std_m_s2=pair(fit.noise_std_m_s2, i),
+                snr_db=pair(snr_db, i),
+                estimate_snr_db=pair(est_snr_db, i),
+                thd_db=pair(thd_db, i),
+                amplitude_change_chi2=pair(amp_chi2, i),
+                h_change_chi2=float(h_chi2[i]),
+                flat_top_fraction=pair(flat, i),
+                iterations=int(fit.iterations[i]),
+                flags=flags[i],
+                used=used,
+            )
+        )
     return points
 
 
@@ -350,9 +402,16 @@ def _ringing(x, fit, f, fs, layout: Layout, thr: FlagThresholds) -> list:
     out = []
     for i in range(x.shape[0]):
         f_i = float(fit.frequency_hz[i]) if np.isfinite(fit.frequency_hz[i]) else f[i]
-        out.append([free_vibration(x[i, c], f_i, fs[i], degree=layout.degree,
-                                   n_harmonics=layout.n_harmonics) if z[i, c] > thr.unsettled_sigma
-                    else FreeVibration(math.nan, float(z[i, c]), 0.0) for c in range(x.shape[1])])
+        out.append(
+            [
+                free_vibration(
+                    x[i, c], f_i, fs[i], degree=layout.degree, n_harmonics=layout.n_harmonics
+                )
+                if z[i, c] > thr.unsettled_sigma
+                else FreeVibration(math.nan, float(z[i, c]), 0.0)
+                for c in range(x.shape[1])
+            ]
+        )
     return out
 
 
@@ -362,14 +421,32 @@ def _invalid_point(step: _Step) -> AfcPoint:
     if step.status in ("overload", "aborted"):
         flags.insert(0, Flag(step.status, f"step status is {step.status!r}"))
     return AfcPoint(
-        index=step.index, status=step.status, commanded_hz=step.frequency_hz, frequency_hz=math.nan,
-        frequency_std_hz=math.nan, clock_offset_ppm=math.nan, sample_rate_hz=step.sample_rate_hz,
-        n_samples=int(step.base.size) if step.base.ndim == 1 else 0, h=complex(math.nan, math.nan),
-        std_re=math.nan, std_im=math.nan, cov_re_im=math.nan, amplitude_m_s2=nan2, phase_rad=nan2,
-        offset_m_s2=nan2, drift_m_s2_per_s=nan2, noise_std_m_s2=nan2, snr_db=nan2,
-        estimate_snr_db=nan2, thd_db=nan2, amplitude_change_chi2=nan2, h_change_chi2=math.nan,
+        index=step.index,
+        status=step.status,
+        commanded_hz=step.frequency_hz,
+        frequency_hz=math.nan,
+        frequency_std_hz=math.nan,
+        clock_offset_ppm=math.nan,
+        sample_rate_hz=step.sample_rate_hz,
+        n_samples=int(step.base.size) if step.base.ndim == 1 else 0,
+        h=complex(math.nan, math.nan),
+        std_re=math.nan,
+        std_im=math.nan,
+        cov_re_im=math.nan,
+        amplitude_m_s2=nan2,
+        phase_rad=nan2,
+        offset_m_s2=nan2,
+        drift_m_s2_per_s=nan2,
+        noise_std_m_s2=nan2,
+        snr_db=nan2,
+        estimate_snr_db=nan2,
+        thd_db=nan2,
+        amplitude_change_chi2=nan2,
+        h_change_chi2=math.nan,
         flat_top_fraction=nan2,
-        iterations=0, flags=tuple(flags), used=False,
+        iterations=0,
+        flags=tuple(flags),
+        used=False,
     )
 
 

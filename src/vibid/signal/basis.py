@@ -72,7 +72,12 @@ class Layout:
 
 def normalised_frequency(f_hz, fs_hz, n_samples: int):
     """``ν = 2π f (N - 1) / (2 fs)``: the phase advance from record centre to record end, rad."""
-    return np.pi * np.asarray(f_hz, dtype=np.float64) * (n_samples - 1) / np.asarray(fs_hz, dtype=np.float64)
+    return (
+        np.pi
+        * np.asarray(f_hz, dtype=np.float64)
+        * (n_samples - 1)
+        / np.asarray(fs_hz, dtype=np.float64)
+    )
 
 
 def frequency_hz(nu, fs_hz, n_samples: int):
@@ -118,7 +123,9 @@ def unit_phasors(start_rad: np.ndarray, step_rad: np.ndarray, count: int) -> np.
     return (coarse[:, :, None] * fine[:, None, :]).reshape(start.size, -1)[:, :count]
 
 
-def columns(nu: np.ndarray, u: np.ndarray, layout: Layout, out: np.ndarray | None = None) -> np.ndarray:
+def columns(
+    nu: np.ndarray, u: np.ndarray, layout: Layout, out: np.ndarray | None = None
+) -> np.ndarray:
     """The model's columns at normalised frequencies ``nu`` (S,) on the half grid ``u``,
     shape ``(S, n_model, len(u))``, written into ``out`` when given."""
     nu = np.asarray(nu, dtype=np.float64).reshape(-1)
@@ -130,7 +137,9 @@ def columns(nu: np.ndarray, u: np.ndarray, layout: Layout, out: np.ndarray | Non
         out[:, j, :] = u**j
     c, s = out[:, layout.cos_columns], out[:, layout.sin_columns]
     c[:, 0], s[:, 0] = e1.real, e1.imag
-    for k in range(1, layout.n_harmonics):  # cos/sin((k+1)x) = 2 cos x · cos/sin(kx) - cos/sin((k-1)x)
+    for k in range(
+        1, layout.n_harmonics
+    ):  # cos/sin((k+1)x) = 2 cos x · cos/sin(kx) - cos/sin((k-1)x)
         np.multiply(c[:, 0], c[:, k - 1], out=c[:, k])
         np.multiply(c[:, 0], s[:, k - 1], out=s[:, k])
         c[:, k] *= 2.0

@@ -70,8 +70,16 @@ __all__ = [
 ]
 
 FLAG_NAMES = (
-    "overload", "aborted", "unsettled", "ringing", "low_snr", "distortion", "clock", "few_cycles",
-    "fit", "invalid",
+    "overload",
+    "aborted",
+    "unsettled",
+    "ringing",
+    "low_snr",
+    "distortion",
+    "clock",
+    "few_cycles",
+    "fit",
+    "invalid",
 )
 CHANNELS = ("base", "response")
 
@@ -152,8 +160,11 @@ class FreeVibration:
     decay_z: float
     leak_std: float
 
-    def unsettled(self, sigma: float = FlagThresholds.unsettled_sigma,
-                  leak_std: float = FREE_VIBRATION_LEAK_STD) -> bool:
+    def unsettled(
+        self,
+        sigma: float = FlagThresholds.unsettled_sigma,
+        leak_std: float = FREE_VIBRATION_LEAK_STD,
+    ) -> bool:
         """A free vibration that dies out (``decay_z`` beyond ``sigma``) and biases the
         phasor beyond ``leak_std``: waiting removes it. A steady tone (mains hum) does not
         decay, and waiting would not remove it."""
@@ -172,8 +183,15 @@ def decay_z(ss_first, n_first: int, ss_second, n_second: int):
     return np.where((v1 > 0) & (v2 > 0), z, np.nan)
 
 
-def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int = 1,
-                   n_harmonics: int = 3, zero_pad: int = 4) -> FreeVibration:
+def free_vibration(
+    x,
+    frequency_hz: float,
+    sample_rate_hz: float,
+    *,
+    degree: int = 1,
+    n_harmonics: int = 3,
+    zero_pad: int = 4,
+) -> FreeVibration:
     """Look for a free vibration off the drive frequency in one channel's record ``x``.
 
     The record is fitted as the signal stage does (a polynomial of ``degree``, the harmonics
@@ -207,7 +225,9 @@ def free_vibration(x, frequency_hz: float, sample_rate_hz: float, *, degree: int
     plain = gram_inv @ (a.T @ x)
     resid = x - a @ plain
     half = n // 2
-    z = decay_z(float(resid[:half] @ resid[:half]), half, float(resid[half:] @ resid[half:]), n - half)
+    z = decay_z(
+        float(resid[:half] @ resid[:half]), half, float(resid[half:] @ resid[half:]), n - half
+    )
     if not math.isfinite(z):
         return nothing
     # the strongest residual line away from DC and the harmonics
@@ -285,7 +305,9 @@ def quality_flags(
     thr = thresholds
     amp_limit = unsettled_chi2_limit(thr.unsettled_sigma, 1)
     h_limit = unsettled_chi2_limit(thr.unsettled_sigma, 2)
-    harmonic_limit = unsettled_chi2_limit(thr.unsettled_sigma, harmonic_dof) if harmonic_dof else math.inf
+    harmonic_limit = (
+        unsettled_chi2_limit(thr.unsettled_sigma, harmonic_dof) if harmonic_dof else math.inf
+    )
     out = []
     for i, st in enumerate(status):
         flags: list[Flag] = []
@@ -297,37 +319,79 @@ def quality_flags(
             flags.append(Flag("invalid", f"unknown step status {st!r}"))
         for c, name in enumerate(CHANNELS):
             if flat_top[i, c] > thr.flat_top_fraction and st != "overload":
-                flags.append(Flag("overload", f"{name} has flat tops: {100 * flat_top[i, c]:.1f} % of samples at "
-                                              f"its extreme (limit {100 * thr.flat_top_fraction:.1f} %), clipping"))
+                flags.append(
+                    Flag(
+                        "overload",
+                        f"{name} has flat tops: {100 * flat_top[i, c]:.1f} % of samples at "
+                        f"its extreme (limit {100 * thr.flat_top_fraction:.1f} %), clipping",
+                    )
+                )
         for c, name in enumerate(CHANNELS):
             if amplitude_change_chi2[i, c] > amp_limit:
-                flags.append(Flag("unsettled", f"{name} amplitude changes between the record halves: "
-                                               f"chi2 {amplitude_change_chi2[i, c]:.1f} > {amp_limit:.1f} "
-                                               f"(1 dof, {thr.unsettled_sigma:g} sigma)"))
+                flags.append(
+                    Flag(
+                        "unsettled",
+                        f"{name} amplitude changes between the record halves: "
+                        f"chi2 {amplitude_change_chi2[i, c]:.1f} > {amp_limit:.1f} "
+                        f"(1 dof, {thr.unsettled_sigma:g} sigma)",
+                    )
+                )
         if h_change_chi2[i] > h_limit:
-            flags.append(Flag("unsettled", f"H changes between the record halves: chi2 {h_change_chi2[i]:.1f} "
-                                           f"> {h_limit:.1f} (2 dof, {thr.unsettled_sigma:g} sigma)"))
+            flags.append(
+                Flag(
+                    "unsettled",
+                    f"H changes between the record halves: chi2 {h_change_chi2[i]:.1f} "
+                    f"> {h_limit:.1f} (2 dof, {thr.unsettled_sigma:g} sigma)",
+                )
+            )
         for c, name in enumerate(CHANNELS):
             if not estimate_snr_db[i, c] >= thr.min_snr_db:
-                flags.append(Flag("low_snr", f"{name} fundamental is {estimate_snr_db[i, c]:.1f} dB above its "
-                                             f"uncertainty (minimum {thr.min_snr_db:g} dB)"))
+                flags.append(
+                    Flag(
+                        "low_snr",
+                        f"{name} fundamental is {estimate_snr_db[i, c]:.1f} dB above its "
+                        f"uncertainty (minimum {thr.min_snr_db:g} dB)",
+                    )
+                )
         for c, name in enumerate(CHANNELS):
             if thd_db[i, c] > thr.max_thd_db and harmonic_chi2[i, c] > harmonic_limit:
-                flags.append(Flag("distortion", f"{name} harmonic distortion {thd_db[i, c]:.1f} dB "
-                                                f"(limit {thr.max_thd_db:g} dB)"))
+                flags.append(
+                    Flag(
+                        "distortion",
+                        f"{name} harmonic distortion {thd_db[i, c]:.1f} dB "
+                        f"(limit {thr.max_thd_db:g} dB)",
+                    )
+                )
         off, std = clock_offset_ppm[i], clock_std_ppm[i]
         if abs(off) - 5.0 * std > thr.max_clock_offset_ppm:
-            flags.append(Flag("clock", f"frequency in the record is {off:+.0f} ppm from the commanded "
-                                       f"(tolerance {thr.max_clock_offset_ppm:g} ppm)"))
+            flags.append(
+                Flag(
+                    "clock",
+                    f"frequency in the record is {off:+.0f} ppm from the commanded "
+                    f"(tolerance {thr.max_clock_offset_ppm:g} ppm)",
+                )
+            )
         for c, name in enumerate(CHANNELS):
             ring = None if ringing is None else ringing[i][c]
             if ring is not None and ring.unsettled(thr.unsettled_sigma, thr.ringing_leak_std):
-                flags.append(Flag("ringing", f"{name} rings at {ring.frequency_hz:.1f} Hz, dying out "
-                                             f"(decay z {ring.decay_z:.1f}), moving the phasor "
-                                             f"{ring.leak_std:.1f} std"))
+                flags.append(
+                    Flag(
+                        "ringing",
+                        f"{name} rings at {ring.frequency_hz:.1f} Hz, dying out "
+                        f"(decay z {ring.decay_z:.1f}), moving the phasor "
+                        f"{ring.leak_std:.1f} std",
+                    )
+                )
         if cycles[i] < thr.min_cycles:
-            flags.append(Flag("few_cycles", f"record holds {cycles[i]:.2f} cycles (minimum {thr.min_cycles:g})"))
+            flags.append(
+                Flag(
+                    "few_cycles",
+                    f"record holds {cycles[i]:.2f} cycles (minimum {thr.min_cycles:g})",
+                )
+            )
         if not converged[i]:
-            flags.append(Flag("fit", "frequency search did not converge; fitted at the commanded frequency"))
+            flags.append(
+                Flag("fit", "frequency search did not converge; fitted at the commanded frequency")
+            )
         out.append(tuple(flags))
     return out

@@ -39,11 +39,13 @@ import numpy as np
 from vibid.signal.basis import (
     Layout,
     columns,
-    frequency_hz as _frequency_hz,
     half_grid,
     normalised_frequency,
     split_halves,
     unit_phasors,
+)
+from vibid.signal.basis import (
+    frequency_hz as _frequency_hz,
 )
 
 log = logging.getLogger(__name__)
@@ -161,7 +163,9 @@ def fit_harmonics(
         frequency_hz=_frequency_hz(nu, fs, n) if refine_frequency else np.array(f0),
         frequency_std_hz=_frequency_hz(nu_std, fs, n),
         offset_m_s2=theta[..., 0] + out.pop("mean"),
-        drift_m_s2_per_s=theta[..., 1] * two_fs if layout.degree >= 1 else np.zeros(theta.shape[:2]),
+        drift_m_s2_per_s=theta[..., 1] * two_fs
+        if layout.degree >= 1
+        else np.zeros(theta.shape[:2]),
         **out,
     )
 
@@ -197,19 +201,37 @@ class _Records:
     u: np.ndarray  # (H,)
     n: int
 
-    def subset(self, idx) -> "_Records":
+    def subset(self, idx) -> _Records:
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
-        return _Records(self.mean[idx], self.xx[idx], self.after[idx], self.before[idx], pick(self.centre),
-                        self.x_even[idx], self.x_odd[idx], self.u, self.n)
+        return _Records(
+            self.mean[idx],
+            self.xx[idx],
+            self.after[idx],
+            self.before[idx],
+            pick(self.centre),
+            self.x_even[idx],
+            self.x_odd[idx],
+            self.u,
+            self.n,
+        )
 
     @classmethod
-    def of(cls, x: np.ndarray) -> "_Records":
+    def of(cls, x: np.ndarray) -> _Records:
         mean = x.mean(-1)
         x = x - mean[..., None]
         after, before, centre = split_halves(x)
         after, before = np.ascontiguousarray(after), np.ascontiguousarray(before)
-        return cls(mean, np.einsum("scn,scn->sc", x, x), after, before, centre,
-                   after + before, after - before, half_grid(x.shape[-1]), x.shape[-1])
+        return cls(
+            mean,
+            np.einsum("scn,scn->sc", x, x),
+            after,
+            before,
+            centre,
+            after + before,
+            after - before,
+            half_grid(x.shape[-1]),
+            x.shape[-1],
+        )
 
 
 def _fit_chunk(x, nu0, layout: Layout, refine: bool, max_offset_ppm: float, max_iterations: int):
@@ -230,7 +252,9 @@ def _fit_chunk(x, nu0, layout: Layout, refine: bool, max_offset_ppm: float, max_
     return store.finish(rec.mean, rec.n)
 
 
-def _solve(rec: _Records, nu, layout: Layout, refine: bool, max_iterations: int, final: bool = True) -> "_Store":
+def _solve(
+    rec: _Records, nu, layout: Layout, refine: bool, max_iterations: int, final: bool = True
+) -> _Store:
     """Variable-projection Gauss-Newton on ν for every record of the batch.
 
     ``final=False`` only refines ν (no residuals, halves or covariances are kept).
@@ -259,8 +283,12 @@ def _solve(rec: _Records, nu, layout: Layout, refine: bool, max_iterations: int,
         g_even, g_odd = _derivative_halves(theta, m, rec.u, layout)
         dg_even, dg_odd = g_even @ mt, g_odd @ mt
         dg = 2.0 * np.where(par > 0, dg_even, dg_odd)  # Σ over the record of D g_c
-        gx = np.einsum("scn,scn->sc", g_even, rec.x_even[active]) + np.einsum("scn,scn->sc", g_odd, rec.x_odd[active])
-        gg = 2.0 * (np.einsum("scn,scn->sc", g_even, g_even) + np.einsum("scn,scn->sc", g_odd, g_odd))
+        gx = np.einsum("scn,scn->sc", g_even, rec.x_even[active]) + np.einsum(
+            "scn,scn->sc", g_odd, rec.x_odd[active]
+        )
+        gg = 2.0 * (
+            np.einsum("scn,scn->sc", g_even, g_even) + np.einsum("scn,scn->sc", g_odd, g_odd)
+        )
         v = np.einsum("sij,scj->sci", ddi, dg)
         gr = gx - np.einsum("sci,sci->sc", theta, dg)
         gg = gg - np.einsum("sci,sci->sc", dg, v)
@@ -284,11 +312,21 @@ def _solve(rec: _Records, nu, layout: Layout, refine: bool, max_iterations: int,
             store.put(
                 idx,
                 theta=theta[d] - v[d] * t,
-                ddi=ddi[d], v=v[d], gg=gg[d], gp=gp[d],
+                ddi=ddi[d],
+                v=v[d],
+                gg=gg[d],
+                gp=gp[d],
                 pp=pp[d] - (dg_even[d] + dg_odd[d]) * t,
                 qn=qn[d] - (dg_even[d] - dg_odd[d]) * t,
-                **_residual_ss(theta[d], m[d], after[d], before[d],
-                               None if rec.centre is None else rec.centre[idx], layout, floor[idx]),
+                **_residual_ss(
+                    theta[d],
+                    m[d],
+                    after[d],
+                    before[d],
+                    None if rec.centre is None else rec.centre[idx],
+                    layout,
+                    floor[idx],
+                ),
                 iterations=it,
                 converged=~bad[d] & (last[d] | (not refine)),
             )
@@ -320,8 +358,10 @@ def _residual_ss(theta, d_half, after, before, centre, layout: Layout, floor) ->
     par = layout.parity[: layout.n_model]
     r_after = after - theta @ d_half
     r_before = before - (theta * par) @ d_half
-    halves = np.stack([np.einsum("scn,scn->sc", r_before, r_before),
-                       np.einsum("scn,scn->sc", r_after, r_after)], axis=-1)
+    halves = np.stack(
+        [np.einsum("scn,scn->sc", r_before, r_before), np.einsum("scn,scn->sc", r_after, r_after)],
+        axis=-1,
+    )
     ss = halves.sum(-1)
     if centre is not None:
         ss += (centre - theta @ layout.centre_row) ** 2
@@ -331,8 +371,21 @@ def _residual_ss(theta, d_half, after, before, centre, layout: Layout, floor) ->
 class _Store:
     """Per-step results gathered as steps converge, then turned into the fit's arrays."""
 
-    _PER_STEP = ("nu", "dof", "refined", "theta", "ddi", "v", "gg", "gp", "pp", "qn", "rss",
-                 "rss_halves", "iterations")
+    _PER_STEP = (
+        "nu",
+        "dof",
+        "refined",
+        "theta",
+        "ddi",
+        "v",
+        "gg",
+        "gp",
+        "pp",
+        "qn",
+        "rss",
+        "rss_halves",
+        "iterations",
+    )
 
     def __init__(self, nu, c: int, layout: Layout, dof: float, refined: bool):
         s, p = len(nu), layout.n_model
@@ -355,7 +408,7 @@ class _Store:
         for key, value in values.items():
             getattr(self, key)[idx] = value
 
-    def take(self, idx, other: "_Store") -> None:
+    def take(self, idx, other: _Store) -> None:
         """Replace steps ``idx`` by ``other``'s results (``converged`` is kept)."""
         for key in self._PER_STEP:
             getattr(self, key)[idx] = getattr(other, key)

@@ -98,9 +98,12 @@ class ImportedAfc:
         return f"{self.unit[0]} {k + 1 if self.rows is None else int(self.rows[k])}"
 
     def to_report_block(self) -> dict[str, Any]:
-        return {"frequency_hz": self.frequency_hz.tolist(), "re": self.H.real.tolist(),
-                "im": self.H.imag.tolist(),
-                "std": [None] * self.H.size if self.std is None else self.std.tolist()}
+        return {
+            "frequency_hz": self.frequency_hz.tolist(),
+            "re": self.H.real.tolist(),
+            "im": self.H.imag.tolist(),
+            "std": [None] * self.H.size if self.std is None else self.std.tolist(),
+        }
 
 
 def read_afc(path) -> ImportedAfc:
@@ -126,8 +129,9 @@ def read_afc_csv(path) -> ImportedAfc:
     except OSError as exc:
         raise VibidError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if raw.startswith(b"\x89HDF\r\n\x1a\n"):
-        raise VibidError(f"{path}: an HDF5 file, not an AFC (a session file is identified "
-                         "without --afc)")
+        raise VibidError(
+            f"{path}: an HDF5 file, not an AFC (a session file is identified without --afc)"
+        )
     rows = _csv_rows(path, _decoded(raw))
     try:
         _, header = next(rows)
@@ -138,16 +142,24 @@ def read_afc_csv(path) -> ImportedAfc:
     lines = []
     for line, row in rows:
         if (filled := sum(1 for c in row if c.strip())) > len(header):
-            raise VibidError(f"{path}: line {line}: {filled} fields, more than the header's "
-                             f"{len(header)} (a decimal comma?)")
+            raise VibidError(
+                f"{path}: line {line}: {filled} fields, more than the header's "
+                f"{len(header)} (a decimal comma?)"
+            )
         for name, k in cols.items():
             values[name].append(_number(path, line, name, row[k] if k < len(row) else None))
         lines.append(line)
     H = np.empty(len(lines), complex)
     H.real, H.imag = values["re"], values["im"]  # not re + 1j * im: 1j * inf has a nan real part
-    return checked_afc(path, np.array(values["frequency_hz"], float), H,
-                       np.array(values["std"], float) if "std" in values else None, lines,
-                       ("line", "lines"), content_session_id(raw))
+    return checked_afc(
+        path,
+        np.array(values["frequency_hz"], float),
+        H,
+        np.array(values["std"], float) if "std" in values else None,
+        lines,
+        ("line", "lines"),
+        content_session_id(raw),
+    )
 
 
 def _decoded(raw: bytes) -> str:
@@ -181,10 +193,15 @@ def _columns(path, header: list[str]) -> dict[str, int]:
     names = [h.strip() for h in header]
     missing = [c for c in COLUMNS if c not in names]
     if missing:
-        hint = " (is it separated by ';' or tabs? commas are expected)" if any(
-            s in ",".join(names) for s in (";", "\t")) else ""
-        raise VibidError(f"{path}: the header lacks {', '.join(missing)} (expected columns "
-                         f"frequency_hz, re, im and optionally std){hint}")
+        hint = (
+            " (is it separated by ';' or tabs? commas are expected)"
+            if any(s in ",".join(names) for s in (";", "\t"))
+            else ""
+        )
+        raise VibidError(
+            f"{path}: the header lacks {', '.join(missing)} (expected columns "
+            f"frequency_hz, re, im and optionally std){hint}"
+        )
     wanted = COLUMNS + ("std",)
     twice = [c for c in wanted if names.count(c) > 1]
     if twice:
@@ -193,8 +210,9 @@ def _columns(path, header: list[str]) -> dict[str, int]:
         plain = "".join(c for c in name.lower() if c.isalnum() or c == "_")
         if name not in wanted and (plain in wanted or "std" in plain):
             like = plain if plain in wanted else "std"
-            raise VibidError(f"{path}: the header's column {name!r} is not {like!r} (the "
-                             "column names are exact)")
+            raise VibidError(
+                f"{path}: the header's column {name!r} is not {like!r} (the column names are exact)"
+            )
     return {name: names.index(name) for name in wanted if name in names}
 
 
@@ -205,7 +223,7 @@ def _number(path, line: int, name: str, cell: str | None) -> float:
         raise VibidError(f"{path}: line {line}: {name} is missing")
     try:
         if "_" in cell or not cell.strip().isascii():  # float() takes 1_000 and other
-            raise ValueError                           # scripts' digits; a CSV does not
+            raise ValueError  # scripts' digits; a CSV does not
         return float(cell)
     except ValueError:
         shown = cell.strip()
@@ -213,8 +231,9 @@ def _number(path, line: int, name: str, cell: str | None) -> float:
         raise VibidError(f"{path}: line {line}: {name} {shown!r} is not a number") from None
 
 
-def checked_afc(path, frequency_hz, H, std, rows, unit: tuple[str, str],
-                session_id: str) -> ImportedAfc:
+def checked_afc(
+    path, frequency_hz, H, std, rows, unit: tuple[str, str], session_id: str
+) -> ImportedAfc:
     """The :class:`ImportedAfc` of the points read from ``path`` in file order (``rows``:
     each one's row, named by ``unit``), checked, sorted by frequency, repeated rows merged
     (module docstring); one-line VibidError naming the row otherwise."""
@@ -222,7 +241,10 @@ def checked_afc(path, frequency_hz, H, std, rows, unit: tuple[str, str],
     h = np.asarray(H, complex)
     s = None if std is None else np.asarray(std, float)
     rows = np.asarray(rows, int)
-    say = lambda k: f"{path}: {unit[0]} {int(rows[k])}: "
+
+    def say(k):
+        return f"{path}: {unit[0]} {int(rows[k])}: "
+
     _refuse_bad_values(say, f, h, s)
     order = np.argsort(f, kind="stable")
     f, h, rows = f[order], h[order], rows[order]
@@ -254,10 +276,14 @@ def _refuse_bad_values(say, f, h, s) -> None:
         (np.isfinite(f) & (f <= 0), lambda k: f"frequency_hz {float(f[k])!r} Hz is not positive"),
         (~np.isfinite(h.real), lambda k: f"re is {float(h[k].real)!r}, not a finite number"),
         (~np.isfinite(h.imag), lambda k: f"im is {float(h[k].imag)!r}, not a finite number"),
-        (np.isfinite(h.real) & (np.abs(h.real) > MAX_ABS_H),
-         lambda k: f"re {float(h[k].real)!r} is {limit}"),
-        (np.isfinite(h.imag) & (np.abs(h.imag) > MAX_ABS_H),
-         lambda k: f"im {float(h[k].imag)!r} is {limit}"),
+        (
+            np.isfinite(h.real) & (np.abs(h.real) > MAX_ABS_H),
+            lambda k: f"re {float(h[k].real)!r} is {limit}",
+        ),
+        (
+            np.isfinite(h.imag) & (np.abs(h.imag) > MAX_ABS_H),
+            lambda k: f"im {float(h[k].imag)!r} is {limit}",
+        ),
     ]
     if s is not None:
         checks += [
@@ -281,8 +307,10 @@ def _merged_repeats(path, unit, f, h, s, rows):
     if clash.size:
         k = clash[np.argmin(np.minimum(rows[clash], rows[clash + 1]))]
         a, b = sorted((int(rows[k]), int(rows[k + 1])))
-        raise VibidError(f"{path}: {unit[1]} {a} and {b} both give {float(f[k])!r} Hz, with "
-                         "different values: keep one of them, or average them")
+        raise VibidError(
+            f"{path}: {unit[1]} {a} and {b} both give {float(f[k])!r} Hz, with "
+            "different values: keep one of them, or average them"
+        )
     keep = np.concatenate([[True], ~same])
     return f[keep], h[keep], None if s is None else s[keep], rows[keep]
 
@@ -293,21 +321,28 @@ def _refuse_no_signal(path, say, h, s) -> None:
     size = np.abs(h)
     peak = float(size.max())
     if peak == 0.0:
-        raise VibidError(f"{path}: every H is 0: no response measured (is the response "
-                         "channel connected?)")
+        raise VibidError(
+            f"{path}: every H is 0: no response measured (is the response channel connected?)"
+        )
     if peak < MIN_PEAK_H:
-        raise VibidError(f"{path}: the largest |H| is {peak:.3g}, below {MIN_PEAK_H:g} (120 dB "
-                         "under the table's motion at every frequency): no response measured")
+        raise VibidError(
+            f"{path}: the largest |H| is {peak:.3g}, below {MIN_PEAK_H:g} (120 dB "
+            "under the table's motion at every frequency): no response measured"
+        )
     if s is None:
         return
     k = int(np.argmin(s))
     if s[k] < MIN_REL_STD * peak:
-        raise VibidError(say(k) + f"std {float(s[k])!r} is below {MIN_REL_STD:g} of the "
-                         f"largest |H| ({peak:.6g}): finer than any DAQ resolves")
+        raise VibidError(
+            say(k) + f"std {float(s[k])!r} is below {MIN_REL_STD:g} of the "
+            f"largest |H| ({peak:.6g}): finer than any DAQ resolves"
+        )
     snr = float(np.max(size / s))
     if snr < MIN_SNR:
-        raise VibidError(f"{path}: no point of the AFC stands above its std (the largest "
-                         f"|H|/std is {snr:.3g}): no response measured")
+        raise VibidError(
+            f"{path}: no point of the AFC stands above its std (the largest "
+            f"|H|/std is {snr:.3g}): no response measured"
+        )
 
 
 def refuse_beyond_nyquist(afc: ImportedAfc, sample_rate_hz: float, *, shown) -> None:
@@ -324,6 +359,8 @@ def refuse_beyond_nyquist(afc: ImportedAfc, sample_rate_hz: float, *, shown) -> 
         return
     k = int(above[0] if afc.rows is None else above[np.argmin(afc.rows[above])])
     more = f" (and {above.size - 1} more points)" if above.size > 1 else ""
-    raise VibidError(f"{shown}: {afc.where(k)}: {float(afc.frequency_hz[k])!r} Hz is not below "
-                     f"the Nyquist frequency {nyquist!r} Hz of the setup's DAQ "
-                     f"(daq.sample_rate_hz {rate!r}){more}")
+    raise VibidError(
+        f"{shown}: {afc.where(k)}: {float(afc.frequency_hz[k])!r} Hz is not below "
+        f"the Nyquist frequency {nyquist!r} Hz of the setup's DAQ "
+        f"(daq.sample_rate_hz {rate!r}){more}"
+    )

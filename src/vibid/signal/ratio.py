@@ -22,7 +22,9 @@ def _real_jacobian(c: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([c.real, -c.imag], -1), np.stack([c.imag, c.real], -1)], -2)
 
 
-def phasor_ratio(base: np.ndarray, response: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def phasor_ratio(
+    base: np.ndarray, response: np.ndarray, cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``H = response / base`` and the covariance of ``(Re H, Im H)``.
 
     Parameters

@@ -81,8 +81,15 @@ def _first_line(raw: bytes) -> bytes | None:
     return next((line for line in raw.splitlines() if line.strip()), None)
 
 
-def write_afc_uff(path, frequency_hz, H, std, *, session_id: str,
-                  description: str = "H = response/base acceleration, stepped sine") -> None:
+def write_afc_uff(
+    path,
+    frequency_hz,
+    H,
+    std,
+    *,
+    session_id: str,
+    description: str = "H = response/base acceleration, stepped sine",
+) -> None:
     """Write the AFC and its std to ``path`` as two binary UFF58 records (module docstring).
 
     Parameters
@@ -99,10 +106,20 @@ def write_afc_uff(path, frequency_hz, H, std, *, session_id: str,
     f, h, s = _checked(path, frequency_hz, H, std)
     common = {"id2": _id_line(f"session {session_id}"), "id4": _id_line(description), "x": f}
     records = [
-        dict(common, func_type=_AFC_FUNC_TYPE, id1=AFC_ID, data=h,
-             id5="std per Re and Im part: record 2 (vibid AFC std)"),
-        dict(common, func_type=_STD_FUNC_TYPE, id1=STD_ID, data=s,
-             id5="standard uncertainty per Re and Im part of record 1 (vibid AFC)"),
+        dict(
+            common,
+            func_type=_AFC_FUNC_TYPE,
+            id1=AFC_ID,
+            data=h,
+            id5="std per Re and Im part: record 2 (vibid AFC std)",
+        ),
+        dict(
+            common,
+            func_type=_STD_FUNC_TYPE,
+            id1=STD_ID,
+            data=s,
+            id5="standard uncertainty per Re and Im part of record 1 (vibid AFC)",
+        ),
     ]
     target = Path(path)
     tmp = target.with_name(f".{target.name}.{uuid.uuid4().hex[:8]}.tmp")
@@ -110,8 +127,12 @@ def write_afc_uff(path, frequency_hz, H, std, *, session_id: str,
         for record in records:
             _append_record(tmp, record, shown=path)
         back = _records(tmp, shown=path)
-        if not (len(back) == 2 and all(np.array_equal(b["x"], f) for b in back)
-                and np.array_equal(back[0]["data"], h) and np.array_equal(back[1]["data"], s)):
+        if not (
+            len(back) == 2
+            and all(np.array_equal(b["x"], f) for b in back)
+            and np.array_equal(back[0]["data"], h)
+            and np.array_equal(back[1]["data"], s)
+        ):
             raise VibidError(f"{path}: the UFF file did not read back as written")
         os.replace(tmp, target)
     except OSError as exc:
@@ -135,33 +156,53 @@ def read_afc_uff(path) -> ImportedAfc:
     if first.strip() != b"-1":
         raise VibidError(f"{path}: not a UFF file (its first line is not -1)")
     if first.rstrip(b" ") != _DELIMITER:
-        raise VibidError(f"{path}: not a readable UFF file (its -1 lines must be "
-                         "right-justified in six columns, '    -1')")
+        raise VibidError(
+            f"{path}: not a readable UFF file (its -1 lines must be "
+            "right-justified in six columns, '    -1')"
+        )
     marks = _delimiters(raw)
     if not raw.rstrip().endswith(_DELIMITER) or len(marks) % 2:
-        raise VibidError(f"{path}: truncated UFF file (its last record does not end with a "
-                         "-1 line)")
+        raise VibidError(
+            f"{path}: truncated UFF file (its last record does not end with a -1 line)"
+        )
     blocks = [raw[a:b] for a, b in zip(marks[::2], marks[1::2])]
     if not _dataset_number(blocks[0]):
-        raise VibidError(f"{path}: not a readable UFF file (no dataset number after its "
-                         "first -1 line)")
+        raise VibidError(
+            f"{path}: not a readable UFF file (no dataset number after its first -1 line)"
+        )
     records = _records_of(path, raw, marks, blocks)
     number, afc = next(((n, r) for n, r in records if np.iscomplexobj(r["data"])), (0, None))
     if afc is None:
         what = "only real type-58 records" if records else "no type-58 record"
         raise VibidError(f"{path}: {what}; the AFC must be a record with complex ordinates")
-    mark = next((r for _, r in records if r.get("id1") == STD_ID
-                 and not np.iscomplexobj(r["data"]) and np.array_equal(r["x"], afc["x"])), None)
+    mark = next(
+        (
+            r
+            for _, r in records
+            if r.get("id1") == STD_ID
+            and not np.iscomplexobj(r["data"])
+            and np.array_equal(r["x"], afc["x"])
+        ),
+        None,
+    )
     if mark is None and afc.get("id1") == AFC_ID:
-        raise VibidError(f"{path}: the std record ({STD_ID!r}) of this vibid AFC is missing "
-                         "or not at its frequencies")
+        raise VibidError(
+            f"{path}: the std record ({STD_ID!r}) of this vibid AFC is missing "
+            "or not at its frequencies"
+        )
     f, h = afc["x"], afc["data"]
     std = None if mark is None else mark["data"]
     points = np.arange(1, f.size + 1)
     keep = f != 0.0  # an FFT analyser's DC line: no point of a stepped sine
-    return checked_afc(path, f[keep], h[keep], None if std is None else std[keep], points[keep],
-                       (f"record {number}, point", f"record {number}, points"),
-                       content_session_id(raw))
+    return checked_afc(
+        path,
+        f[keep],
+        h[keep],
+        None if std is None else std[keep],
+        points[keep],
+        (f"record {number}, point", f"record {number}, points"),
+        content_session_id(raw),
+    )
 
 
 _DELIMITER = b"    -1"
@@ -173,7 +214,7 @@ def _delimiters(raw: bytes) -> list[int]:
     out, k, n = [], -1, len(raw)
     while (k := raw.find(_DELIMITER, k + 1)) != -1:
         end = k + len(_DELIMITER)
-        if end == n or raw[end] in b"\r\n" or (end + 74 < n and raw[end:k + 80] == b" " * 74):
+        if end == n or raw[end] in b"\r\n" or (end + 74 < n and raw[end : k + 80] == b" " * 74):
             out.append(k)
     return out
 
@@ -223,8 +264,10 @@ def _binary_body(path, number: int, block: bytes) -> bytes:
     except (ValueError, KeyError):
         raise VibidError(f"{path}: UFF record {number} (dataset 58) cannot be read") from None
     if order not in (1, 2):  # pyuff would read any other as big-endian
-        raise VibidError(f"{path}: UFF record {number} (dataset 58b): byte ordering {order} is "
-                         "neither 1 (little-endian) nor 2 (big-endian)")
+        raise VibidError(
+            f"{path}: UFF record {number} (dataset 58b): byte ordering {order} is "
+            "neither 1 (little-endian) nor 2 (big-endian)"
+        )
     per_point = (2 if kind in (5, 6) else 1) + (1 if spacing == 0 else 0)
     expected = n_points * per_point * size
     body = b"".join(lines[13:])
@@ -232,9 +275,11 @@ def _binary_body(path, number: int, block: bytes) -> bytes:
         for end in (b"", b"\r\n", b"\n", b"\r"):
             if data.endswith(end) and len(data) - len(end) == expected:
                 return data[:expected]
-    raise VibidError(f"{path}: UFF record {number} (dataset 58b) holds {len(body)} bytes of "
-                     f"binary data where its {n_points} points take {expected} (truncated, or "
-                     "damaged in a copy: copy binary UFF files as binary)")
+    raise VibidError(
+        f"{path}: UFF record {number} (dataset 58b) holds {len(body)} bytes of "
+        f"binary data where its {n_points} points take {expected} (truncated, or "
+        "damaged in a copy: copy binary UFF files as binary)"
+    )
 
 
 def _checked(path, frequency_hz, H, std) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -243,8 +288,9 @@ def _checked(path, frequency_hz, H, std) -> tuple[np.ndarray, np.ndarray, np.nda
     h = np.asarray(H, complex).ravel()
     s = np.asarray(std, float).ravel()
     if not f.size == h.size == s.size:
-        raise VibidError(f"{path}: frequency_hz, H and std differ in length "
-                         f"({f.size}, {h.size}, {s.size})")
+        raise VibidError(
+            f"{path}: frequency_hz, H and std differ in length ({f.size}, {h.size}, {s.size})"
+        )
     if f.size < 2:
         raise VibidError(f"{path}: fewer than two AFC points to write")
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(h)) and np.all(np.isfinite(s))):
@@ -267,15 +313,28 @@ def _append_record(path: Path, record: dict, *, shown) -> None:
     import pyuff
 
     start = path.stat().st_size if path.exists() else 0
-    dset = {"type": 58, "binary": 1, "abscissa_spacing": 0,
-            "rsp_ent_name": "RESPONSE", "rsp_node": 1, "rsp_dir": 3,  # +Z: out of plane
-            "ref_ent_name": "BASE", "ref_node": 2, "ref_dir": 3,
-            "abscissa_spec_data_type": _FREQUENCY, "abscissa_axis_lab": "Frequency",
-            "abscissa_axis_units_lab": "Hz",
-            "ordinate_spec_data_type": _ACCELERATION, "ordinate_axis_lab": "Response accel",
-            "ordinate_axis_units_lab": "m/s^2",
-            "orddenom_spec_data_type": _ACCELERATION, "orddenom_axis_lab": "Base accel",
-            "orddenom_axis_units_lab": "m/s^2", "z_axis_spec_data_type": 0, **record}
+    dset = {
+        "type": 58,
+        "binary": 1,
+        "abscissa_spacing": 0,
+        "rsp_ent_name": "RESPONSE",
+        "rsp_node": 1,
+        "rsp_dir": 3,  # +Z: out of plane
+        "ref_ent_name": "BASE",
+        "ref_node": 2,
+        "ref_dir": 3,
+        "abscissa_spec_data_type": _FREQUENCY,
+        "abscissa_axis_lab": "Frequency",
+        "abscissa_axis_units_lab": "Hz",
+        "ordinate_spec_data_type": _ACCELERATION,
+        "ordinate_axis_lab": "Response accel",
+        "ordinate_axis_units_lab": "m/s^2",
+        "orddenom_spec_data_type": _ACCELERATION,
+        "orddenom_axis_lab": "Base accel",
+        "orddenom_axis_units_lab": "m/s^2",
+        "z_axis_spec_data_type": 0,
+        **record,
+    }
     try:
         # 'add' on a new file: pyuff's 'overwrite' of a binary record truncates its own header
         pyuff.UFF(os.fspath(path)).write_sets(dset, mode="add", force_double=True)
@@ -294,7 +353,7 @@ def _set_byte_count(path: Path, start: int, n_bytes: int, *, shown) -> None:
         fh.seek(start)
         head = fh.read(100)
         second = head.find(b"\n") + 1
-        if head[:6] != b"    -1" or head[second:second + 7] != b"    58b":
+        if head[:6] != b"    -1" or head[second : second + 7] != b"    58b":
             raise VibidError(f"{shown}: unexpected UFF58b header from pyuff")
         fh.seek(start + second + 31)
         fh.write(b"%12d" % n_bytes)
@@ -325,8 +384,10 @@ def _records(path, *, shown=None, numbered: bool = False) -> list:
         except Exception:
             raise VibidError(f"{shown}: UFF record {k + 1} (dataset 58) cannot be read") from None
         if x.size != data.size or data.size != record.get("num_pts", data.size):
-            raise VibidError(f"{shown}: UFF record {k + 1} holds {data.size} values for "
-                             f"{record.get('num_pts')} points (truncated or damaged)")
+            raise VibidError(
+                f"{shown}: UFF record {k + 1} holds {data.size} values for "
+                f"{record.get('num_pts')} points (truncated or damaged)"
+            )
         record = record | {"x": x, "data": data}
         out.append((k + 1, record) if numbered else record)
     return out

@@ -26,6 +26,7 @@ def _discover() -> dict:
 #: Every effect by its report name.
 EFFECTS: dict = _discover()
 
+
 def _all_parameters(term) -> tuple:
     """A term's parameters in every material's form (``transverse_shear`` has ``G13_Pa``
     on an orthotropic plate only)."""
@@ -42,8 +43,11 @@ def effects_for(names) -> tuple:
     """The effects whose parameters appear in ``names``, in :data:`EFFECTS` order (an
     instance's name, ``f_hz_2``, names its effect)."""
     names = {_catalogue.split_instance(n)[0] for n in names}
-    return tuple(t for t in EFFECTS.values()
-                 if {_catalogue.split_instance(q.name)[0] for q in _all_parameters(t)} & names)
+    return tuple(
+        t
+        for t in EFFECTS.values()
+        if {_catalogue.split_instance(q.name)[0] for q in _all_parameters(t)} & names
+    )
 
 
 #: What ``anisotropy`` (the report's other effect name: a material, not a term) is, in a

@@ -40,7 +40,6 @@ import numpy as np
 from vibid.identify.model.terms import Term
 from vibid.parameters import A_FIXTURE, F_FIXTURE, Q_FIXTURE
 
-
 #: A fixture resonance steps |H| across its pole: the step is read this factor either side
 #: (the loop's span for a placed resonance, :attr:`vibid.identify.loop.policy.Policy.pole_span`).
 STEP_SPAN = 1.1
@@ -55,8 +54,10 @@ class FixtureResonance(Term):
     needs_feature = True
     #: its frequency is the diagnosed pole's; its Q is not (the step's width sets it)
     feature_places = {"f_fixture_hz": "f_hz"}
-    meaning = ("a resonance of the fixture that carries the clamp (the clamp moves "
-               "otherwise than the base sensor beside it)")
+    meaning = (
+        "a resonance of the fixture that carries the clamp (the clamp moves "
+        "otherwise than the base sensor beside it)"
+    )
     parameters = (F_FIXTURE, Q_FIXTURE, A_FIXTURE)
     in_every_structure = False
 
@@ -69,8 +70,11 @@ class FixtureResonance(Term):
         a mode of the model that its sensor does not see (``hidden_mode_hz``): that is the
         mode, more plainly (a sensor off its declared place), and a fixture's pole and zero
         would mimic it."""
-        poles = [x for x in diagnosis.extra_poles()
-                 if math.isfinite(x.f_hz) and not math.isfinite(x.hidden_mode_hz)]
+        poles = [
+            x
+            for x in diagnosis.extra_poles()
+            if math.isfinite(x.f_hz) and not math.isfinite(x.hidden_mode_hz)
+        ]
         if not poles:
             return None
 

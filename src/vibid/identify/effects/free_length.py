@@ -93,19 +93,24 @@ class FreeLength(Term):
         at = places()
         shifts = [sensor_shift_m(g.length_m, g.sensor_x_m, t) for t in at]
         if g.sensor_x_m + max(shifts) + g.sensor_radius_m > g.length_m:
-            raise ValueError("free_length: the sensor's disc reaches the plate's tip; "
-                             "declare it at least 0.5 mm inside")
+            raise ValueError(
+                "free_length: the sensor's disc reaches the plate's tip; "
+                "declare it at least 0.5 mm inside"
+            )
         along = np.array([1.0, 0.0])
         inertia = ctx.sensor_shift(along, at, shifts)
         centre = np.array([g.sensor_x_m, g.sensor_y_m])
-        probes = polynomial_through(ctx.probe, [ctx.probe_at(centre + d * along)
-                                                for d in shifts], at)
+        probes = polynomial_through(
+            ctx.probe, [ctx.probe_at(centre + d * along) for d in shifts], at
+        )
         tilt = g.mass_per_area_kg_m2 * g.thickness_m**2 / 12.0 * slope_x.assemble(ctx.basis)
-        return ({"plate_slope_x": tilt.tocsr()}
-                | {f"sensor_dx{k}": inertia[k] for k in POWERS}
-                | {f"probe_dx{k + 1}": c for k, c in enumerate(probes)})
+        return (
+            {"plate_slope_x": tilt.tocsr()}
+            | {f"sensor_dx{k}": inertia[k] for k in POWERS}
+            | {f"probe_dx{k + 1}": c for k, c in enumerate(probes)}
+        )
 
-    def for_geometry(self, geometry) -> "FreeLength":
+    def for_geometry(self, geometry) -> FreeLength:
         return FreeLength(float(geometry.length_m))
 
     def _stretch(self, p: dict):

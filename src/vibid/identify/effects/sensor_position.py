@@ -30,6 +30,7 @@ import numpy as np
 
 from vibid.identify.model.disc import polynomial_through
 from vibid.identify.model.terms import Term
+
 # sensor_dy_m (m): the catalogue declares it. Its default box is also the reach of the
 # interpolation across the width (:func:`places`): the polynomial's error grows with the
 # offset, and on a real strip's setup it grew from below 2e-4 of |H| to 5.7e-4 at ±10 mm.
@@ -80,8 +81,9 @@ class SensorPosition(Term):
         inertia = ctx.sensor_shift(across, at)
         centre = np.array([g.sensor_x_m, g.sensor_y_m])
         probes = polynomial_through(ctx.probe, [ctx.probe_at(centre + t * across) for t in at], at)
-        return ({f"sensor_dy{k}": inertia[k] for k in POWERS}
-                | {f"probe_dy{k + 1}": c for k, c in enumerate(probes)})
+        return {f"sensor_dy{k}": inertia[k] for k in POWERS} | {
+            f"probe_dy{k + 1}": c for k, c in enumerate(probes)
+        }
 
 
 EFFECT = SensorPosition()

@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 
 from vibid.identify.model.terms import Term
-from vibid.parameters import F_HZ, Q, THETA, instance_name
+from vibid.parameters import F_HZ, THETA, Q, instance_name
 
 
 @dataclass(frozen=True)
@@ -47,15 +47,17 @@ class StandResonance(Term):
 
     @property
     def parameters(self) -> tuple:
-        return tuple(dataclasses.replace(q, name=instance_name(q.name, self.instance))
-                     for q in (F_HZ, Q, THETA))
+        return tuple(
+            dataclasses.replace(q, name=instance_name(q.name, self.instance))
+            for q in (F_HZ, Q, THETA)
+        )
 
     def base_rotation(self, p: dict, omega, xp):
         f0, q, theta0 = (p[n] for n in self.names)
         r = omega / (2 * math.pi * f0)
         return theta0 / (1.0 - r**2 + 1j * r / q)
 
-    def next_instance(self) -> "StandResonance":
+    def next_instance(self) -> StandResonance:
         """Another resonance of the stand (the next instance)."""
         return StandResonance(self.instance + 1)
 

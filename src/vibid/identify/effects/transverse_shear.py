@@ -78,7 +78,7 @@ class TransverseShear(Term):
     def parameters(self):
         return (G13,) if self.orthotropic else ()
 
-    def for_material(self, material) -> "TransverseShear":
+    def for_material(self, material) -> TransverseShear:
         return TransverseShear(orthotropic=material.model != "isotropic")
 
     def stiffness(self, p: dict, xp) -> dict:
@@ -98,8 +98,9 @@ class TransverseShear(Term):
         h = ctx.geometry.thickness_m
         n = ctx.basis.N
         field = np.setdiff1d(np.arange(n), ctx.clamped(HELD_ON_CLAMP))  # the field's dofs
-        lift = sp.csr_matrix((np.ones(field.size), (field, np.arange(field.size))),
-                             shape=(n, field.size))  # field dofs -> the plate's dofs
+        lift = sp.csr_matrix(
+            (np.ones(field.size), (field, np.arange(field.size))), shape=(n, field.size)
+        )  # field dofs -> the plate's dofs
         gradient = (slope_x.assemble(ctx.basis) + slope_y.assemble(ctx.basis)).tocsr()
         scale = KAPPA * h if self.orthotropic else 6.0 * KAPPA / h**2
         zero = sp.csr_matrix((n, n))
@@ -108,8 +109,7 @@ class TransverseShear(Term):
         probe = np.concatenate([np.zeros(n), lift.T @ ctx.probe])
         return {
             "shear": sp.block_diag([zero, scale * (lift.T @ gradient @ lift)]).tocsr(),
-            "shear_mass": sp.bmat([[None, coupling],
-                                   [coupling.T, lift.T @ mass @ lift]]).tocsr(),
+            "shear_mass": sp.bmat([[None, coupling], [coupling.T, lift.T @ mass @ lift]]).tocsr(),
             "shear_probe": probe,
         }
 

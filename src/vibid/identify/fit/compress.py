@@ -74,8 +74,8 @@ def gauss_nodes(x: np.ndarray, w: np.ndarray, q: int) -> tuple[np.ndarray, np.nd
         V[:, j] = v
         z = t * v
         alpha[j] = v @ z
-        z -= V[:, :j + 1] @ (V[:, :j + 1].T @ z)
-        z -= V[:, :j + 1] @ (V[:, :j + 1].T @ z)
+        z -= V[:, : j + 1] @ (V[:, : j + 1].T @ z)
+        z -= V[:, : j + 1] @ (V[:, : j + 1].T @ z)
         if j < q - 1:
             beta[j] = np.linalg.norm(z)
             v = z / beta[j]
@@ -97,8 +97,14 @@ def lagrange_matrix(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
     return L
 
 
-def project(f_hz: np.ndarray, w: np.ndarray, d: np.ndarray, nodes: np.ndarray,
-            W: np.ndarray, L: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+def project(
+    f_hz: np.ndarray,
+    w: np.ndarray,
+    d: np.ndarray,
+    nodes: np.ndarray,
+    W: np.ndarray,
+    L: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
     """The pseudo-data ``c`` (q,) at the Gauss ``nodes`` (weights ``W``) of a band's points
     ``f_hz`` (weights ``w``, data ``d``) and the constant ``κ``, such that for any values
     ``h`` at the nodes ``Σ_k w_k |Σ_j h_j ℓ_j(f_k) − d_k|² = Σ_j W_j |h_j − c_j|² + κ``
@@ -133,8 +139,9 @@ def _quadratures_of(f_hz: bytes, w: bytes, q: int) -> Quadratures:
 def quadratures(f_hz: np.ndarray, w: np.ndarray, q: int) -> Quadratures:
     """The :class:`Quadratures` of sorted points ``f_hz`` with weights ``w`` (kept for the
     last few such sets)."""
-    return _quadratures_of(np.ascontiguousarray(f_hz, float).tobytes(),
-                           np.ascontiguousarray(w, float).tobytes(), q)
+    return _quadratures_of(
+        np.ascontiguousarray(f_hz, float).tobytes(), np.ascontiguousarray(w, float).tobytes(), q
+    )
 
 
 def _values_and_sensitivities(problem: LeastSquaresProblem, theta, f_hz):
@@ -142,15 +149,23 @@ def _values_and_sensitivities(problem: LeastSquaresProblem, theta, f_hz):
     :data:`CHUNK` (one compiled shape)."""
     H, J = [], []
     for i in range(0, f_hz.size, CHUNK):
-        f = f_hz[i:i + CHUNK]
+        f = f_hz[i : i + CHUNK]
         padded = np.concatenate([f, np.full(CHUNK - f.size, f[-1])])
-        probe = LeastSquaresProblem(problem.model.on_frequencies(padded),
-                                    FitData(padded, np.zeros(CHUNK, complex), None,
-                                            np.ones(CHUNK, bool), magnitude=problem.magnitude),
-                                    problem.space, np.ones(CHUNK))
+        probe = LeastSquaresProblem(
+            problem.model.on_frequencies(padded),
+            FitData(
+                padded,
+                np.zeros(CHUNK, complex),
+                None,
+                np.ones(CHUNK, bool),
+                magnitude=problem.magnitude,
+            ),
+            problem.space,
+            np.ones(CHUNK),
+        )
         Jr, r = probe.jacobian_and_residuals_theta(theta)
-        H.append(_values(r, CHUNK, problem.magnitude)[:f.size])
-        J.append(_values(Jr, CHUNK, problem.magnitude)[:f.size])
+        H.append(_values(r, CHUNK, problem.magnitude)[: f.size])
+        J.append(_values(Jr, CHUNK, problem.magnitude)[: f.size])
     return np.concatenate(H), np.concatenate(J)
 
 
@@ -160,8 +175,9 @@ def _values(r: np.ndarray, n: int, magnitude: bool) -> np.ndarray:
     return r[:n].astype(complex) if magnitude else r[:n] + 1j * r[n:]
 
 
-def bands(problem: LeastSquaresProblem, theta, f_hz, sigma, scale, H, J,
-          q: int = NODES) -> list[tuple[int, int, tuple | None]]:
+def bands(
+    problem: LeastSquaresProblem, theta, f_hz, sigma, scale, H, J, q: int = NODES
+) -> list[tuple[int, int, tuple | None]]:
     """``[(i0, i1, (nodes, weights, L) or None)]``: the bands of the sorted points ``f_hz``
     (weights ``1/sigma²``) on which the interpolant through ``q`` Gauss nodes holds the
     model ``H`` and its sensitivities ``J`` times ``scale`` (p,) at ``theta`` to the band's
@@ -178,8 +194,8 @@ def bands(problem: LeastSquaresProblem, theta, f_hz, sigma, scale, H, J,
         Hn, Jn = _values_and_sensitivities(problem, theta, np.concatenate([t[2][0] for t in trial]))
         todo = []
         for k, (i0, i1, (_, _, L)) in enumerate(trial):
-            eH = np.abs(L @ Hn[k * q:(k + 1) * q] - H[i0:i1])
-            eJ = (np.abs(L @ Jn[k * q:(k + 1) * q] - J[i0:i1]) * scale).max(axis=1)
+            eH = np.abs(L @ Hn[k * q : (k + 1) * q] - H[i0:i1])
+            eJ = (np.abs(L @ Jn[k * q : (k + 1) * q] - J[i0:i1]) * scale).max(axis=1)
             e2 = np.sum((np.maximum(eH, eJ) / sigma[i0:i1]) ** 2)
             if e2 <= TOL_STD**2 * (i1 - i0) / n:
                 done.append(trial[k])
@@ -230,12 +246,14 @@ def compressed(problem: LeastSquaresProblem, u) -> LeastSquaresProblem:
     nodes = np.append(nodes, np.full(extra, nodes[-1]))
     c, s = np.append(c, np.zeros(extra)), np.append(s, np.full(extra, np.inf))
     short = FitData(nodes, c, s, np.ones(nodes.size, bool), magnitude=d.magnitude)
-    return LeastSquaresProblem(problem.model.on_frequencies(nodes), short, problem.space, s,
-                               chi2_offset=kappa)
+    return LeastSquaresProblem(
+        problem.model.on_frequencies(nodes), short, problem.space, s, chi2_offset=kappa
+    )
 
 
-def confirmed(problem: LeastSquaresProblem, short: LeastSquaresProblem, u,
-              tol: float = 0.0) -> bool:
+def confirmed(
+    problem: LeastSquaresProblem, short: LeastSquaresProblem, u, tol: float = 0.0
+) -> bool:
     """Whether the full ``problem`` agrees that ``u``, the short problem's minimum, is its
     own to :data:`TOL_STD`: the full chi2's Newton step there (with the short problem's
     Hessian ``B``) is shorter than that many standard deviations, ``½ gᵀB⁻¹g ≤ TOL_STD²``

@@ -95,6 +95,7 @@ def fit_data(frequency_hz, H, std=None, used=None, *, magnitude: bool = False) -
         if s is not None and (low := int(np.count_nonzero(np.abs(H[mask]) < 3 * s[mask]))):
             warnings.append(
                 f"{low} AFC points have |H| below 3 std: a magnitude that close to the noise "
-                "reads high (by about std²/(2|H|)), which a fit of |H| alone does not correct")
+                "reads high (by about std²/(2|H|)), which a fit of |H| alone does not correct"
+            )
         H = np.abs(H).astype(complex)
     return FitData(f, H, s, mask, tuple(warnings), magnitude)

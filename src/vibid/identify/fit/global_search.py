@@ -111,7 +111,9 @@ def differential_evolution(
     fixed = dict(fixed or {})
     unknown = set(fixed) - set(space.names)
     if unknown:
-        raise ValueError(f"differential_evolution: fixed names {sorted(unknown)} are not parameters")
+        raise ValueError(
+            f"differential_evolution: fixed names {sorted(unknown)} are not parameters"
+        )
     free = np.array([i for i, n in enumerate(space.names) if n not in fixed], dtype=int)
     u_fixed = np.zeros(space.size)
     for n, v in fixed.items():
@@ -145,9 +147,18 @@ def differential_evolution(
                 progress(label, done[0], total, float(intermediate_result.fun))
 
         sol = scipy_de(
-            objective, [(-1.0, 1.0)] * len(free), init=init, mutation=mutation,
-            recombination=recombination, tol=tol, maxiter=max_generations, polish=False,
-            vectorized=True, updating="deferred", rng=rng, callback=callback,
+            objective,
+            [(-1.0, 1.0)] * len(free),
+            init=init,
+            mutation=mutation,
+            recombination=recombination,
+            tol=tol,
+            maxiter=max_generations,
+            polish=False,
+            vectorized=True,
+            updating="deferred",
+            rng=rng,
+            callback=callback,
         )
         done[0] += max_generations - gens[0]  # a restart that converged early
         if progress is not None:
@@ -157,19 +168,25 @@ def differential_evolution(
         us.append(u)
         losses.append(float(sol.fun))
         messages.append(f"{label}, restart {r + 1}: {sol.message} ({sol.nit} generations)")
-        log.info("%s, restart %d: %.6g at %s (%d generations)", label, r + 1, sol.fun,
-                 space.as_dict(space.theta(u)), sol.nit)
+        log.info(
+            "%s, restart %d: %.6g at %s (%d generations)",
+            label,
+            r + 1,
+            sol.fun,
+            space.as_dict(space.theta(u)),
+            sol.nit,
+        )
         if agree and r + 1 < restarts and _agreeing(us, losses, agree_tol, agree_rtol) >= agree:
-            log.info("%s: %d restarts agree, the other %d skipped", label, agree,
-                     restarts - r - 1)
+            log.info("%s: %d restarts agree, the other %d skipped", label, agree, restarts - r - 1)
             if progress is not None:
                 done[0] = total
                 progress(label, done[0], total, float(min(losses)))
             break
     order = np.argsort(losses)
     U = np.array(us)[order]
-    return GlobalResult(U, space.theta(U), np.array(losses)[order], n_eval[0],
-                        tuple(messages[i] for i in order))
+    return GlobalResult(
+        U, space.theta(U), np.array(losses)[order], n_eval[0], tuple(messages[i] for i in order)
+    )
 
 
 def _agreeing(us, losses, agree_tol: float, agree_rtol: float | None) -> int:

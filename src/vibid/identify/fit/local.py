@@ -37,11 +37,14 @@ log = logging.getLogger(__name__)
 #: keeps MINPACK's own test).
 _METHODS: dict[str, Callable[..., LocalResult]] = {
     "newton": lambda problem, u0, max_iter=200, tol=0.0: trust_region(
-        problem, u0, hessian="exact", max_iter=max_iter, decrement_tol=tol),
+        problem, u0, hessian="exact", max_iter=max_iter, decrement_tol=tol
+    ),
     "bfgs": lambda problem, u0, max_iter=200, tol=0.0: trust_region(
-        problem, u0, hessian="bfgs", max_iter=2 * max_iter, decrement_tol=tol),
+        problem, u0, hessian="bfgs", max_iter=2 * max_iter, decrement_tol=tol
+    ),
     "lm": lambda problem, u0, max_iter=200, tol=0.0: gauss_newton(
-        problem, u0, max_evaluations=2 * max_iter),
+        problem, u0, max_evaluations=2 * max_iter
+    ),
 }
 #: Rebuilds of the compressed problem around an end point the full data do not confirm
 #: (then the run is finished on the full problem).
@@ -60,16 +63,21 @@ class Compression:
     def on(self, problem: LeastSquaresProblem) -> LeastSquaresProblem | None:
         """The short problem on ``problem``'s model; None unless ``problem`` has the same
         data and weights as :attr:`full`."""
-        if problem.data is not self.full.data or not np.array_equal(problem.sigma,
-                                                                     self.full.sigma):
+        if problem.data is not self.full.data or not np.array_equal(problem.sigma, self.full.sigma):
             return None
         if problem.model is self.full.model:
             return self.short
         return self.short.with_model(problem.model.on_frequencies(self.short.model.frequencies_hz))
 
 
-def confirmed_run(method, problem: LeastSquaresProblem, short: LeastSquaresProblem, u0,
-                  max_iter: int = 200, tol: float = 0.0) -> tuple[LocalResult, LeastSquaresProblem]:
+def confirmed_run(
+    method,
+    problem: LeastSquaresProblem,
+    short: LeastSquaresProblem,
+    u0,
+    max_iter: int = 200,
+    tol: float = 0.0,
+) -> tuple[LocalResult, LeastSquaresProblem]:
     """``method`` on the compressed ``short`` from ``u0``, its end point confirmed on the
     full ``problem`` (else the compression rebuilt there and the run resumed, at most
     :data:`REBUILDS` times, then finished on ``problem``); the loss is the full chi2.
@@ -85,8 +93,9 @@ def confirmed_run(method, problem: LeastSquaresProblem, short: LeastSquaresProbl
     return method(problem, r.u, max_iter, tol), problem
 
 
-def run_local(local: str, problem, u0, near: Compression | None = None,
-              max_iter: int = 200, tol: float = 0.0) -> tuple[LocalResult, Compression | None]:
+def run_local(
+    local: str, problem, u0, near: Compression | None = None, max_iter: int = 200, tol: float = 0.0
+) -> tuple[LocalResult, Compression | None]:
     """The local method ``local`` from ``u0``, on the problem compressed around ``u0`` when
     the AFC is long (:func:`confirmed_run`; a continuation's rung with parameters held is not
     confirmed: its loss is the full chi2 at its end), or on ``near``'s nodes where it has
@@ -123,7 +132,8 @@ def _on_compressed(name: str) -> Callable[..., LocalResult]:
 
 #: Local methods by name (compressing a long AFC).
 LOCAL_METHODS: dict[str, Callable[..., LocalResult]] = {
-    name: _on_compressed(name) for name in _METHODS}
+    name: _on_compressed(name) for name in _METHODS
+}
 #: Iteration limit of each rung of the continuation (the winner is then run to the end).
 RUNG_MAX_ITER = 30
 
@@ -131,7 +141,6 @@ RUNG_MAX_ITER = 30
 SMOOTHING_PARAMETER = "beta"
 #: Ratio between rungs of the continuation ladder (half a decade).
 LADDER_RATIO = 10**-0.5
-
 
 
 # -- a problem with some coordinates held --------------------------------------------------
@@ -159,7 +168,7 @@ class HeldProblem:
         self.space = _HeldSpace(problem.space, self.free, np.asarray(u_base, float).copy())
         self.n_points = problem.n_points
 
-    def on(self, problem) -> "HeldProblem":
+    def on(self, problem) -> HeldProblem:
         """The same coordinates held, on another problem (the compressed one)."""
         return HeldProblem(problem, self.free, self.space.full(np.zeros(self.free.size)))
 
@@ -181,8 +190,11 @@ class HeldProblem:
         return self.problem.jacobian(self.space.full(u_free))[:, self.free]
 
 
-def polish_by_continuation(problem: LeastSquaresProblem, u_start, local: str = "newton",
-                           ) -> list[LocalResult]:
+def polish_by_continuation(
+    problem: LeastSquaresProblem,
+    u_start,
+    local: str = "newton",
+) -> list[LocalResult]:
     """Local fits from ``u_start`` with the loss factor released step by step.
 
     Returns every free fit, best (lowest chi2) first. Without a loss-factor parameter, one
@@ -214,8 +226,13 @@ def polish_by_continuation(problem: LeastSquaresProblem, u_start, local: str = "
         u = held.space.full(r_held.u)
         r_free = method(short, u, RUNG_MAX_ITER)
         results.append(r_free)
-        log.debug("continuation beta=%.3g: held chi2 %.6g, free chi2 %.6g beta %.3g",
-                  b, r_held.loss, r_free.loss, r_free.theta[ib])
+        log.debug(
+            "continuation beta=%.3g: held chi2 %.6g, free chi2 %.6g beta %.3g",
+            b,
+            r_held.loss,
+            r_free.loss,
+            r_free.theta[ib],
+        )
         if r_free.theta[ib] >= b * math.sqrt(LADDER_RATIO):
             break  # the free fit's loss factor lies above the rung: lower rungs are useless
     if short is not problem:  # the full chi2 of each; the best confirmed on the full data

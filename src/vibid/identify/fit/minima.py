@@ -62,8 +62,9 @@ def best_inside_prior(runs, space: ParameterSpace, noise_var: float):
     best = runs[0]
     if not space.out_of_bounds(best.theta) or not np.isfinite(best.loss):
         return None
-    inside = [r for r in runs if r.converged and np.isfinite(r.loss)
-              and not space.out_of_bounds(r.theta)]
+    inside = [
+        r for r in runs if r.converged and np.isfinite(r.loss) and not space.out_of_bounds(r.theta)
+    ]
     if not inside:
         return None
     cand = min(inside, key=lambda r: r.loss)
@@ -94,7 +95,9 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
     rivals' parameter vectors).
     """
     p = len(names)
-    noise_var = 1.0 if noise_known else (chi2_red if np.isfinite(chi2_red) and chi2_red > 0 else 1.0)
+    noise_var = (
+        1.0 if noise_known else (chi2_red if np.isfinite(chi2_red) and chi2_red > 0 else 1.0)
+    )
     delta = indistinct_chi2(p, noise_var)
     sd = np.sqrt(np.abs(np.diag(cov)))
     if not np.all(np.isfinite(sd)):
@@ -106,8 +109,10 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
         d = r.theta - best.theta
         if not np.any((np.abs(d) > 2 * sd) & (np.abs(d) > SAME_MINIMUM_REL * np.abs(best.theta))):
             continue  # the same minimum (to its uncertainty, or to where the runs stopped)
-        if any(np.all(np.abs(r.theta - q.theta) <= SAME_MINIMUM_REL * (np.abs(q.theta) + sd))
-               for q, _ in rivals):
+        if any(
+            np.all(np.abs(r.theta - q.theta) <= SAME_MINIMUM_REL * (np.abs(q.theta) + sd))
+            for q, _ in rivals
+        ):
             continue
         rivals.append((r, d))
     if not rivals:
@@ -123,12 +128,17 @@ def rival_minima(runs, best, cov, chi2_red, noise_known, names):
     spans = ", ".join(
         f"{n} {min([best.theta[i]] + [r.theta[i] for r, _ in rivals]):.4g}.."
         f"{max([best.theta[i]] + [r.theta[i] for r, _ in rivals]):.4g}"
-        for i, n in enumerate(names))
-    return wide, (
-        f"{len(rivals) + 1} distinct minima fit the data about equally well (chi2 within "
-        f"{delta:.3g} of the best): the data do not single out one answer ({spans}); "
-        "the standard deviations include this spread"
-    ), tuple(np.asarray(r.theta, float).copy() for r, _ in rivals)
+        for i, n in enumerate(names)
+    )
+    return (
+        wide,
+        (
+            f"{len(rivals) + 1} distinct minima fit the data about equally well (chi2 within "
+            f"{delta:.3g} of the best): the data do not single out one answer ({spans}); "
+            "the standard deviations include this spread"
+        ),
+        tuple(np.asarray(r.theta, float).copy() for r, _ in rivals),
+    )
 
 
 def distinct(U, tol: float = 1e-3, against=()) -> list[np.ndarray]:

@@ -43,8 +43,9 @@ def chi2_limit(dof: int, quantile: float = QUANTILE) -> float:
     return float(chi2.ppf(quantile, max(int(dof), 1)))
 
 
-def fits_noise(chi2: float, dof: int, noise_known: bool, *,
-               quantile: float = QUANTILE) -> bool | None:
+def fits_noise(
+    chi2: float, dof: int, noise_known: bool, *, quantile: float = QUANTILE
+) -> bool | None:
     """Whether chi2 (weights: the data's standard uncertainties, and the model's own error
     where the fit includes it) is within the noise; None when the noise is not known."""
     if not noise_known or dof <= 0:
@@ -141,7 +142,7 @@ def autocorrelation_time(residual) -> float:
     if rho[0] <= 0:
         return 1.0
     m = _window(rho)
-    return float(max(2.0 * np.sum(rho[:m + 1]) - 1.0, 1.0))
+    return float(max(2.0 * np.sum(rho[: m + 1]) - 1.0, 1.0))
 
 
 def correlation_along(result, other) -> float:
@@ -168,7 +169,7 @@ def correlation_along(result, other) -> float:
             continue
         rho, c = _autocorrelation(x), _autocorrelation(y, centred=False)
         m = _window(rho)
-        taus.append(1.0 + 2.0 * float(np.sum(rho[1:m + 1] * c[1:m + 1])))
+        taus.append(1.0 + 2.0 * float(np.sum(rho[1 : m + 1] * c[1 : m + 1])))
         shares.append(float(y @ y))
     if not taus:
         return residual_correlation(result)

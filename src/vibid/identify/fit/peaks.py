@@ -68,8 +68,9 @@ def measured_peaks(frequency_hz, H, std=None) -> Peaks:
     s = None if std is None else np.asarray(std, float)[order]
     floor = MIN_PEAK_RATIO * float(np.median(mag))
     inner = np.arange(1, f.size - 1)
-    maxima = inner[(mag[inner] > mag[inner - 1]) & (mag[inner] >= mag[inner + 1])
-                   & (mag[inner] > floor)]
+    maxima = inner[
+        (mag[inner] > mag[inner - 1]) & (mag[inner] >= mag[inner + 1]) & (mag[inner] > floor)
+    ]
     with np.errstate(divide="ignore"):  # a zero or missing point: a valley, -inf
         level = np.log(np.where(np.isfinite(mag), mag, 0.0))
         prominent = peak_prominences(level, maxima)[0] >= MIN_PEAK_PROMINENCE
@@ -77,7 +78,7 @@ def measured_peaks(frequency_hz, H, std=None) -> Peaks:
     for i in maxima[prominent]:
         if s is not None and mag[i] < MIN_PEAK_SNR * s[i]:
             continue
-        x, y = f[i - 1:i + 2], np.log(mag[i - 1:i + 2])
+        x, y = f[i - 1 : i + 2], np.log(mag[i - 1 : i + 2])
         a, b, _ = np.polyfit(x - x[1], y, 2)
         shift = -b / (2 * a) if a < 0 else 0.0
         found_f.append(x[1] + float(np.clip(shift, x[0] - x[1], x[2] - x[1])))

@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import logging
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import jax
 import numpy as np
@@ -59,7 +60,7 @@ class ForwardModel(Protocol):
         also split it (:class:`SplitsModelError`); its other optional abilities are
         :class:`PlateForwardModel`, :class:`GivesModes` and :class:`SharedStructure`."""
 
-    def refresh(self, theta) -> "ForwardModel":
+    def refresh(self, theta) -> ForwardModel:
         """The model rebuilt around ``theta`` if it moved far from its expansion point."""
 
 
@@ -133,9 +134,12 @@ def compile_problem(afc, magnitude: bool = False):
         c = jnp.sum(r.real**2 + r.imag**2, axis=1)
         return jnp.where(jnp.isfinite(c), c, jnp.inf)
 
-    return ProblemFunctions(jax.jit(jax.jacfwd(with_residuals, has_aux=True)),
-                            jax.jit(jax.value_and_grad(chi2_u)),
-                            jax.jit(jax.hessian(chi2_u)), jax.jit(chi2_batch))
+    return ProblemFunctions(
+        jax.jit(jax.jacfwd(with_residuals, has_aux=True)),
+        jax.jit(jax.value_and_grad(chi2_u)),
+        jax.jit(jax.hessian(chi2_u)),
+        jax.jit(chi2_batch),
+    )
 
 
 @dataclass(frozen=True)
@@ -158,7 +162,7 @@ class PlateForwardModel(Protocol):
     bounds: dict
     kind: str
 
-    def rebuilt(self, theta) -> "PlateForwardModel":
+    def rebuilt(self, theta) -> PlateForwardModel:
         """The model on a local basis built at ``theta`` (no a-posteriori check)."""
 
 
@@ -215,7 +219,7 @@ def _functions(model, magnitude: bool = False):
 _OWN = weakref.WeakKeyDictionary()
 
 
-def _own_functions(model, magnitude: bool) -> "ProblemFunctions":
+def _own_functions(model, magnitude: bool) -> ProblemFunctions:
     try:
         ref = weakref.ref(model)  # the compiled code must not keep its model alive
         kept = _OWN.setdefault(model, {})
@@ -233,7 +237,8 @@ def _model_points(model, data: FitData) -> np.ndarray:
     if fm_f.shape == used_f.shape and np.allclose(fm_f, used_f, rtol=1e-9, atol=1e-9):
         return np.arange(used_f.size)  # model built on the kept points only
     if fm_f.shape == data.frequency_hz.shape and np.allclose(
-            fm_f[data.used], used_f, rtol=1e-9, atol=1e-9):
+        fm_f[data.used], used_f, rtol=1e-9, atol=1e-9
+    ):
         return np.flatnonzero(data.used)
     raise VibidError("the forward model was built for other frequencies than the data")
 
@@ -262,8 +267,14 @@ class LeastSquaresProblem:
     compressed problem (:mod:`~vibid.identify.fit.compress`) leaves out of the residuals.
     """
 
-    def __init__(self, model: ForwardModel, data: FitData, space: ParameterSpace,
-                 sigma: np.ndarray | None = None, chi2_offset: float = 0.0):
+    def __init__(
+        self,
+        model: ForwardModel,
+        data: FitData,
+        space: ParameterSpace,
+        sigma: np.ndarray | None = None,
+        chi2_offset: float = 0.0,
+    ):
         require_x64()
         if tuple(model.parameter_names) != space.names:
             raise VibidError(
@@ -284,35 +295,48 @@ class LeastSquaresProblem:
         self._idx = np.asarray(self._model_idx, np.int64)
         self._p_pad = padded_count(self.n_params)
         spare = np.full(self._p_pad - self.n_params, base.size)  # the padding's slot
-        self._place = jax.device_put({"base": np.append(np.asarray(base, float), 0.0),
-                                      "index": np.concatenate([index, spare]).astype(np.int64)})
+        self._place = jax.device_put(
+            {
+                "base": np.append(np.asarray(base, float), 0.0),
+                "index": np.concatenate([index, spare]).astype(np.int64),
+            }
+        )
         self._space = space.coefficients(self._p_pad)
 
     # -- other weights, data or model: new problems ---------------------------------------
-    def with_sigma(self, sigma) -> "LeastSquaresProblem":
+    def with_sigma(self, sigma) -> LeastSquaresProblem:
         """The same problem weighted with ``sigma`` (n_points,)."""
         if np.array_equal(sigma, self.sigma):
             return self
         return LeastSquaresProblem(self.model, self.data, self.space, sigma)
 
-    def with_weights(self, point_error=None) -> "LeastSquaresProblem":
+    def with_weights(self, point_error=None) -> LeastSquaresProblem:
         """The problem weighted with the data's std and the model error ``point_error``."""
         return self.with_sigma(data_sigma(self.data, point_error))
 
-    def with_model(self, model: ForwardModel) -> "LeastSquaresProblem":
+    def with_model(self, model: ForwardModel) -> LeastSquaresProblem:
         """The same data and weights on another model (one rebuilt around an estimate)."""
-        return self if model is self.model else LeastSquaresProblem(
-            model, self.data, self.space, self.sigma, self.chi2_offset)
+        return (
+            self
+            if model is self.model
+            else LeastSquaresProblem(model, self.data, self.space, self.sigma, self.chi2_offset)
+        )
 
-    def with_data(self, H, std=None) -> "LeastSquaresProblem":
+    def with_data(self, H, std=None) -> LeastSquaresProblem:
         """The same problem (same compiled functions) on other measured values, same points."""
         d = self.data
         H = np.abs(H) if d.magnitude else H
-        data = FitData(d.frequency_hz, np.asarray(H, complex), None if std is None else
-                       np.asarray(std, float), d.used, d.warnings, d.magnitude)
+        data = FitData(
+            d.frequency_hz,
+            np.asarray(H, complex),
+            None if std is None else np.asarray(std, float),
+            d.used,
+            d.warnings,
+            d.magnitude,
+        )
         return LeastSquaresProblem(self.model, data, self.space)
 
-    def as_complex(self) -> "LeastSquaresProblem":
+    def as_complex(self) -> LeastSquaresProblem:
         """The complex fit of the same points, model and weights (for a magnitude-only
         problem, the Fisher information it gives up; the measured values there are |H|,
         which the Jacobian does not depend on)."""
@@ -342,7 +366,7 @@ class LeastSquaresProblem:
     def jacobian_and_residuals_theta(self, theta) -> tuple[np.ndarray, np.ndarray]:
         """d residuals / d theta and the residuals at physical ``theta``, in one call."""
         J, r = self._fn.jacobian_and_residuals(self._padded(theta), *self._args())
-        return np.asarray(J)[:, :self.n_params], np.asarray(r)
+        return np.asarray(J)[:, : self.n_params], np.asarray(r)
 
     def _residuals_and_jacobian_u(self, u) -> tuple[np.ndarray, np.ndarray]:
         u = np.asarray(u, float)
@@ -375,11 +399,11 @@ class LeastSquaresProblem:
     def value_and_grad(self, u) -> tuple[float, np.ndarray]:
         """chi2 and its gradient in ``u`` (exact: one reverse-mode pass)."""
         f, g = self._fn.value_and_grad(self._padded(u), *self._args(), self._space)
-        return float(f) + self.chi2_offset, np.asarray(g)[:self.n_params]
+        return float(f) + self.chi2_offset, np.asarray(g)[: self.n_params]
 
     def hessian(self, u) -> np.ndarray:
         B = self._fn.hessian(self._padded(u), *self._args(), self._space)
-        return np.asarray(B)[:self.n_params, :self.n_params]
+        return np.asarray(B)[: self.n_params, : self.n_params]
 
     def chi2_batch(self, U) -> np.ndarray:
         """chi2 of each row of ``U`` (npop, p) in one vectorised model call; inf if not finite."""

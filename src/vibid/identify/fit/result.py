@@ -114,10 +114,10 @@ def final_status(best, space, theta, chi2: float) -> tuple[Status, str]:
         what = f"{', '.join(bad)} not finite" if bad else f"chi2 = {chi2}"
         return Status.NOT_FINITE, f"{best.method}: {Status.NOT_FINITE.sentence(what)}"
     if best.status.ok and (ends := physical_ends(space, theta)):
-        at = ", ".join(f"{n} = {v:.6g} at {ends[n]:g}" for n, v in zip(space.names, theta)
-                       if n in ends)
-        return (Status.AT_PHYSICAL_LIMIT,
-                f"{best.method} {Status.AT_PHYSICAL_LIMIT.sentence(at)}")
+        at = ", ".join(
+            f"{n} = {v:.6g} at {ends[n]:g}" for n, v in zip(space.names, theta) if n in ends
+        )
+        return (Status.AT_PHYSICAL_LIMIT, f"{best.method} {Status.AT_PHYSICAL_LIMIT.sentence(at)}")
     return best.status, f"{best.method} {best.message}"
 
 
@@ -188,8 +188,12 @@ class DiscretisationInfo:
         """From a forward model's
         :class:`~vibid.identify.model.forward.DiscretisationError`."""
         ext = error.extrapolation
-        return cls(tuple(str(m) for m in error.meshes), float(ext.order), float(ext.factor),
-                   bool(ext.limited))
+        return cls(
+            tuple(str(m) for m in error.meshes),
+            float(ext.order),
+            float(ext.factor),
+            bool(ext.limited),
+        )
 
 
 @dataclass(frozen=True)
@@ -308,10 +312,16 @@ class IdentificationResult:
             f"{self.rel_rms_residual:.3g}"
         )
         if self.magnitude_only_std_ratio is not None:
-            lines.append("  fitted on |H| alone: each std against the complex fit's, " + ", ".join(
-                f"{n} x{r:.2g}" for n, r in self.magnitude_only_std_ratio.items()))
+            lines.append(
+                "  fitted on |H| alone: each std against the complex fit's, "
+                + ", ".join(f"{n} x{r:.2g}" for n, r in self.magnitude_only_std_ratio.items())
+            )
         if self.model_error_bias is not None:
-            lines.append("  model's discretisation bias (in the std): " + ", ".join(
-                f"{n} {abs(b):.2g}" for n, b in zip(self.parameter_names, self.model_error_bias)))
+            lines.append(
+                "  model's discretisation bias (in the std): "
+                + ", ".join(
+                    f"{n} {abs(b):.2g}" for n, b in zip(self.parameter_names, self.model_error_bias)
+                )
+            )
         lines.extend(f"  warning: {w}" for w in self.warnings)
         return "\n".join(lines)

@@ -167,7 +167,7 @@ class ParameterSpace:
     transforms: tuple[Transform, ...]
 
     @classmethod
-    def from_bounds(cls, names, bounds: dict, kinds: dict | None = None) -> "ParameterSpace":
+    def from_bounds(cls, names, bounds: dict, kinds: dict | None = None) -> ParameterSpace:
         """Build the space of ``names`` with their prior boxes ``bounds[name] = (low, high)``."""
         missing = [n for n in names if n not in bounds]
         if missing:
@@ -200,8 +200,14 @@ class ParameterSpace:
         space of the same size, whatever its names and boxes. With ``length``, padded to
         that many entries (identity maps: ``u = 0`` is 0)."""
         n = self.size if length is None else int(length)
-        out = {"log": np.zeros(n, bool), "logit": np.zeros(n, bool), "centre": np.zeros(n),
-               "half_width": np.ones(n), "a": np.zeros(n), "b": np.ones(n)}
+        out = {
+            "log": np.zeros(n, bool),
+            "logit": np.zeros(n, bool),
+            "centre": np.zeros(n),
+            "half_width": np.ones(n),
+            "a": np.zeros(n),
+            "b": np.ones(n),
+        }
         for i, t in enumerate(self.transforms):
             out["log"][i], out["logit"][i] = t.kind == "log", t.kind == "logit"
             out["centre"][i], out["half_width"][i] = t.centre, t.half_width
@@ -215,7 +221,9 @@ class ParameterSpace:
 
     def dtheta_du(self, u) -> np.ndarray:
         """Diagonal of the Jacobian d theta / d u at ``u`` (one entry per parameter)."""
-        return np.array([float(t.dfrom_u(float(ui))) for t, ui in zip(self.transforms, np.asarray(u))])
+        return np.array(
+            [float(t.dfrom_u(float(ui))) for t, ui in zip(self.transforms, np.asarray(u))]
+        )
 
     def inside_domain(self, theta) -> bool:
         return all(t.inside_domain(float(v)) for t, v in zip(self.transforms, theta))

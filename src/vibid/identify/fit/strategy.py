@@ -50,10 +50,19 @@ from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_
 from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
 from vibid.identify.fit.noise import fits
 from vibid.identify.fit.peaks import grid_heights, measured_peaks, peak_score, peaks_matched
-from vibid.identify.fit.problem import (ForwardModel, GivesModes, LeastSquaresProblem,
-                                       PlateForwardModel, SplitsModelError)
-from vibid.identify.fit.result import (DiscretisationInfo, GlobalResult, IdentificationResult,
-                                      LocalResult)
+from vibid.identify.fit.problem import (
+    ForwardModel,
+    GivesModes,
+    LeastSquaresProblem,
+    PlateForwardModel,
+    SplitsModelError,
+)
+from vibid.identify.fit.result import (
+    DiscretisationInfo,
+    GlobalResult,
+    IdentificationResult,
+    LocalResult,
+)
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
@@ -104,16 +113,21 @@ class Options:
 
 
 # -- the steps ------------------------------------------------------------------------------
-def polish(problem: LeastSquaresProblem, starts, opts: Options, *,
-           continuation: bool = True) -> list[Fit]:
+def polish(
+    problem: LeastSquaresProblem, starts, opts: Options, *, continuation: bool = True
+) -> list[Fit]:
     """Local fits from each start, each on a model rebuilt around its start (the search's
     model only has to find basins; models of one shape share their compiled functions).
     The starts are independent: the next one's runs on the second core
     (:mod:`vibid.identify.threads`), the fits come back in the starts' order."""
+
     def from_start(u0):
         p = refreshed(problem, problem.space.theta(u0)) if opts.refresh else problem
-        runs = (polish_by_continuation(p, u0, opts.local) if continuation
-                else [LOCAL_METHODS[opts.local](p, u0)])
+        runs = (
+            polish_by_continuation(p, u0, opts.local)
+            if continuation
+            else [LOCAL_METHODS[opts.local](p, u0)]
+        )
         return [Fit(r, p) for r in runs]
 
     return [fit for fits in in_order(from_start, starts) for fit in fits]
@@ -145,8 +159,9 @@ def search_problem(problem: LeastSquaresProblem) -> LeastSquaresProblem:
     used = np.zeros_like(d.used)
     used[idx[keep]] = True
     thin = FitData(d.frequency_hz, d.H, d.std, used, d.warnings, d.magnitude)
-    return LeastSquaresProblem(problem.model.on_frequencies(d.frequency_hz[used]), thin,
-                               problem.space, problem.sigma[keep])
+    return LeastSquaresProblem(
+        problem.model.on_frequencies(d.frequency_hz[used]), thin, problem.space, problem.sigma[keep]
+    )
 
 
 def search(problem: LeastSquaresProblem, opts: Options):
@@ -158,8 +173,9 @@ def search(problem: LeastSquaresProblem, opts: Options):
     (:func:`~vibid.identify.fit.global_search.robust_score`: a few precise points at the
     resonances, as an adaptive campaign records, make chi2 a needle). Returns
     (GlobalResult, fits)."""
-    global_result = differential_evolution(search_problem(problem), restarts=opts.restarts,
-                                           rng=opts.rng, progress=opts.progress)
+    global_result = differential_evolution(
+        search_problem(problem), restarts=opts.restarts, rng=opts.rng, progress=opts.progress
+    )
     found = _by_loss(polish(problem, distinct(global_result.u), opts))
     best = found[0]
     if fits(best.loss, best.problem.dof, best.problem.n_residuals, problem.data.noise_known):
@@ -168,8 +184,7 @@ def search(problem: LeastSquaresProblem, opts: Options):
     # and there are several stiffnesses): search on the resonance peaks too, unless the
     # best already puts its modes on the measured peaks (the misfit is something else)
     if peaks_already_matched(problem, best.run.theta):
-        log.info("peak matching skipped: the best fit's modes already lie on the measured "
-                 "peaks")
+        log.info("peak matching skipped: the best fit's modes already lie on the measured peaks")
         return global_result, found
     starts = peak_starts(problem, opts)
     if starts and SMOOTHING_PARAMETER in problem.space.names:
@@ -184,13 +199,19 @@ def search(problem: LeastSquaresProblem, opts: Options):
     if fits(best.loss, best.problem.dof, best.problem.n_residuals, problem.data.noise_known):
         return global_result, found
     if resolves_resonances(problem, best.run.theta):
-        log.info("robust search skipped: the grid resolves every resonance (chi2 is no "
-                 "needle there)")
+        log.info(
+            "robust search skipped: the grid resolves every resonance (chi2 is no needle there)"
+        )
         return global_result, found
     thin = search_problem(problem)
-    robust = differential_evolution(thin, restarts=opts.restarts, rng=opts.rng,
-                                    progress=opts.progress, score=robust_score(thin),
-                                    label="robust search")
+    robust = differential_evolution(
+        thin,
+        restarts=opts.restarts,
+        rng=opts.rng,
+        progress=opts.progress,
+        score=robust_score(thin),
+        label="robust search",
+    )
     found += polish(problem, distinct(robust.u, against=global_result.u), opts)
     return global_result, _by_loss(found)
 
@@ -219,8 +240,9 @@ def resolves_resonances(problem: LeastSquaresProblem, theta) -> bool:
 
 def _measured_peaks(problem: LeastSquaresProblem):
     data, u = problem.data, problem.data.used
-    return measured_peaks(data.frequency_hz[u], data.H[u],
-                          None if data.std is None else data.std[u])
+    return measured_peaks(
+        data.frequency_hz[u], data.H[u], None if data.std is None else data.std[u]
+    )
 
 
 def gives_modes(model) -> bool:
@@ -229,8 +251,7 @@ def gives_modes(model) -> bool:
     return isinstance(model, GivesModes) and model.param.proportional
 
 
-def peaks_already_matched(problem: LeastSquaresProblem, theta, *, by_grid: bool = False
-                          ) -> bool:
+def peaks_already_matched(problem: LeastSquaresProblem, theta, *, by_grid: bool = False) -> bool:
     """Whether the model at ``theta`` has its modes on the measured resonance peaks, to the
     frequency grid's resolution (:func:`vibid.identify.fit.peaks.peaks_matched`; with
     ``by_grid``, a mode the grid would not show need not match: :func:`peak_search`)."""
@@ -281,9 +302,17 @@ PEAKS_ONLY_SMALL = (8, 40, 1)
 PEAKS_ONLY_WIDE = (15, 60, None)
 
 
-def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
-                fixed: dict | None = None, popsize: int = 15, max_generations: int = 60,
-                by_grid: bool = False, agree_rtol: float | None = None):
+def peak_search(
+    problem: LeastSquaresProblem,
+    opts: Options,
+    *,
+    tie_break: bool,
+    fixed: dict | None = None,
+    popsize: int = 15,
+    max_generations: int = 60,
+    by_grid: bool = False,
+    agree_rtol: float | None = None,
+):
     """Differential evolution on the match of the measured resonance peaks (None when the
     model cannot give its modes or the AFC shows no peak). With ``tie_break``, the AFC's
     chi2 decides among parameter sets that match the peaks equally well, through a term too
@@ -321,10 +350,18 @@ def peak_search(problem: LeastSquaresProblem, opts: Options, *, tie_break: bool,
             s = s + PEAK_CHI2_WEIGHT * np.log(np.maximum(chi2, 1e-300))
         return s
 
-    result = differential_evolution(problem, restarts=opts.restarts, rng=opts.rng,
-                                    progress=opts.progress, score=score, fixed=fixed,
-                                    popsize=popsize, max_generations=max_generations,
-                                    label="peak matching", agree_rtol=agree_rtol)
+    result = differential_evolution(
+        problem,
+        restarts=opts.restarts,
+        rng=opts.rng,
+        progress=opts.progress,
+        score=score,
+        fixed=fixed,
+        popsize=popsize,
+        max_generations=max_generations,
+        label="peak matching",
+        agree_rtol=agree_rtol,
+    )
     log.info("peak matching: %d measured peaks, best score %.3g", peaks.count, result.loss[0])
     return result
 
@@ -360,14 +397,25 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
     moving = moving_parameters(model.param, theta)
     single = replace(opts, restarts=1)  # the restarts one at a time, on opts' one rng
     found, results = [], []
-    for wide, (popsize, generations, restarts) in ((False, PEAKS_ONLY_SMALL),
-                                                   (True, PEAKS_ONLY_WIDE)):
-        hold = {n: theta[i] for i, n in enumerate(space.names)
-                if i not in moving and not (wide and n == SMOOTHING_PARAMETER)}
+    for wide, (popsize, generations, restarts) in (
+        (False, PEAKS_ONLY_SMALL),
+        (True, PEAKS_ONLY_WIDE),
+    ):
+        hold = {
+            n: theta[i]
+            for i, n in enumerate(space.names)
+            if i not in moving and not (wide and n == SMOOTHING_PARAMETER)
+        }
         for _ in range(restarts or opts.restarts):
-            result = peak_search(problem, single, tie_break=wide,
-                                 fixed=hold, by_grid=True, popsize=popsize,
-                                 max_generations=generations)
+            result = peak_search(
+                problem,
+                single,
+                tie_break=wide,
+                fixed=hold,
+                by_grid=True,
+                popsize=popsize,
+                max_generations=generations,
+            )
             if result is None:
                 return None, []
             starts = distinct(list(result.u), against=[u for r in results for u in r.u])
@@ -376,8 +424,10 @@ def search_peaks_only(problem: LeastSquaresProblem, opts: Options):
             if peaks_already_matched(found[0].problem, found[0].run.theta, by_grid=True):
                 return _joined(results), found
         if not wide:
-            log.info("peaks-only search: the small search does not end on the peaks; the "
-                     "wider one follows")
+            log.info(
+                "peaks-only search: the small search does not end on the peaks; the "
+                "wider one follows"
+            )
     return _joined(results), found
 
 
@@ -385,10 +435,13 @@ def _joined(results) -> GlobalResult:
     """The restarts of several searches as one :class:`GlobalResult`, best first."""
     loss = np.concatenate([r.loss for r in results])
     order = np.argsort(loss)
-    return GlobalResult(np.concatenate([r.u for r in results])[order],
-                        np.concatenate([r.theta for r in results])[order], loss[order],
-                        sum(r.n_evaluations for r in results),
-                        tuple(m for r in results for m in r.messages))
+    return GlobalResult(
+        np.concatenate([r.u for r in results])[order],
+        np.concatenate([r.theta for r in results])[order],
+        loss[order],
+        sum(r.n_evaluations for r in results),
+        tuple(m for r in results for m in r.messages),
+    )
 
 
 def walk_valley(problem: LeastSquaresProblem, found: list[Fit], opts: Options) -> list[Fit]:
@@ -398,8 +451,12 @@ def walk_valley(problem: LeastSquaresProblem, found: list[Fit], opts: Options) -
     best = found[0]
     walk = valley_starts(best.problem, best.run)
     more = polish(problem, walk, opts, continuation=False)
-    log.info("valley walk: %d starts, best chi2 %.6g -> %.6g", len(walk), best.loss,
-             min((f.loss for f in more), default=best.loss))
+    log.info(
+        "valley walk: %d starts, best chi2 %.6g -> %.6g",
+        len(walk),
+        best.loss,
+        min((f.loss for f in more), default=best.loss),
+    )
     return _by_loss(found + more)
 
 
@@ -465,7 +522,9 @@ def on_final_weights(found: list[Fit]) -> list[LocalResult]:
     out = [found[0].run]
     for f in found[1:]:
         same = np.array_equal(f.problem.sigma, sigma)
-        out.append(f.run if same else replace(f.run, loss=f.problem.with_sigma(sigma).chi2(f.run.u)))
+        out.append(
+            f.run if same else replace(f.run, loss=f.problem.with_sigma(sigma).chi2(f.run.u))
+        )
     return out
 
 
@@ -554,21 +613,30 @@ def identify(
     if forward_model is None:
         from vibid.identify.model.forward import build_forward_model
 
-        forward_model = build_forward_model(setup, data.frequency_hz[data.used], model=model,
-                                            bounds=box)
+        forward_model = build_forward_model(
+            setup, data.frequency_hz[data.used], model=model, bounds=box
+        )
     names = tuple(forward_model.parameter_names)
     _check_point_count(data, len(names), model)
     warnings = list(data.warnings)
     if data.n_used < 3 * len(names):
-        warnings.append(f"only {data.n_used} usable AFC points for {len(names)} parameters: "
-                        "the estimate and its uncertainty are fragile")
+        warnings.append(
+            f"only {data.n_used} usable AFC points for {len(names)} parameters: "
+            "the estimate and its uncertainty are fragile"
+        )
     if isinstance(forward_model, PlateForwardModel):  # a PlateModel fills derived boxes
         box = forward_model.param.default_bounds(box)
     _check_basis_covers(forward_model, box, names)
     space = ParameterSpace.from_bounds(names, box, kinds)
     problem = LeastSquaresProblem(forward_model, data, space, weights)
-    opts = Options(local, restarts, refresh, np.random.default_rng(seed), progress,
-                   None if peaks_only is None else dict(peaks_only))
+    opts = Options(
+        local,
+        restarts,
+        refresh,
+        np.random.default_rng(seed),
+        progress,
+        None if peaks_only is None else dict(peaks_only),
+    )
 
     if method == "global":
         global_result, found = None, []
@@ -588,8 +656,19 @@ def identify(
         if split is not None:
             disc = discretisation_of(at.problem.model, at.run.theta)
     best = found[0]
-    result = summarise(best.problem, data, model, best.run, tuple(f.run for f in found),
-                       global_result, warnings, t0, throw, split, on_final_weights(found))
+    result = summarise(
+        best.problem,
+        data,
+        model,
+        best.run,
+        tuple(f.run for f in found),
+        global_result,
+        warnings,
+        t0,
+        throw,
+        split,
+        on_final_weights(found),
+    )
     return result if disc is None else replace(result, discretisation=disc)
 
 
@@ -622,7 +701,8 @@ def _check_basis_covers(forward_model, box: dict, names) -> None:
         raise VibidError(
             "the forward model's reduced basis was built for the prior box "
             f"{ {n: tuple(built[n]) for n in names if n in built} }, which does not cover the "
-            f"searched box { {n: tuple(box[n]) for n in names} }: build it with the same bounds")
+            f"searched box { {n: tuple(box[n]) for n in names} }: build it with the same bounds"
+        )
 
 
 def _start_u(space: ParameterSpace, start) -> np.ndarray:

@@ -17,9 +17,19 @@ from vibid.identify.fit.uncertainty import fisher_uncertainty
 from vibid.identify.model.model_error import ModelErrorSplit
 
 
-def summarise(problem, data: FitData, model: str, best: LocalResult, runs, global_result,
-              warnings: list, t0: float, throw: bool, systematic: ModelErrorSplit | None,
-              compared: list) -> IdentificationResult:
+def summarise(
+    problem,
+    data: FitData,
+    model: str,
+    best: LocalResult,
+    runs,
+    global_result,
+    warnings: list,
+    t0: float,
+    throw: bool,
+    systematic: ModelErrorSplit | None,
+    compared: list,
+) -> IdentificationResult:
     """The IdentificationResult of the best run on its final ``problem``: covariance
     (Fisher, widened by rival minima and the model's systematic error), warnings, the
     model AFC. ``compared`` holds every run with its chi2 under the final weights."""
@@ -31,11 +41,16 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
     chi2 = float(r @ r)
     dof = problem.dof
     chi2_red = chi2 / dof if dof > 0 else math.nan
-    unc = fisher_uncertainty(problem.jacobian_theta(theta), space.names,
-                             chi2_reduced=chi2_red, noise_known=data.noise_known)
+    unc = fisher_uncertainty(
+        problem.jacobian_theta(theta),
+        space.names,
+        chi2_reduced=chi2_red,
+        noise_known=data.noise_known,
+    )
     warnings.extend(unc.warnings)
-    cov, note, rivals = rival_minima(compared, best, unc.covariance, chi2_red, data.noise_known,
-                                     space.names)
+    cov, note, rivals = rival_minima(
+        compared, best, unc.covariance, chi2_red, data.noise_known, space.names
+    )
     if systematic is not None:
         cov = cov + systematic.covariance
     if note:
@@ -67,11 +82,13 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
         v = theta[space.names.index(name)]
         warnings.append(
             f"{name} = {v:.6g} lies on or outside its prior bounds [{t.low:g}, {t.high:g}]: "
-            + ("the bounds may exclude the true value; widen them and identify again"
-               if reaches_noise else
-               "the model does not reach the data's noise, so it may stand in for what the "
-               "model lacks rather than lie outside them (widening them would explain "
-               "nothing)")
+            + (
+                "the bounds may exclude the true value; widen them and identify again"
+                if reaches_noise
+                else "the model does not reach the data's noise, so it may stand in for what the "
+                "model lacks rather than lie outside them (widening them would explain "
+                "nothing)"
+            )
         )
     for name, v, s in zip(space.names, theta, std):
         if np.isfinite(s) and abs(v) > 0 and s > 0.3 * abs(v):
@@ -87,19 +104,35 @@ def summarise(problem, data: FitData, model: str, best: LocalResult, runs, globa
     if throw and not status.ok:
         raise VibidError(f"identification of model {model!r}: {message}")
     return IdentificationResult(
-        model=model, parameter_names=space.names, values=np.asarray(theta, float),
-        std=std, covariance=cov, correlation=corr, chi2=chi2,
-        chi2_reduced=chi2_red, dof=dof, rel_rms_residual=rel_rms, status=status,
-        message=message, noise_known=data.noise_known, frequency_hz=data.frequency_hz,
-        H=data.H, H_std=data.std, used=data.used, model_afc=model_afc,
-        global_result=global_result, local_results=tuple(runs), warnings=tuple(warnings),
+        model=model,
+        parameter_names=space.names,
+        values=np.asarray(theta, float),
+        std=std,
+        covariance=cov,
+        correlation=corr,
+        chi2=chi2,
+        chi2_reduced=chi2_red,
+        dof=dof,
+        rel_rms_residual=rel_rms,
+        status=status,
+        message=message,
+        noise_known=data.noise_known,
+        frequency_hz=data.frequency_hz,
+        H=data.H,
+        H_std=data.std,
+        used=data.used,
+        model_afc=model_afc,
+        global_result=global_result,
+        local_results=tuple(runs),
+        warnings=tuple(warnings),
         model_error_bias=None if systematic is None else systematic.bias,
         chi2_reduced_data_weights=chi2_red_data,
-        seconds=time.perf_counter() - t0, weights=np.asarray(problem.sigma, float).copy(),
-        plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel)
-                     else None),
+        seconds=time.perf_counter() - t0,
+        weights=np.asarray(problem.sigma, float).copy(),
+        plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel) else None),
         magnitude=data.magnitude,
-        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta), rivals=rivals,
+        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta),
+        rivals=rivals,
     )
 
 
@@ -112,8 +145,12 @@ def magnitude_only_std_ratio(problem, theta) -> dict[str, float] | None:
     if not problem.magnitude:
         return None
     names = problem.space.names
-    std = [fisher_uncertainty(p.jacobian_theta(theta), names, chi2_reduced=math.nan,
-                              noise_known=True).std for p in (problem, problem.as_complex())]
+    std = [
+        fisher_uncertainty(
+            p.jacobian_theta(theta), names, chi2_reduced=math.nan, noise_known=True
+        ).std
+        for p in (problem, problem.as_complex())
+    ]
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = std[0] / std[1]
     return {n: float(r) for n, r in zip(names, ratio)}

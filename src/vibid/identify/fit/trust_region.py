@@ -119,8 +119,9 @@ def chi2_rounding_level(f: float, f_floor: float, rel: float = 1e-12) -> float:
     return rel * f + 2.0 * math.sqrt(f * f_floor) + f_floor
 
 
-def _second_order_correction(p: np.ndarray, g: np.ndarray, g_new: np.ndarray,
-                             B: np.ndarray) -> np.ndarray | None:
+def _second_order_correction(
+    p: np.ndarray, g: np.ndarray, g_new: np.ndarray, B: np.ndarray
+) -> np.ndarray | None:
     """Correction c orthogonal to p that brings u + p back onto the valley floor.
 
     The model's gradient error at u + p, e = g(u + p) - g - B p (second order in |p|), is
@@ -215,8 +216,17 @@ def trust_region(
     history: list[HistoryEntry] = []
 
     def result(status, detail, k):
-        return LocalResult(method, u.copy(), space.theta(u), f, status,
-                           status.sentence(detail), k, n_eval, tuple(history))
+        return LocalResult(
+            method,
+            u.copy(),
+            space.theta(u),
+            f,
+            status,
+            status.sentence(detail),
+            k,
+            n_eval,
+            tuple(history),
+        )
 
     if not (np.isfinite(f) and np.all(np.isfinite(g))):
         return result(Status.NOT_FINITE, f"chi2 = {f}", 0)
@@ -242,8 +252,12 @@ def trust_region(
                 return result(Status.NOT_FINITE, "the Hessian is not finite", k - 1)
             decrement = _newton_decrease(g, B)
         if decrement <= f_round:
-            return result(Status.CONVERGED, "the decrease still predicted is below the "
-                          f"rounding level of chi2 ({decrement:.1e} <= {f_round:.1e})", k - 1)
+            return result(
+                Status.CONVERGED,
+                "the decrease still predicted is below the "
+                f"rounding level of chi2 ({decrement:.1e} <= {f_round:.1e})",
+                k - 1,
+            )
         p, on_boundary = solve_subproblem(g, B, radius)
         predicted = -(g @ p + 0.5 * p @ B @ p)
         f_new, g_new = problem.value_and_grad(u + p)
@@ -279,11 +293,25 @@ def trust_region(
                     Bs = B @ s
                     B = B + np.outer(y, y) / sy - np.outer(Bs, Bs) / (s @ Bs)
                 B_exact = False
-        history.append(HistoryEntry(k, f, tuple(space.theta(u)), step, radius, float(rho), accepted))
-        log.debug("%s it %d chi2 %.12g |g| %.3g decrement %.3g rounding %.3g step %.3g%s "
-                  "radius %.3g predicted %.3g rho %.3g%s", method, k, f, np.linalg.norm(g),
-                  decrement, f_round, step, " (corrected)" if corrected else "", radius,
-                  predicted, rho, "" if accepted else " rejected")
+        history.append(
+            HistoryEntry(k, f, tuple(space.theta(u)), step, radius, float(rho), accepted)
+        )
+        log.debug(
+            "%s it %d chi2 %.12g |g| %.3g decrement %.3g rounding %.3g step %.3g%s "
+            "radius %.3g predicted %.3g rho %.3g%s",
+            method,
+            k,
+            f,
+            np.linalg.norm(g),
+            decrement,
+            f_round,
+            step,
+            " (corrected)" if corrected else "",
+            radius,
+            predicted,
+            rho,
+            "" if accepted else " rejected",
+        )
         if accepted and not on_boundary and np.max(np.abs(p)) <= xtol:
             return result(Status.CONVERGED, "the step became negligible", k)
         radius = radius_next
@@ -329,10 +357,27 @@ def gauss_newton(
     u0 = np.asarray(u0, dtype=float)
     f0 = problem.chi2(u0)
     if not np.isfinite(f0):
-        return LocalResult("levenberg-marquardt", u0, space.theta(u0), f0, Status.NOT_FINITE,
-                           Status.NOT_FINITE.sentence(f"chi2 = {f0}"), 0, 1, ())
-    sol = least_squares(fun, u0, jac=problem.jacobian, method="lm", xtol=tol, ftol=tol,
-                        gtol=tol, max_nfev=max_evaluations)
+        return LocalResult(
+            "levenberg-marquardt",
+            u0,
+            space.theta(u0),
+            f0,
+            Status.NOT_FINITE,
+            Status.NOT_FINITE.sentence(f"chi2 = {f0}"),
+            0,
+            1,
+            (),
+        )
+    sol = least_squares(
+        fun,
+        u0,
+        jac=problem.jacobian,
+        method="lm",
+        xtol=tol,
+        ftol=tol,
+        gtol=tol,
+        max_nfev=max_evaluations,
+    )
     u = np.asarray(sol.x, dtype=float)
     f = problem.chi2(u)
     if sol.status > 0:
@@ -341,5 +386,14 @@ def gauss_newton(
         status = Status.MAX_ITERATIONS
     else:
         status = Status.FAILED
-    return LocalResult("levenberg-marquardt", u, space.theta(u), f, status,
-                       status.sentence(sol.message), int(sol.nfev), int(sol.nfev), tuple(history))
+    return LocalResult(
+        "levenberg-marquardt",
+        u,
+        space.theta(u),
+        f,
+        status,
+        status.sentence(sol.message),
+        int(sol.nfev),
+        int(sol.nfev),
+        tuple(history),
+    )

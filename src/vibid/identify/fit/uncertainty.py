@@ -38,8 +38,9 @@ class Uncertainty:
     warnings: tuple[str, ...]
 
 
-def fisher_uncertainty(J: np.ndarray, names, *, chi2_reduced: float, noise_known: bool,
-                       rcond: float = 1e-13) -> Uncertainty:
+def fisher_uncertainty(
+    J: np.ndarray, names, *, chi2_reduced: float, noise_known: bool, rcond: float = 1e-13
+) -> Uncertainty:
     """Covariance, standard deviations and correlation from the residual Jacobian.
 
     Parameters
@@ -57,8 +58,14 @@ def fisher_uncertainty(J: np.ndarray, names, *, chi2_reduced: float, noise_known
     d = np.sqrt(np.diag(F))
     if not np.all(np.isfinite(F)):
         nan = np.full((p, p), np.nan)
-        return Uncertainty(nan, np.full(p, np.nan), nan, False, np.inf,
-                           ("the Fisher information is not finite: no uncertainty available",))
+        return Uncertainty(
+            nan,
+            np.full(p, np.nan),
+            nan,
+            False,
+            np.inf,
+            ("the Fisher information is not finite: no uncertainty available",),
+        )
     insensitive = [n for n, di in zip(names, d) if di == 0]
     d = np.where(d > 0, d, 1.0)
     Fn = F / np.outer(d, d)  # unit diagonal: conditioning reflects correlation only

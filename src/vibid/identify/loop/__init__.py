@@ -40,12 +40,27 @@ one the round is weighing (on the machine's second core: :mod:`vibid.identify.th
 the round takes them in its own order, so it decides as it would one after the other.
 """
 
-from vibid.identify.loop.candidates import (Candidate, EffectCandidate,
-                                            MaterialCandidate, all_candidates)
+from vibid.identify.loop.candidates import (
+    Candidate,
+    EffectCandidate,
+    MaterialCandidate,
+    all_candidates,
+)
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.rounds import close_loop, scaled_by_misfit
 from vibid.identify.loop.verdicts import LoopResult, Score, Stage, Verdict
 
-__all__ = ["DEFAULT", "Candidate", "EffectCandidate", "LoopResult", "Policy",
-           "MaterialCandidate", "Score", "Stage", "Verdict", "all_candidates", "close_loop",
-           "scaled_by_misfit"]
+__all__ = [
+    "DEFAULT",
+    "Candidate",
+    "EffectCandidate",
+    "LoopResult",
+    "Policy",
+    "MaterialCandidate",
+    "Score",
+    "Stage",
+    "Verdict",
+    "all_candidates",
+    "close_loop",
+    "scaled_by_misfit",
+]

@@ -26,7 +26,6 @@ from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel, clash
 
 
-
 @dataclass(frozen=True)
 class Place:
     """Where a resonance is tried: a frequency and a quality factor (a diagnosed pole's,
@@ -44,7 +43,7 @@ class Candidate(Protocol):
     #: its name, and where a resonance is tried (the report's words)
     label: str
     #: where a resonance is tried (None: an effect without one, or not placed)
-    at: "Place | None"
+    at: Place | None
     #: the diagnosis's feature kinds it can explain (:mod:`vibid.identify.loop.diagnosis`)
     explains: tuple[str, ...]
     #: whether the extended model's best basin may lie away from the current fit's (a new
@@ -77,7 +76,6 @@ class Candidate(Protocol):
     def directions(self, J, names, values: dict, current_names): ...
 
     def distance_from_null(self, result) -> float: ...
-
 
 
 @dataclass(frozen=True)
@@ -120,7 +118,7 @@ class EffectCandidate:
             return model.effect_names.count(self.name) < self.policy.max_instances
         return self.name not in model.effect_names
 
-    def placements(self, diagnosis, peaks: tuple = ()) -> tuple["EffectCandidate", ...]:
+    def placements(self, diagnosis, peaks: tuple = ()) -> tuple[EffectCandidate, ...]:
         """This candidate once per place to try it: itself for an effect without a
         resonance; for a resonance, every diagnosed pole (whatever the diagnosis read it
         as: a pole beside a model's antiresonance may be read as a misplaced mode) and
@@ -193,8 +191,10 @@ class EffectCandidate:
             return {}
         from vibid.parameters import split_instance
 
-        spans = {"f_hz": (feature.f_hz, self.policy.pole_span),
-                 "q": (feature.q, self.policy.q_span)}
+        spans = {
+            "f_hz": (feature.f_hz, self.policy.pole_span),
+            "q": (feature.q, self.policy.q_span),
+        }
         places = self.term.feature_places
         out = {}
         for name in self.placed(values):
@@ -220,8 +220,13 @@ class EffectCandidate:
                 continue
             lo, hi = own[q.name]
             placed = _from_feature(q.name, feature, term.feature_places)
-            out[q.name] = (min(max(placed, lo), hi) if placed is not None
-                           else math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi))
+            out[q.name] = (
+                min(max(placed, lo), hi)
+                if placed is not None
+                else math.sqrt(lo * hi)
+                if lo > 0
+                else 0.5 * (lo + hi)
+            )
         return out
 
     def placed(self, values: dict) -> set[str]:
@@ -237,8 +242,11 @@ class EffectCandidate:
         from vibid.parameters import split_instance
 
         places = self.term.feature_places
-        return tuple(float(fitted[n]) for n in sorted(self.placed(values))
-                     if places.get(split_instance(n)[0]) == "f_hz" and n in fitted)
+        return tuple(
+            float(fitted[n])
+            for n in sorted(self.placed(values))
+            if places.get(split_instance(n)[0]) == "f_hz" and n in fitted
+        )
 
     def directions(self, J, names, values: dict, current_names):
         """The current model's sensitivities inside the extended model's (its tangent space
@@ -262,9 +270,12 @@ def distance_from_null(term, result) -> float:
     ``result`` (the largest Wald z; inf for a term without parameters: the likelihood
     ratio alone decides)."""
     p, sd = result.parameters, result.parameter_std
-    z = [abs(p[n] if math.isinf(null) else p[n] - null) / sd[n]
-         if np.isfinite(sd[n]) and sd[n] > 0 else math.inf
-         for n, null in term.null_values(p).items()]
+    z = [
+        abs(p[n] if math.isinf(null) else p[n] - null) / sd[n]
+        if np.isfinite(sd[n]) and sd[n] > 0
+        else math.inf
+        for n, null in term.null_values(p).items()
+    ]
     return max(z) if z else math.inf
 
 
@@ -319,8 +330,12 @@ class MaterialCandidate:
         no softer), D12 signed."""
         lo, hi = box["D"]
         weak = values.get("D", lo) / self.policy.orthotropy_divisor
-        return {"D11": (lo, hi), "D22": (weak, hi), "D66": (weak, hi / 2),
-                "D12": (-hi / 2, hi / 2)} | {k: v for k, v in box.items() if k not in ("D", "nu")}
+        return {
+            "D11": (lo, hi),
+            "D22": (weak, hi),
+            "D66": (weak, hi / 2),
+            "D12": (-hi / 2, hi / 2),
+        } | {k: v for k, v in box.items() if k not in ("D", "nu")}
 
     def prior_bounds(self, box: dict, values: dict) -> dict:
         return self.bounds(box, values)
@@ -329,8 +344,13 @@ class MaterialCandidate:
         D, nu = values["D"], values["nu"]
         out = {k: v for k, v in values.items() if k not in ("D", "nu")}
         # an isotropic plate's transverse shear has G = E / 2(1 + nu) = 6 (1 - nu) D / h³
-        return out | {"D11": D, "D12": nu * D, "D22": D, "D66": 0.5 * (1 - nu) * D,
-                      "G13_Pa": 6 * (1 - nu) * D / thickness_m**3}
+        return out | {
+            "D11": D,
+            "D12": nu * D,
+            "D22": D,
+            "D66": 0.5 * (1 - nu) * D,
+            "G13_Pa": 6 * (1 - nu) * D / thickness_m**3,
+        }
 
     def placed(self, values: dict) -> set[str]:
         return set()
@@ -371,5 +391,6 @@ def all_candidates(policy: Policy = DEFAULT) -> tuple:
     """Every candidate the loop knows, and tries unless told which."""
     from vibid.identify.effects import EFFECTS
 
-    return (tuple(EffectCandidate(n, policy=policy) for n in EFFECTS)
-            + (MaterialCandidate(policy=policy),))
+    return tuple(EffectCandidate(n, policy=policy) for n in EFFECTS) + (
+        MaterialCandidate(policy=policy),
+    )

@@ -108,8 +108,11 @@ class Feature:
         otherwise than the clamp) explains it."""
         if self.causal is False:
             return ("acausal_pole",)
-        return ((self.kind,) + self.parts
-                + (("hidden_mode",) if math.isfinite(self.hidden_mode_hz) else ()))
+        return (
+            (self.kind,)
+            + self.parts
+            + (("hidden_mode",) if math.isfinite(self.hidden_mode_hz) else ())
+        )
 
     def as_report(self) -> dict:
         out = {"kind": self.kind}
@@ -240,8 +243,8 @@ def _polish(f, R, w, poles) -> np.ndarray:
     b = _stacked(R, w)
 
     def unpack(x):
-        p = x[:len(poles)] * unit + 0j
-        p[cplx] += 1j * x[len(poles):] * unit
+        p = x[: len(poles)] * unit + 0j
+        p[cplx] += 1j * x[len(poles) :] * unit
         return p
 
     def projected(x):
@@ -259,7 +262,7 @@ def _polish(f, R, w, poles) -> np.ndarray:
                 at += 1
                 continue
             up = (coef[at] + 1j * coef[at + 1]) * a**2
-            down = (coef[at] - 1j * coef[at + 1]) / (s - np.conj(pk))**2
+            down = (coef[at] - 1j * coef[at + 1]) / (s - np.conj(pk)) ** 2
             d_re.append(up + down)
             d_im.append(1j * (up - down))
             at += 2
@@ -278,9 +281,17 @@ def _polish(f, R, w, poles) -> np.ndarray:
     lo = np.concatenate([np.full(len(poles), -reach), np.full(cplx.sum(), 1e-3 * reach)])
     hi = np.full(lo.shape, reach)
     x0 = np.clip(np.concatenate([poles.real, poles.imag[cplx]]) / unit, lo, hi)
-    fit = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo, hi),
-                        method="trf", ftol=1e-12, xtol=1e-12, gtol=1e-10,
-                        max_nfev=100 * (len(x0) + 1))
+    fit = least_squares(
+        lambda x: both(x)[0],
+        x0,
+        jac=lambda x: both(x)[1],
+        bounds=(lo, hi),
+        method="trf",
+        ftol=1e-12,
+        xtol=1e-12,
+        gtol=1e-10,
+        max_nfev=100 * (len(x0) + 1),
+    )
     return unpack(fit.x)
 
 
@@ -344,22 +355,46 @@ def _classify(p, f_lo, f_hi, modes_hz, modes_q, dips, hidden_hz=()):
         else:
             shift, model = abs(f_p - f_k) > f_k / (4 * q_p), ""
         if shift:
-            return "mode_shift", (f"the mode the model puts at {f_k:.4g} Hz is at {f_p:.4g} Hz "
-                                  f"in the data ({100 * (f_p / f_k - 1):+.1f} %)"), _NAN
-        return "damping", (f"the mode at {f_p:.4g} Hz is damped otherwise: "
-                           f"Q {q_p:.3g} in the data{model}"), _NAN
+            return (
+                "mode_shift",
+                (
+                    f"the mode the model puts at {f_k:.4g} Hz is at {f_p:.4g} Hz "
+                    f"in the data ({100 * (f_p / f_k - 1):+.1f} %)"
+                ),
+                _NAN,
+            )
+        return (
+            "damping",
+            (f"the mode at {f_p:.4g} Hz is damped otherwise: Q {q_p:.3g} in the data{model}"),
+            _NAN,
+        )
     if any(lo <= f_p <= hi or abs(f_p - mid) <= 0.03 * mid for lo, mid, hi in dips):
-        return "mode_shift", (f"the ratio resonates at {f_p:.4g} Hz (Q {q_p:.3g}) where the "
-                              "model has an antiresonance: the modes around it are misplaced "
-                              "or misweighted"), _NAN
+        return (
+            "mode_shift",
+            (
+                f"the ratio resonates at {f_p:.4g} Hz (Q {q_p:.3g}) where the "
+                "model has an antiresonance: the modes around it are misplaced "
+                "or misweighted"
+            ),
+            _NAN,
+        )
     near = [f_k for f_k in hidden_hz if abs(math.log(f_k / f_p)) <= math.log(HIDDEN_SPAN)]
     if near:
         f_k = min(near, key=lambda f_k: abs(math.log(f_k / f_p)))
-        return "extra_pole", (f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has "
-                              f"no mode its sensor sees: the model's mode at {f_k:.4g} Hz, "
-                              "which its sensor does not see, may be it"), f_k
-    return "extra_pole", (f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has no "
-                          "mode"), _NAN
+        return (
+            "extra_pole",
+            (
+                f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has "
+                f"no mode its sensor sees: the model's mode at {f_k:.4g} Hz, "
+                "which its sensor does not see, may be it"
+            ),
+            f_k,
+        )
+    return (
+        "extra_pole",
+        (f"a resonance at {f_p:.4g} Hz (Q {q_p:.3g}) where the plate has no mode"),
+        _NAN,
+    )
 
 
 def causal(f_hz, R, f_p: float) -> bool | None:
@@ -382,7 +417,7 @@ def causal(f_hz, R, f_p: float) -> bool | None:
     ln_mag = ln_mag - np.interp(f, f[[0, -1]], ln_mag[[0, -1]])
     phase = phase - np.interp(f, f[[0, -1]], phase[[0, -1]])
     pad = np.zeros(2 * f.size)
-    minimum = -np.imag(hilbert(np.concatenate([pad, ln_mag, pad])))[pad.size:-pad.size]
+    minimum = -np.imag(hilbert(np.concatenate([pad, ln_mag, pad])))[pad.size : -pad.size]
     near = np.abs(f - f_p) <= 0.1 * f_p
     if np.ptp(minimum[near]) < 0.1:
         return None
@@ -424,33 +459,69 @@ def _trend_note(part_sizes, slope, linear) -> str:
     if "phase_slope" in worth:
         tau_us = -slope / (2 * math.pi) * 1e6
         why = f": a time delay of {tau_us:.3g} µs?" if tau_us > 0 else ": a time advance?"
-        parts.append(f"phase {'falls' if d_phase < 0 else 'rises'} {'linearly ' * linear}by "
-                     f"{abs(math.degrees(d_phase)):.2g}° across the band "
-                     f"(slope {slope:.3g} rad/Hz{why * linear})")
+        parts.append(
+            f"phase {'falls' if d_phase < 0 else 'rises'} {'linearly ' * linear}by "
+            f"{abs(math.degrees(d_phase)):.2g}° across the band "
+            f"(slope {slope:.3g} rad/Hz{why * linear})"
+        )
     if "magnitude_slope" in worth:
-        parts.append(f"magnitude {'rises' if d_mag > 0 else 'falls'} by {abs(100 * d_mag):.3g} % "
-                     "across the band")
+        parts.append(
+            f"magnitude {'rises' if d_mag > 0 else 'falls'} by {abs(100 * d_mag):.3g} % "
+            "across the band"
+        )
     if "magnitude_offset" in worth:
         parts.append(f"magnitude {100 * gain:+.3g} % off the model on average")
     return "; ".join(parts)
 
 
-def diagnose(frequency_hz, H_measured, H_model, std, *, plate_modes_hz, plate_q=None,
-             hidden_hz=(), max_pole_pairs: int = 4, min_significance: float = 5.0,
-             min_size: float = 0.02, left_out_hz=()) -> Diagnosis:
+def diagnose(
+    frequency_hz,
+    H_measured,
+    H_model,
+    std,
+    *,
+    plate_modes_hz,
+    plate_q=None,
+    hidden_hz=(),
+    max_pole_pairs: int = 4,
+    min_significance: float = 5.0,
+    min_size: float = 0.02,
+    left_out_hz=(),
+) -> Diagnosis:
     """Features of ``H_measured / H_model`` (module docstring); never raises, prints nothing.
     ``left_out_hz``: (lo, hi) bands, Hz, that the fit leaves out."""
     try:
         with _quiet():
-            return _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q,
-                             hidden_hz, max(int(max_pole_pairs), 0), min_significance,
-                             min_size, tuple(left_out_hz))
+            return _diagnose(
+                frequency_hz,
+                H_measured,
+                H_model,
+                std,
+                plate_modes_hz,
+                plate_q,
+                hidden_hz,
+                max(int(max_pole_pairs), 0),
+                min_significance,
+                min_size,
+                tuple(left_out_hz),
+            )
     except Exception as exc:  # noqa: BLE001 - a diagnosis must never stop the loop
         return Diagnosis(message=f"diagnosis failed: {type(exc).__name__}: {exc}")
 
 
-def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, hidden_hz,
-              max_pairs, min_significance, min_size, left_out_hz=()) -> Diagnosis:
+def _diagnose(
+    frequency_hz,
+    H_measured,
+    H_model,
+    std,
+    plate_modes_hz,
+    plate_q,
+    hidden_hz,
+    max_pairs,
+    min_significance,
+    min_size,
+    left_out_hz=(),
+) -> Diagnosis:
     f = np.asarray(frequency_hz, float).ravel()
     sd = np.broadcast_to(np.asarray(np.nan if std is None else std, float), f.shape)
     order = np.argsort(f, kind="stable")
@@ -480,8 +551,9 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, h
         return math.sqrt(max(rise - sum(groups[i].shape[1] for i in drop), 0.0))
 
     modes_hz = np.atleast_1d(np.asarray(plate_modes_hz, float)).ravel()
-    modes_q = np.broadcast_to(np.asarray(np.nan if plate_q is None else plate_q, float),
-                              modes_hz.shape)
+    modes_q = np.broadcast_to(
+        np.asarray(np.nan if plate_q is None else plate_q, float), modes_hz.shape
+    )
     a = np.abs(H0)
     i = np.flatnonzero((a[1:-1] < a[:-2]) & (a[1:-1] < a[2:])) + 1
     dips = np.stack([f[i - 1], f[i], f[i + 1]], axis=1)  # the model's antiresonances
@@ -489,8 +561,9 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, h
     for k, p in enumerate(poles, start=2):
         kind, note, hidden = "trend", "", _NAN
         if p.imag != 0:
-            kind, note, hidden = _classify(p, f[0], f[-1], modes_hz, modes_q, dips,
-                                           np.atleast_1d(np.asarray(hidden_hz, float)))
+            kind, note, hidden = _classify(
+                p, f[0], f[-1], modes_hz, modes_q, dips, np.atleast_1d(np.asarray(hidden_hz, float))
+            )
         if kind == "trend":
             trend.append(k)
         else:
@@ -500,22 +573,38 @@ def _diagnose(frequency_hz, H_measured, H_model, std, plate_modes_hz, plate_q, h
             size = float(np.max(np.abs(term[k])))
             is_causal = causal(f, R, f_p) if kind == "extra_pole" else None
             if is_causal is False:
-                note += ("; its phase moves against the phase a causal resonance of its "
-                         "magnitude would have: no resonance of the stand or the plate makes "
-                         "it (a bias of the H estimate where the base's signal is weak?)")
-            features.append(Feature(kind, f_p, q_p, size, significance({k}), note, hidden,
-                                    is_causal))
+                note += (
+                    "; its phase moves against the phase a causal resonance of its "
+                    "magnitude would have: no resonance of the stand or the plate makes "
+                    "it (a bias of the H estimate where the base's signal is weak?)"
+                )
+            features.append(
+                Feature(kind, f_p, q_p, size, significance({k}), note, hidden, is_causal)
+            )
     T = sum(term[k] for k in trend)
     sizes, slope, linear = _trend_measures(f_dense, T)
     size = float(np.max(np.abs(T - 1)))
-    note = (_trend_note(sizes, slope, linear)
-            or f"the ratio drifts smoothly by up to {100 * size:.2g} %")
-    features.append(Feature("trend", size=size, significance=significance(set(trend)),
-                            note=note, part_sizes=sizes))
+    note = (
+        _trend_note(sizes, slope, linear)
+        or f"the ratio drifts smoothly by up to {100 * size:.2g} %"
+    )
+    features.append(
+        Feature(
+            "trend", size=size, significance=significance(set(trend)), note=note, part_sizes=sizes
+        )
+    )
     rank = (lambda x: x.significance) if known_noise else (lambda x: x.size)
     limit = min_significance if known_noise else min_size
     residues = [complex(*coef[a:b]) for a, b in zip(starts[2:-1], starts[3:])]
     kept = sorted((x for x in features if rank(x) >= limit), key=rank, reverse=True)
-    return Diagnosis(tuple(kept), tuple(complex(p) for p in poles), tuple(residues),
-                     float(coef[0]), float(coef[1]), chi2, float(np.sum((w * np.abs(R - 1)) ** 2)),
-                     len(f), "; ".join(dict.fromkeys(errors)) if errors and not len(poles) else "")
+    return Diagnosis(
+        tuple(kept),
+        tuple(complex(p) for p in poles),
+        tuple(residues),
+        float(coef[0]),
+        float(coef[1]),
+        chi2,
+        float(np.sum((w * np.abs(R - 1)) ** 2)),
+        len(f),
+        "; ".join(dict.fromkeys(errors)) if errors and not len(poles) else "",
+    )

@@ -44,10 +44,12 @@ from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.space import ParameterSpace
 
 CRITERION = "log_evidence"
-MEANING = ("the log of each explanation's Bayesian evidence (Laplace's approximation): its "
-           "likelihood under Gaussian noise no smaller than the measured one, the misfit's "
-           "correlation along frequency counted, times its Occam factor under uniform priors "
-           "over each parameter's physical box")
+MEANING = (
+    "the log of each explanation's Bayesian evidence (Laplace's approximation): its "
+    "likelihood under Gaussian noise no smaller than the measured one, the misfit's "
+    "correlation along frequency counted, times its Occam factor under uniform priors "
+    "over each parameter's physical box"
+)
 
 
 @dataclass(frozen=True)
@@ -58,7 +60,7 @@ class Noise:
     tau: float = 1.0
 
     @classmethod
-    def of(cls, result, n: int) -> "Noise":
+    def of(cls, result, n: int) -> Noise:
         """The noise model of a round from its current fit ``result``."""
         _, tau = misfit_scale(result)
         return cls(int(n), max(1.0, float(tau)))
@@ -83,8 +85,11 @@ class Evidence:
 
     @property
     def parts(self) -> tuple:
-        return (("log_likelihood", self.log_likelihood), ("occam", self.occam),
-                ("log_p_inside", self.inside))
+        return (
+            ("log_likelihood", self.log_likelihood),
+            ("occam", self.occam),
+            ("log_p_inside", self.inside),
+        )
 
 
 def prior_space(result, box: dict) -> ParameterSpace:
@@ -93,8 +98,9 @@ def prior_space(result, box: dict) -> ParameterSpace:
     bounds and the library's)."""
     model = result.plate_model
     bounds = model.default_bounds(box)
-    return ParameterSpace.from_bounds(result.parameter_names, bounds,
-                                      {q.name: q.kind for q in model.parameters})
+    return ParameterSpace.from_bounds(
+        result.parameter_names, bounds, {q.name: q.kind for q in model.parameters}
+    )
 
 
 def du_dtheta(space: ParameterSpace, theta: np.ndarray) -> np.ndarray:
@@ -118,8 +124,11 @@ def log_evidence(result, box: dict, noise: Noise, chi2: float | None = None) -> 
     occam = _occam(Cu)
     with np.errstate(all="ignore"):
         u = space.to_u(theta)[free]
-    inside = float(np.sum([_log_mass_inside(m, math.sqrt(v)) for m, v in
-                           zip(u, np.diag(Cu))])) if Cu.size else 0.0
+    inside = (
+        float(np.sum([_log_mass_inside(m, math.sqrt(v)) for m, v in zip(u, np.diag(Cu))]))
+        if Cu.size
+        else 0.0
+    )
     ll = noise.log_likelihood(chi2)
     return Evidence(ll + occam + inside, ll, occam, inside)
 
@@ -147,8 +156,7 @@ def _log_mass_inside(mu: float, sd: float) -> float:
     return lb + math.log1p(-math.exp(la - lb)) if lb > la else -math.inf
 
 
-def approximate(log_z_now: float, noise: Noise, chi2_now: float, lm: float,
-                information) -> float:
+def approximate(log_z_now: float, noise: Noise, chi2_now: float, lm: float, information) -> float:
     """A candidate's log evidence before its refit, from its score test at the current
     fit (``log_z_now``: the current model's): one Gauss-Newton step lowers chi2 by the
     score ``lm``, and its new parameters cost their Occam factor, their posterior the

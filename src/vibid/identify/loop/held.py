@@ -50,18 +50,20 @@ class Held:
     def sentence(self) -> str:
         """What the report says of the hold."""
         boxes = ", ".join(f"{n} {lo:.3g} to {hi:.3g}" for n, (lo, hi) in self.boxes.items())
-        return (", ".join(f"{n} held at {v:.3g}" for n, v in self.values.items())
-                + f": free, the refit takes {'it' if len(self.values) == 1 else 'them'} "
-                f"outside the prior box ({boxes}) for a chi2 lower by {self.excursion:.3g}, "
-                "no more than a parameter that explains nothing removes from this misfit "
-                f"({self.indistinct:.3g})")
+        return (
+            ", ".join(f"{n} held at {v:.3g}" for n, v in self.values.items())
+            + f": free, the refit takes {'it' if len(self.values) == 1 else 'them'} "
+            f"outside the prior box ({boxes}) for a chi2 lower by {self.excursion:.3g}, "
+            "no more than a parameter that explains nothing removes from this misfit "
+            f"({self.indistinct:.3g})"
+        )
 
 
 #: The width of a held parameter's span in the polish, as a share of its prior box.
 HELD_SPAN = 1e-6
 
 
-def held_inside(res, space, u0, u, around, local: str) -> "Held | None":
+def held_inside(res, space, u0, u, around, local: str) -> Held | None:
     """Where a refit (ended at ``u``) takes a parameter that the current fit (``u0``) has
     inside its prior box outside it (Poisson's ratio of a strip, which two bending modes
     barely determine, wanders to a face with a new effect), the refit with those
@@ -76,8 +78,11 @@ def held_inside(res, space, u0, u, around, local: str) -> "Held | None":
     the free refit's basis, 0.5 away in nu, a real strip's refit stopped at chi2 2.24e7
     instead of 1.88e7). The held parameter keeps its full std."""
     current = set(space.out_of_bounds(space.theta(u0)))
-    strayed = [n for n in space.out_of_bounds(space.theta(u))
-               if n in res.parameter_names and n not in current]
+    strayed = [
+        n
+        for n in space.out_of_bounds(space.theta(u))
+        if n in res.parameter_names and n not in current
+    ]
     if not strayed:
         return None
     free_loss = around(u).chi2(u)
@@ -95,13 +100,21 @@ def held_inside(res, space, u0, u, around, local: str) -> "Held | None":
     except Exception as exc:  # noqa: BLE001 - the refit's excursion stands
         log.info("loop: a held refit failed: %s", exc)
         return None
-    if not (r.converged and np.isfinite(r.loss) and np.isfinite(free_loss)) \
-            or r.loss > free_loss + indistinct:
+    if (
+        not (r.converged and np.isfinite(r.loss) and np.isfinite(free_loss))
+        or r.loss > free_loss + indistinct
+    ):
         return None
-    log.info("loop: %s held inside the prior box (chi2 %.6g against %.6g free)",
-             ", ".join(strayed), r.loss, free_loss)
-    return Held(replace(r, u=full, theta=space.theta(full)),
-                {n: float(space.theta(u0)[k]) for n, k in zip(strayed, at)},
-                {n: (space.transforms[k].low, space.transforms[k].high)
-                 for n, k in zip(strayed, at)},
-                float(r.loss - free_loss), indistinct)
+    log.info(
+        "loop: %s held inside the prior box (chi2 %.6g against %.6g free)",
+        ", ".join(strayed),
+        r.loss,
+        free_loss,
+    )
+    return Held(
+        replace(r, u=full, theta=space.theta(full)),
+        {n: float(space.theta(u0)[k]) for n, k in zip(strayed, at)},
+        {n: (space.transforms[k].low, space.transforms[k].high) for n, k in zip(strayed, at)},
+        float(r.loss - free_loss),
+        indistinct,
+    )

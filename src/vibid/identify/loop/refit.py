@@ -48,6 +48,7 @@ from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class Refit:
     """A refitted candidate: its result, its likelihood ratio ``gain`` = Δχ² under the
@@ -71,21 +72,35 @@ def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
     if fit.polish is None:
         return fit.result
     fm, box, kinds = fit.polish
-    return _polish(setup, data, fm.refresh(fit.result.values), fit.result.parameters, box,
-                   kinds, local)
+    return _polish(
+        setup, data, fm.refresh(fit.result.values), fit.result.parameters, box, kinds, local
+    )
 
 
 def _polish(setup, data, fm, start: dict, box, kinds, local: str, weights=None):
     """The full identification from ``start`` on the forward model ``fm`` (one local
     run, the covariance), under ``weights`` or, None, the data's and the model's error."""
-    return identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
-                    model=fm.param.model, forward_model=fm, method="local", start=start,
-                    bounds=box, local=local, magnitude=data.magnitude, kinds=kinds,
-                    weights=weights)
+    return identify(
+        setup,
+        data.frequency_hz,
+        data.H,
+        data.std,
+        used=data.used,
+        model=fm.param.model,
+        forward_model=fm,
+        method="local",
+        start=start,
+        bounds=box,
+        local=local,
+        magnitude=data.magnitude,
+        kinds=kinds,
+        weights=weights,
+    )
 
 
-def starts(space, u0, new, current_names, placed=None,
-           policy: Policy = DEFAULT) -> list[np.ndarray]:
+def starts(
+    space, u0, new, current_names, placed=None, policy: Policy = DEFAULT
+) -> list[np.ndarray]:
     """The current estimate, and it with the new parameters at :attr:`Policy.starts_u`; where
     current parameters lie outside their prior box, also those moved just inside it and to
     its centre (a physical value, far from the bent one), the new parameters at their
@@ -117,27 +132,38 @@ def starts(space, u0, new, current_names, placed=None,
 
 
 @timed("loop refits")
-def refit(setup, data, res, cand, box, diagnosis, local: str, search: bool = False,
-          extended=None, policy: Policy = DEFAULT) -> Refit:
+def refit(
+    setup,
+    data,
+    res,
+    cand,
+    box,
+    diagnosis,
+    local: str,
+    search: bool = False,
+    extended=None,
+    policy: Policy = DEFAULT,
+) -> Refit:
     """Refit ``cand``'s extended model from ``res`` (module doc); ``extended``:
     :func:`~vibid.identify.loop.scoring.extended_problem`'s, where the scoring built it."""
-    problem, start, ext_box = extended or extended_problem(setup, data, res, cand, box,
-                                                           diagnosis)
+    problem, start, ext_box = extended or extended_problem(setup, data, res, cand, box, diagnosis)
     searched = _search(setup, data, cand, problem, start, ext_box, local) if search else None
     polish = held = None
     if searched is not None and searched.settled:
         result, loss = searched.result, searched.loss
     else:
-        result, loss, polish, held = _local(setup, data, res, cand, problem, start, ext_box,
-                                            diagnosis, local, policy)
+        result, loss, polish, held = _local(
+            setup, data, res, cand, problem, start, ext_box, diagnosis, local, policy
+        )
         if searched is not None and searched.result.converged and searched.loss < loss:
             result, loss, polish, held = searched.result, searched.loss, None, None
     log.info("loop: %s refitted, chi2 %.6g -> %.6g", cand.name, res.chi2, loss)
     return Refit(result, float(res.chi2 - loss), search, polish, held)
 
 
-def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: str,
-           policy: Policy = DEFAULT):
+def _local(
+    setup, data, res, cand, problem, start, ext_box, diagnosis, local: str, policy: Policy = DEFAULT
+):
     """``(result, chi2 under the current weights, polish, held)``: local fits from the
     current estimate (:func:`starts`), the best polished by the full identification, under
     the current weights where the model's own error does not weigh in
@@ -172,8 +198,9 @@ def _local(setup, data, res, cand, problem, start, ext_box, diagnosis, local: st
         # strip one costs four complex sparse LUs, 0.14 s, a basis 0.08 s, and the
         # polish's own end is checked all the same)
         fm = problem.model.rebuilt(run.theta)
-        return fm, _polish(setup, data, fm, dict(zip(names, run.theta)), ext_box, kinds,
-                           local, weights)
+        return fm, _polish(
+            setup, data, fm, dict(zip(names, run.theta)), ext_box, kinds, local, weights
+        )
 
     fm, result = polished(best, kinds)
     held = held_inside(res, space, u0, space.to_u(result.values), around, local)
@@ -221,8 +248,13 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
         return np.log(np.append(f[shown], f[k])) - target
 
     try:
-        fit = least_squares(misfit, np.clip(u0[moving], -0.99, 0.99), bounds=(-1.0, 1.0),
-                            x_scale=0.1, max_nfev=20 * (len(moving) + 1))
+        fit = least_squares(
+            misfit,
+            np.clip(u0[moving], -0.99, 0.99),
+            bounds=(-1.0, 1.0),
+            x_scale=0.1,
+            max_nfev=20 * (len(moving) + 1),
+        )
     except Exception as exc:  # noqa: BLE001 - no placed start, the others remain
         log.info("loop: %s: the hidden mode could not be placed: %s", cand.name, exc)
         return None
@@ -230,17 +262,20 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
     f, height = natural_mode_heights(setup, {**params, **theta}, n)
     if seen(height)[k] or abs(np.log(f[k] / pole.f_hz)) > 0.02:
         return None  # the modes crossed, or the material cannot place it
-    log.info("loop: %s: the model's hidden mode at %.4g Hz placed on the pole at %.4g Hz "
-             "(%s)", cand.name, f0[k], pole.f_hz,
-             ", ".join(f"{m} {theta[m]:.4g}" for m in res.plate_model.material.stiffness_names))
+    log.info(
+        "loop: %s: the model's hidden mode at %.4g Hz placed on the pole at %.4g Hz (%s)",
+        cand.name,
+        f0[k],
+        pole.f_hz,
+        ", ".join(f"{m} {theta[m]:.4g}" for m in res.plate_model.material.stiffness_names),
+    )
     return u
 
 
 def model_error_weighs_in(res, share: float = DEFAULT.model_error_share) -> bool:
     """Whether the model's own error changes ``res``'s chi2 by ``share``
     or more (its chi2 under the data's weights alone against the one under its weights)."""
-    return not (res.chi2_reduced_data_weights
-                <= (1 + share) * res.chi2_reduced)
+    return not (res.chi2_reduced_data_weights <= (1 + share) * res.chi2_reduced)
 
 
 def _on_own_basis(problem, theta0):
@@ -293,27 +328,48 @@ def _search(setup, data, cand, problem, start, ext_box, local) -> Searched | Non
 
     space, param = problem.space, problem.model.param
     log.info("loop: %s searched over its box", cand.name)
-    wide = build_forward_model(setup, data.frequency_hz[data.used], model=param,
-                               bounds=ext_box)
+    wide = build_forward_model(setup, data.frequency_hz[data.used], model=param, bounds=ext_box)
     peaks = cand.peaks_first and gives_modes(wide)
     best = None
     for peaks_only in ([start] if peaks else []) + [None]:
-        found = identify(setup, data.frequency_hz, data.H, data.std, used=data.used,
-                         model=param.model, forward_model=wide, bounds=ext_box,
-                         restarts=3, seed=0, local=local, peaks_only=peaks_only,
-                         magnitude=data.magnitude)
+        found = identify(
+            setup,
+            data.frequency_hz,
+            data.H,
+            data.std,
+            used=data.used,
+            model=param.model,
+            forward_model=wide,
+            bounds=ext_box,
+            restarts=3,
+            seed=0,
+            local=local,
+            peaks_only=peaks_only,
+            magnitude=data.magnitude,
+        )
         at = problem.with_model(problem.model.refresh(found.values))
         loss = at.chi2(space.to_u(found.values))
-        log.info("loop: %s searched globally%s, chi2 %.6g", cand.name,
-                 " on its peaks" if peaks_only else "", loss)
+        log.info(
+            "loop: %s searched globally%s, chi2 %.6g",
+            cand.name,
+            " on its peaks" if peaks_only else "",
+            loss,
+        )
         if found.converged and (best is None or loss < best.loss):
             best = Searched(found, loss, False)
         if best is not None and _fits(best.result):
             return replace(best, settled=True)
-        if peaks_only is not None and best is not None and best.result is found \
-                and _on_the_peaks(at, found):
-            log.info("loop: %s's modes lie on the measured peaks: no search on chi2 (its "
-                     "misfit is not a wrong basin)", cand.name)
+        if (
+            peaks_only is not None
+            and best is not None
+            and best.result is found
+            and _on_the_peaks(at, found)
+        ):
+            log.info(
+                "loop: %s's modes lie on the measured peaks: no search on chi2 (its "
+                "misfit is not a wrong basin)",
+                cand.name,
+            )
             return replace(best, settled=True)
     return best
 

@@ -19,8 +19,13 @@ from vibid.identify.fit.result import IdentificationResult
 from vibid.identify.fit.strategy import identify
 from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import Place, all_candidates, distance_from_null
-from vibid.identify.loop.evidence import (Noise, approximate, log_evidence, prior_space,
-                                          probabilities)
+from vibid.identify.loop.evidence import (
+    Noise,
+    approximate,
+    log_evidence,
+    prior_space,
+    probabilities,
+)
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
@@ -65,10 +70,24 @@ class State:
 
 
 # -- the loop -----------------------------------------------------------------------------
-def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_rounds: int = 4,
-               restarts: int = 5, seed=0, progress=None, local: str = "newton",
-               declared: IdentificationResult | None = None,
-               magnitude: bool = False, left_out_hz=(), policy: Policy = DEFAULT) -> LoopResult:
+def close_loop(
+    setup,
+    frequency_hz,
+    H,
+    std,
+    *,
+    used=None,
+    candidates=None,
+    max_rounds: int = 4,
+    restarts: int = 5,
+    seed=0,
+    progress=None,
+    local: str = "newton",
+    declared: IdentificationResult | None = None,
+    magnitude: bool = False,
+    left_out_hz=(),
+    policy: Policy = DEFAULT,
+) -> LoopResult:
     """Fit the declared model, then add the explanations its residual makes most probable
     (:mod:`vibid.identify.loop`).
 
@@ -83,14 +102,37 @@ def close_loop(setup, frequency_hz, H, std, *, used=None, candidates=None, max_r
     t0 = time.perf_counter()
     pool = tuple(c for c in _pool(candidates, policy) if not (magnitude and c.phase_only))
     if declared is None:
-        declared = identify(setup, frequency_hz, H, std, used=used, restarts=restarts,
-                            seed=seed, progress=progress, local=local, magnitude=magnitude)
+        declared = identify(
+            setup,
+            frequency_hz,
+            H,
+            std,
+            used=used,
+            restarts=restarts,
+            seed=seed,
+            progress=progress,
+            local=local,
+            magnitude=magnitude,
+        )
     if not declared.noise_known:
-        return LoopResult((Stage.of(None, declared),), (), False, (
-            "the AFC's uncertainty is unknown: the loop cannot test the residual against the "
-            "noise, so no effect was looked for",), time.perf_counter() - t0)
-    inputs = Inputs(setup, fit_data(frequency_hz, H, std, used, magnitude=magnitude), pool,
-                    local, tuple(left_out_hz), policy)
+        return LoopResult(
+            (Stage.of(None, declared),),
+            (),
+            False,
+            (
+                "the AFC's uncertainty is unknown: the loop cannot test the residual against the "
+                "noise, so no effect was looked for",
+            ),
+            time.perf_counter() - t0,
+        )
+    inputs = Inputs(
+        setup,
+        fit_data(frequency_hz, H, std, used, magnitude=magnitude),
+        pool,
+        local,
+        tuple(left_out_hz),
+        policy,
+    )
     box = dict(setup.identification.bounds)
     state = State((diagnosed(inputs, Stage.of(None, declared)),), box, box)
     while len(state.rounds) < max_rounds and not state.current.fits_noise:
@@ -109,8 +151,9 @@ def _pool(candidates, policy: Policy) -> tuple:
     known = {c.name: c for c in all_candidates(policy)}
     unknown = sorted(set(candidates) - set(known))
     if unknown:
-        raise VibidError(f"unknown candidate {', '.join(unknown)}: expected some of "
-                         f"{', '.join(sorted(known))}")
+        raise VibidError(
+            f"unknown candidate {', '.join(unknown)}: expected some of {', '.join(sorted(known))}"
+        )
     return tuple(c for c in known.values() if c.name in set(candidates))
 
 
@@ -126,8 +169,8 @@ def play_round(inputs: Inputs, state: State, proposals) -> tuple[State, bool]:
     scores, chosen, shares = compare(scores, judged, now.log_z, inputs.policy)
     rounds = state.rounds + (tuple(scores),)
     alternatives = state.alternatives + tuple(
-        judged[s.name].fit.result for s in scores
-        if s.verdict.compared and s.name != chosen)
+        judged[s.name].fit.result for s in scores if s.verdict.compared and s.name != chosen
+    )
     stages = state.stages[:-1] + (replace(current, alternatives=shares),)
     state = replace(state, stages=stages, rounds=rounds, alternatives=alternatives)
     if chosen is STOP:
@@ -138,12 +181,15 @@ def play_round(inputs: Inputs, state: State, proposals) -> tuple[State, bool]:
     prior = with_prior(state.prior, cand, values)
     fit = judged[chosen].fit
     own = refits.weighed(inputs.setup, inputs.data, fit, inputs.local)  # its own weights
-    stage, gone = withdraw(inputs, Stage.of(chosen, own), box, prior,
-                           [s.added for s in state.stages[1:]])
+    stage, gone = withdraw(
+        inputs, Stage.of(chosen, own), box, prior, [s.added for s in state.stages[1:]]
+    )
     if gone:
         rounds = rounds[:-1] + (rounds[-1] + tuple(gone),)
-    stage = replace(diagnosed(inputs, stage),
-                    held=tuple(fit.held.values) if fit.held is not None and not gone else ())
+    stage = replace(
+        diagnosed(inputs, stage),
+        held=tuple(fit.held.values) if fit.held is not None and not gone else (),
+    )
     dropped = {s.name for s in gone}
     kept = tuple(s for s in state.stages if s.added not in dropped)
     return State(kept + (stage,), box, prior, rounds, alternatives), True
@@ -161,9 +207,12 @@ def finish(state: State, seconds: float) -> LoopResult:
         f"{s.collinearity:.5f}): the data separate them only through the "
         f"{100 * math.sqrt(max(1 - s.collinearity**2, 0)):.2g} % of its sensitivity the "
         "others cannot mimic; its std and theirs include that"
-        for s in (state.rounds[-1] if state.rounds else ()) if s.kept and s.collinearity > 0.9]
-    return LoopResult(tuple(stages), state.rounds, unexplained, tuple(warnings), seconds,
-                      state.alternatives)
+        for s in (state.rounds[-1] if state.rounds else ())
+        if s.kept and s.collinearity > 0.9
+    ]
+    return LoopResult(
+        tuple(stages), state.rounds, unexplained, tuple(warnings), seconds, state.alternatives
+    )
 
 
 def with_prior(prior: dict, cand, values: dict) -> dict:
@@ -181,8 +230,9 @@ def propose(inputs: Inputs, state: State) -> list:
     current = state.current
     model = current.result.plate_model
     peaks = residual_peaks(current.result, inputs.policy)
-    return [p for c in inputs.pool if c.applies(model)
-            for p in c.placements(current.diagnosis, peaks)]
+    return [
+        p for c in inputs.pool if c.applies(model) for p in c.placements(current.diagnosis, peaks)
+    ]
 
 
 def residual_peaks(result, policy: Policy) -> tuple[Place, ...]:
@@ -192,21 +242,21 @@ def residual_peaks(result, policy: Policy) -> tuple[Place, ...]:
     u = np.asarray(result.used)
     f = np.asarray(result.frequency_hz)[u]
     order = np.argsort(f)
-    r = np.abs((np.asarray(result.model_afc)[u] - np.asarray(result.H)[u])
-               / np.asarray(result.weights))[order]
+    r = np.abs(
+        (np.asarray(result.model_afc)[u] - np.asarray(result.H)[u]) / np.asarray(result.weights)
+    )[order]
     f = f[order]
     if r.size < 3:
         return ()
     inner = np.flatnonzero((r[1:-1] >= r[:-2]) & (r[1:-1] >= r[2:])) + 1
-    top = inner[np.argsort(-r[inner])][:policy.band_trials]
+    top = inner[np.argsort(-r[inner])][: policy.band_trials]
     return tuple(Place(float(f[i]), policy.trial_q, "residual_peak") for i in top)
 
 
 # -- diagnose -------------------------------------------------------------------------------
 def diagnosed(inputs: Inputs, stage: Stage) -> Stage:
     """``stage`` with its residual's diagnosis (None where it cannot be made)."""
-    return replace(stage, diagnosis=diagnosis_of(inputs.setup, stage.result,
-                                                 inputs.left_out_hz))
+    return replace(stage, diagnosis=diagnosis_of(inputs.setup, stage.result, inputs.left_out_hz))
 
 
 @numpy_only
@@ -220,10 +270,16 @@ def diagnosis_of(setup, r: IdentificationResult, left_out_hz=()):
     try:
         modes_hz, q, hidden_hz = model_resonances(setup, r)
         u = np.asarray(r.used)
-        return diagnose(r.frequency_hz[u], r.H[u], r.model_afc[u],
-                        None if r.H_std is None else np.asarray(r.H_std)[u],
-                        plate_modes_hz=modes_hz, plate_q=q, hidden_hz=hidden_hz,
-                        left_out_hz=left_out_hz)
+        return diagnose(
+            r.frequency_hz[u],
+            r.H[u],
+            r.model_afc[u],
+            None if r.H_std is None else np.asarray(r.H_std)[u],
+            plate_modes_hz=modes_hz,
+            plate_q=q,
+            hidden_hz=hidden_hz,
+            left_out_hz=left_out_hz,
+        )
     except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
         log.warning("loop: the residual could not be diagnosed: %s", exc)
         return None
@@ -242,8 +298,11 @@ def model_resonances(setup, result, n: int = 12):
     shown = seen(natural_mode_heights(setup, params, n)[1])  # the same modes, in order
     hidden_hz = np.asarray(f_hz, float)[~shown]
     f_hz, q = np.asarray(f_hz)[shown], q[shown]
-    stand = [(params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
-             for t in result.plate_model.effects if t.rotates_base]
+    stand = [
+        (params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
+        for t in result.plate_model.effects
+        if t.rotates_base
+    ]
     if stand:
         f_hz = np.concatenate([f_hz, [s[0] for s in stand]])
         q = np.concatenate([q, [s[1] for s in stand]])
@@ -283,9 +342,20 @@ def score_all(inputs: Inputs, state: State, proposals, noise: Noise, log_z_now: 
     for tried in in_order(at_its_places, list(groups.values())):
         cand, s, e = max(tried, key=lambda t: np.nan_to_num(t[1].log_evidence, nan=-np.inf))
         if len(tried) > 1:
-            s = replace(s, detail=s.detail + (("places", ", ".join(
-                f"{c.at.f_hz:.4g} Hz ({t.score:.3g})" for c, t, _ in tried
-                if np.isfinite(t.score))),))
+            s = replace(
+                s,
+                detail=s.detail
+                + (
+                    (
+                        "places",
+                        ", ".join(
+                            f"{c.at.f_hz:.4g} Hz ({t.score:.3g})"
+                            for c, t, _ in tried
+                            if np.isfinite(t.score)
+                        ),
+                    ),
+                ),
+            )
         scores.append(s)
         cands[cand.name] = cand
         if e is not None:
@@ -294,32 +364,43 @@ def score_all(inputs: Inputs, state: State, proposals, noise: Noise, log_z_now: 
 
 
 @timed("loop scoring")
-def scored(inputs: Inputs, current: Stage, cand, state: State, noise: Noise,
-           log_z_now: float, like=None) -> tuple[Score, tuple | None]:
+def scored(
+    inputs: Inputs, current: Stage, cand, state: State, noise: Noise, log_z_now: float, like=None
+) -> tuple[Score, tuple | None]:
     """``cand``'s score test at the current fit and its approximate evidence (a failure is
     its verdict, not fatal), and the problem of the model extended by it
     (:func:`~vibid.identify.loop.scoring.extended_problem`; None where it failed), which
     its refit starts from: built once, not again for the refit."""
-    args = (inputs.setup, inputs.data, current.result, cand, state.box, current.diagnosis,
-            like)
+    args = (inputs.setup, inputs.data, current.result, cand, state.box, current.diagnosis, like)
     extended = None
     at = {} if cand.at is None else {"at_hz": cand.at.f_hz}
     try:
         extended = extended_problem(*args)
-        lm, dof, cos, info = score(extended, current.result, cand,
-                                   with_prior(state.prior, cand, current.result.parameters))
+        lm, dof, cos, info = score(
+            extended, current.result, cand, with_prior(state.prior, cand, current.result.parameters)
+        )
     except Exception as exc:  # noqa: BLE001
-        return Score(cand.name, math.nan, 0, math.nan, math.nan, verdict=Verdict.NOT_SCORED,
-                     detail=(("error", str(exc)),), **at), extended
+        return Score(
+            cand.name,
+            math.nan,
+            0,
+            math.nan,
+            math.nan,
+            verdict=Verdict.NOT_SCORED,
+            detail=(("error", str(exc)),),
+            **at,
+        ), extended
     p = float(chi2_dist.sf(lm, dof))
     log_z = approximate(log_z_now, noise, float(current.result.chi2), lm, info)
-    return Score(cand.name, lm, dof, p, cos, detail=(("p", p),), log_evidence=log_z,
-                 estimated=True, **at), extended
+    return Score(
+        cand.name, lm, dof, p, cos, detail=(("p", p),), log_evidence=log_z, estimated=True, **at
+    ), extended
 
 
 # -- fit ---------------------------------------------------------------------------------------
-def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: dict,
-                  noise: Noise) -> dict:
+def fit_and_weigh(
+    inputs: Inputs, state: State, cands: dict, scores, extended: dict, noise: Noise
+) -> dict:
     """Refit the candidates of highest approximate evidence and weigh each refit's
     evidence: name -> :class:`Judgement`.
 
@@ -341,13 +422,20 @@ def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: d
     judged = guarded(inputs, res, cands, scores)
     outside = outside_prior(res, state.prior)
     if outside:
-        log.info("loop: %s outside the prior box: every candidate is refitted",
-                 _values(res, outside, state.prior))
-    open_ = sorted((s for s in scores if s.name not in judged and np.isfinite(s.log_evidence)),
-                   key=lambda s: -s.log_evidence)
-    own_free = [s for s in open_ if not set(cands[s.name].extend(res.plate_model).names)
-                - set(res.parameter_names)]
-    ranked = open_ if outside else open_[:policy.refits_per_round]
+        log.info(
+            "loop: %s outside the prior box: every candidate is refitted",
+            _values(res, outside, state.prior),
+        )
+    open_ = sorted(
+        (s for s in scores if s.name not in judged and np.isfinite(s.log_evidence)),
+        key=lambda s: -s.log_evidence,
+    )
+    own_free = [
+        s
+        for s in open_
+        if not set(cands[s.name].extend(res.plate_model).names) - set(res.parameter_names)
+    ]
+    ranked = open_ if outside else open_[: policy.refits_per_round]
     ranked = ranked + [s for s in own_free if s not in ranked]
     for s in open_:
         if s not in ranked:
@@ -356,12 +444,25 @@ def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: d
 
     def attempt(s: Score, search: bool) -> Judgement:
         cand = cands[s.name]
-        log.info("loop: refitting %s (approximate log evidence %.4g%s)", cand.label,
-                 s.log_evidence, ", searched globally" if search else "")
+        log.info(
+            "loop: refitting %s (approximate log evidence %.4g%s)",
+            cand.label,
+            s.log_evidence,
+            ", searched globally" if search else "",
+        )
         try:
-            fit = refits.refit(inputs.setup, inputs.data, res, cand, state.box,
-                               state.current.diagnosis, inputs.local, search=search,
-                               extended=extended.get(s.name), policy=policy)
+            fit = refits.refit(
+                inputs.setup,
+                inputs.data,
+                res,
+                cand,
+                state.box,
+                state.current.diagnosis,
+                inputs.local,
+                search=search,
+                extended=extended.get(s.name),
+                policy=policy,
+            )
         except Exception as exc:  # noqa: BLE001 - a failing refit is reported, not fatal
             return Judgement(Verdict.REFIT_FAILED, (("error", str(exc)),))
         return weigh(cand, fit, res, state, noise)
@@ -369,19 +470,25 @@ def fit_and_weigh(inputs: Inputs, state: State, cands: dict, scores, extended: d
     later = next((s for s in ranked if cands[s.name].moves_basin), None)  # after the rest
     first = [s for s in ranked if s is not later]
     fits_noise = False
-    with contextlib.closing(in_order(  # the next refits start early (vibid.identify.threads)
-            lambda k: attempt(first[k], False), range(len(first)))) as runs:
+    with contextlib.closing(
+        in_order(  # the next refits start early (vibid.identify.threads)
+            lambda k: attempt(first[k], False), range(len(first))
+        )
+    ) as runs:
         for s, j in zip(first, runs):
             judged[s.name] = j
-            fits_noise = fits_noise or (j.verdict is Verdict.COMPARED
-                                        and Stage.of(s.name, j.fit.result).fits_noise)
+            fits_noise = fits_noise or (
+                j.verdict is Verdict.COMPARED and Stage.of(s.name, j.fit.result).fits_noise
+            )
     if fits_noise and later is not None:
         judged[later.name] = Judgement(Verdict.NOT_REFITTED, (("fitted_by", "an effect"),))
     elif later is not None:  # a bent estimate's own basin is suspect: searched
-        explained = max((j.gain for j in judged.values() if j.verdict is Verdict.COMPARED),
-                        default=0.0)
-        judged[later.name] = attempt(later, bool(outside)
-                                     or explained < policy.search_share * excess)
+        explained = max(
+            (j.gain for j in judged.values() if j.verdict is Verdict.COMPARED), default=0.0
+        )
+        judged[later.name] = attempt(
+            later, bool(outside) or explained < policy.search_share * excess
+        )
     return judged
 
 
@@ -397,15 +504,17 @@ def guarded(inputs: Inputs, res, cands: dict, scores) -> dict:
         cand = cands[s.name]
         n = len(cand.extend(res.plate_model).names)
         if n >= n_residuals:
-            judged[s.name] = Judgement(Verdict.TOO_FEW_POINTS,
-                                       (("n", n), ("residuals", n_residuals)))
+            judged[s.name] = Judgement(
+                Verdict.TOO_FEW_POINTS, (("n", n), ("residuals", n_residuals))
+            )
             continue
         needed = cand.modes_needed(res.plate_model)
         if needed:
             modes = plate_modes_in_band(inputs.setup, res)
             if modes < needed:
-                judged[s.name] = Judgement(Verdict.NO_MODE_PATTERN,
-                                           (("modes", modes), ("needed", needed)))
+                judged[s.name] = Judgement(
+                    Verdict.NO_MODE_PATTERN, (("modes", modes), ("needed", needed))
+                )
     return judged
 
 
@@ -424,8 +533,9 @@ def weigh(cand, fit: refits.Refit, res, state: State, noise: Noise) -> Judgement
     placed = cand.resonances_hz(r.parameters, res.parameters)
     if placed:
         detail += (("f_hz", placed[0]),)
-    ev = log_evidence(r, with_prior(state.prior, cand, res.parameters), noise,
-                      chi2=float(res.chi2 - fit.gain))
+    ev = log_evidence(
+        r, with_prior(state.prior, cand, res.parameters), noise, chi2=float(res.chi2 - fit.gain)
+    )
     return Judgement(Verdict.COMPARED, detail + ev.parts, fit, evidence=ev.log_z)
 
 
@@ -455,8 +565,7 @@ def compare(scores, judged: dict, log_z_now: float, policy: Policy):
             log_z[s.name] = -math.inf
     share = (1.0 - policy.stop_prior) / max(len(names), 1)
     prior = {STOP: policy.stop_prior} | {n: share for n in names}
-    prob = probabilities({k: (-math.inf if k in estimated else z) for k, z in log_z.items()},
-                         prior)
+    prob = probabilities({k: (-math.inf if k in estimated else z) for k, z in log_z.items()}, prior)
     fitted = [k for k in log_z if k is STOP or (k not in estimated and np.isfinite(log_z[k]))]
     chosen = max(fitted, key=lambda k: (prob[k], log_z[k]))
     for k in estimated:
@@ -470,19 +579,37 @@ def compare(scores, judged: dict, log_z_now: float, policy: Policy):
             verdict = Verdict.CHOSEN
         elif verdict is Verdict.COMPARED:
             verdict = Verdict.LESS_PROBABLE
-        detail = detail + (("probability", prob[s.name]), ("by", by),
-                           ("by_probability", prob[chosen]), ("log_evidence", log_z[s.name]))
-        out.append(replace(s, verdict=verdict, detail=detail, probability=prob[s.name],
-                           log_evidence=log_z[s.name], estimated=s.name in estimated,
-                           delta_chi2=j.gain if j is not None else math.nan))
-    at = {s.name: dict(judged[s.name].detail).get("f_hz", s.at_hz) if s.name in judged
-          else s.at_hz for s in scores}
+        detail = detail + (
+            ("probability", prob[s.name]),
+            ("by", by),
+            ("by_probability", prob[chosen]),
+            ("log_evidence", log_z[s.name]),
+        )
+        out.append(
+            replace(
+                s,
+                verdict=verdict,
+                detail=detail,
+                probability=prob[s.name],
+                log_evidence=log_z[s.name],
+                estimated=s.name in estimated,
+                delta_chi2=j.gain if j is not None else math.nan,
+            )
+        )
+    at = {
+        s.name: dict(judged[s.name].detail).get("f_hz", s.at_hz) if s.name in judged else s.at_hz
+        for s in scores
+    }
     order = sorted(fitted, key=lambda k: (k != chosen, -prob[k], -log_z[k]))
     shares = tuple(
         {"added": k, "criterion": log_z[k], "probability": prob[k]}
-        | ({"f_hz": at[k]} if k is not STOP and at.get(k) is not None
-           and np.isfinite(at[k]) else {})
-        for k in order)
+        | (
+            {"f_hz": at[k]}
+            if k is not STOP and at.get(k) is not None and np.isfinite(at[k])
+            else {}
+        )
+        for k in order
+    )
     return out, chosen, shares
 
 
@@ -494,13 +621,16 @@ def outside_prior(result: IdentificationResult, box: dict) -> list[str]:
 def _values(result, names, box) -> str:
     """``names``' values in ``result`` beside their prior boxes, in words."""
     bounds = result.plate_model.default_bounds(box)
-    return ", ".join(f"{n} {result.parameters[n]:.3g} (box {bounds[n][0]:.3g} to "
-                     f"{bounds[n][1]:.3g})" for n in names)
+    return ", ".join(
+        f"{n} {result.parameters[n]:.3g} (box {bounds[n][0]:.3g} to {bounds[n][1]:.3g})"
+        for n in names
+    )
 
 
 # -- withdraw ---------------------------------------------------------------------------------
-def withdraw(inputs: Inputs, stage: Stage, box: dict, prior: dict,
-             added: list) -> tuple[Stage, list]:
+def withdraw(
+    inputs: Inputs, stage: Stage, box: dict, prior: dict, added: list
+) -> tuple[Stage, list]:
     """``stage`` less the effects added in earlier rounds that the new one makes
     redundant (an isotropic fit's extra peak taken for a stand resonance, then the
     orthotropic material that places it; a fixture's step that stood in for a mass the
@@ -518,28 +648,49 @@ def withdraw(inputs: Inputs, stage: Stage, box: dict, prior: dict,
         model = res.plate_model.without_effect(term)
         start = {n: v for n, v in res.parameters.items() if n in model.names}
         d, bounds = inputs.data, model.default_bounds(box)
-        fm = build_forward_model(inputs.setup, d.frequency_hz[d.used], model=model,
-                                 theta0=start, bounds=bounds)
+        fm = build_forward_model(
+            inputs.setup, d.frequency_hz[d.used], model=model, theta0=start, bounds=bounds
+        )
         try:
-            smaller = identify(inputs.setup, d.frequency_hz, d.H, d.std, used=d.used,
-                               model=model.model, forward_model=fm, method="local",
-                               start=start, bounds=bounds, local=inputs.local,
-                               magnitude=d.magnitude)
+            smaller = identify(
+                inputs.setup,
+                d.frequency_hz,
+                d.H,
+                d.std,
+                used=d.used,
+                model=model.model,
+                forward_model=fm,
+                method="local",
+                start=start,
+                bounds=bounds,
+                local=inputs.local,
+                magnitude=d.magnitude,
+            )
         except Exception as exc:  # noqa: BLE001 - the larger model stays
-            log.info("loop: %s could not be refitted without %s: %s", stage.added,
-                     term.name, exc)
+            log.info("loop: %s could not be refitted without %s: %s", stage.added, term.name, exc)
             continue
         noise = Noise.of(res, d.n_residuals)
         chi2_with, chi2_without = _data_chi2(res), _data_chi2(smaller)
-        odds = (log_evidence(smaller, prior, noise, chi2=chi2_without).log_z
-                - log_evidence(res, prior, noise, chi2=chi2_with).log_z)
+        odds = (
+            log_evidence(smaller, prior, noise, chi2=chi2_without).log_z
+            - log_evidence(res, prior, noise, chi2=chi2_with).log_z
+        )
         if not (smaller.converged and odds >= 0):
             continue
         stage = Stage.of(stage.added, smaller)
-        gone.append(Score(term.name, math.nan, len(term.parameters), math.nan, math.nan,
-                          delta_chi2=-float(chi2_without - chi2_with),
-                          verdict=Verdict.WITHDRAWN, log_evidence=odds,
-                          detail=(("by", stage.added), ("z", z), ("odds", odds))))
+        gone.append(
+            Score(
+                term.name,
+                math.nan,
+                len(term.parameters),
+                math.nan,
+                math.nan,
+                delta_chi2=-float(chi2_without - chi2_with),
+                verdict=Verdict.WITHDRAWN,
+                log_evidence=odds,
+                detail=(("by", stage.added), ("z", z), ("odds", odds)),
+            )
+        )
     return stage, gone
 
 
@@ -559,16 +710,20 @@ def scaled_by_misfit(result: IdentificationResult) -> IdentificationResult:
     if birge <= 1.0:
         return result
     k = birge * tau
-    note = (f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(birge):.3g}"
-            f" and by sqrt(tau) = {math.sqrt(tau):.3g} for the residual's correlation along "
-            f"frequency (about {tau:.3g} neighbouring points per independent one): the "
-            "residual holds more than the noise, and the misfit measures the error")
+    note = (
+        f"the standard deviations are scaled by sqrt(reduced chi2) = {math.sqrt(birge):.3g}"
+        f" and by sqrt(tau) = {math.sqrt(tau):.3g} for the residual's correlation along "
+        f"frequency (about {tau:.3g} neighbouring points per independent one): the "
+        "residual holds more than the noise, and the misfit measures the error"
+    )
     kept = tuple(w for w in result.warnings if "understate the error" not in w)
     std = result.std * math.sqrt(k)
     poor = tuple(
         f"{n} is poorly determined by these data (scaled std {sd:.2g} = "
         f"{100 * sd / abs(v):.0f} % of its value)"
         for n, v, sd, s0 in zip(result.parameter_names, result.values, std, result.std)
-        if abs(v) > 0 and np.isfinite(sd) and sd > 0.3 * abs(v) and not s0 > 0.3 * abs(v))
-    return replace(result, std=std, covariance=result.covariance * k,
-                   warnings=kept + (note,) + poor)
+        if abs(v) > 0 and np.isfinite(sd) and sd > 0.3 * abs(v) and not s0 > 0.3 * abs(v)
+    )
+    return replace(
+        result, std=std, covariance=result.covariance * k, warnings=kept + (note,) + poor
+    )

@@ -33,11 +33,14 @@ def extended_problem(setup, data, res, cand, box, diagnosis, like=None):
     if like is not None:
         fm = like[0].model
     else:
-        fm = build_forward_model(setup, data.frequency_hz[data.used], model=model,
-                                 theta0=start, bounds=ext_box)
-    space = ParameterSpace.from_bounds(fm.parameter_names, ext_box,
-                                       {q.name: q.kind for q in model.parameters}
-                                       | cand.held(values, diagnosis))
+        fm = build_forward_model(
+            setup, data.frequency_hz[data.used], model=model, theta0=start, bounds=ext_box
+        )
+    space = ParameterSpace.from_bounds(
+        fm.parameter_names,
+        ext_box,
+        {q.name: q.kind for q in model.parameters} | cand.held(values, diagnosis),
+    )
     return LeastSquaresProblem(fm, data, space, res.weights), start, ext_box
 
 
@@ -64,22 +67,27 @@ def score(extended, res, cand, prior: dict) -> tuple[float, int, float, np.ndarr
     lm = max(projected(span(J), r) - projected(Q_small, r), 0.0)
     model = cand.extend(res.plate_model)
     kinds = {q.name: q.kind for q in model.parameters}
-    info = new_information(problem.space.names, theta, J[:, new], Q_small, new,
-                           model.default_bounds(prior), kinds)
-    return (float(lm), len(names) - len(res.parameter_names),
-            collinearity(Q_small, J[:, new]), info)
+    info = new_information(
+        problem.space.names, theta, J[:, new], Q_small, new, model.default_bounds(prior), kinds
+    )
+    return (
+        float(lm),
+        len(names) - len(res.parameter_names),
+        collinearity(Q_small, J[:, new]),
+        info,
+    )
 
 
-def new_information(all_names, theta, J_new, Q_small, new, prior: dict,
-                    kinds: dict) -> np.ndarray:
+def new_information(all_names, theta, J_new, Q_small, new, prior: dict, kinds: dict) -> np.ndarray:
     """The new parameters' Fisher information given the current ones (the Schur
     complement of JᵀJ: ``J_new``'s part that the current parameters' directions
     ``Q_small``, :func:`span`, cannot mimic), in the coordinates in which their prior is
     uniform over ``prior`` (each one's fit coordinate over its physical box, box ->
     [-1, 1])."""
     names = [all_names[k] for k in new]
-    space = ParameterSpace.from_bounds(names, {n: prior[n] for n in names},
-                                       {n: kinds.get(n) for n in names})
+    space = ParameterSpace.from_bounds(
+        names, {n: prior[n] for n in names}, {n: kinds.get(n) for n in names}
+    )
     g = du_dtheta(space, theta[new])
     Jn = J_new / np.where(np.isfinite(g) & (g != 0), g, np.inf)  # d r / d u
     R = Jn - Q_small @ (Q_small.T @ Jn)
@@ -102,6 +110,7 @@ def collinearity(Q_old, J_new) -> float:
     """How much of the extension the current parameters (their span ``Q_old``) can mimic:
     the cosine between a new direction and that span (the smallest over the new
     directions: the data see the extension through its least mimicked direction)."""
-    cos = [np.linalg.norm(Q_old.T @ v) / np.linalg.norm(v) for v in J_new.T
-           if np.linalg.norm(v) > 0]
+    cos = [
+        np.linalg.norm(Q_old.T @ v) / np.linalg.norm(v) for v in J_new.T if np.linalg.norm(v) > 0
+    ]
     return float(min(cos)) if cos else float("nan")

@@ -40,33 +40,42 @@ class Verdict(enum.Enum):
         """The report's note; ``d`` holds the numbers it quotes."""
         p = d.get("probability", math.nan)
         by, p_by = d.get("by", "another"), d.get("by_probability", math.nan)
-        return {
-            Verdict.CHOSEN: f"added: the most probable explanation (probability {p:.2g})",
-            Verdict.LESS_PROBABLE: (f"compared: probability {p:.2g}, against {p_by:.2g} "
-                                    f"for {by}"),
-            Verdict.COMPARED: "refitted and weighed",
-            Verdict.NOT_SCORED: f"could not be scored: {d.get('error', '')}",
-            Verdict.TOO_FEW_POINTS: (
-                f"not refitted: too few points for its {d.get('n', '?')} parameters "
-                f"({d.get('residuals', '?')} real residuals)"),
-            Verdict.NO_MODE_PATTERN: (
-                f"not refitted: the band holds {d.get('modes', '?')} of the plate's modes, "
-                f"which the current material places; a new material needs "
-                f"{d.get('needed', '?')} for their pattern to ask for it"),
-            Verdict.NOT_REFITTED: (
-                f"not refitted: {d['fitted_by']}'s refit already fits the residual to the "
-                "noise level" if d.get("fitted_by") else
-                "not refitted: its evidence estimated from the score test (log evidence "
-                f"{d.get('log_evidence', math.nan):.4g}) ranks below the refits the round "
-                "could afford"),
-            Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
-            Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
-            Verdict.WITHDRAWN: (
-                f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
-                f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
-                f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"),
-        }[self] + (" (global search)" if d.get("searched") else "") + (
-            f"; {d['held']}" if d.get("held") else "")
+        return (
+            {
+                Verdict.CHOSEN: f"added: the most probable explanation (probability {p:.2g})",
+                Verdict.LESS_PROBABLE: (
+                    f"compared: probability {p:.2g}, against {p_by:.2g} for {by}"
+                ),
+                Verdict.COMPARED: "refitted and weighed",
+                Verdict.NOT_SCORED: f"could not be scored: {d.get('error', '')}",
+                Verdict.TOO_FEW_POINTS: (
+                    f"not refitted: too few points for its {d.get('n', '?')} parameters "
+                    f"({d.get('residuals', '?')} real residuals)"
+                ),
+                Verdict.NO_MODE_PATTERN: (
+                    f"not refitted: the band holds {d.get('modes', '?')} of the plate's modes, "
+                    f"which the current material places; a new material needs "
+                    f"{d.get('needed', '?')} for their pattern to ask for it"
+                ),
+                Verdict.NOT_REFITTED: (
+                    f"not refitted: {d['fitted_by']}'s refit already fits the residual to the "
+                    "noise level"
+                    if d.get("fitted_by")
+                    else "not refitted: its evidence estimated from the score test (log evidence "
+                    f"{d.get('log_evidence', math.nan):.4g}) ranks below the refits the round "
+                    "could afford"
+                ),
+                Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
+                Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
+                Verdict.WITHDRAWN: (
+                    f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
+                    f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
+                    f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"
+                ),
+            }[self]
+            + (" (global search)" if d.get("searched") else "")
+            + (f"; {d['held']}" if d.get("held") else "")
+        )
 
 
 #: The verdicts of a refit the round compared and did not choose: what may have come
@@ -82,8 +91,12 @@ def is_close_call(verdict, delta_chi2) -> bool:
         verdict = Verdict(verdict)
     except ValueError:  # a report written by an earlier loop
         return False
-    return (verdict in CLOSE_CALLS and delta_chi2 is not None
-            and math.isfinite(delta_chi2) and delta_chi2 > 0)
+    return (
+        verdict in CLOSE_CALLS
+        and delta_chi2 is not None
+        and math.isfinite(delta_chi2)
+        and delta_chi2 > 0
+    )
 
 
 @dataclass(frozen=True)
@@ -131,7 +144,7 @@ class Judgement:
         """The refit's likelihood ratio under the current fit's weights (nan unrefitted)."""
         return self.fit.gain if self.fit is not None else math.nan
 
-    def becomes(self, verdict: Verdict, **more) -> "Judgement":
+    def becomes(self, verdict: Verdict, **more) -> Judgement:
         """This judgement with another verdict and more numbers for its sentence."""
         return Judgement(verdict, self.detail + tuple(more.items()), self.fit, self.evidence)
 
@@ -154,7 +167,7 @@ class Stage:
     alternatives: tuple = ()
 
     @classmethod
-    def of(cls, added, result: IdentificationResult) -> "Stage":
+    def of(cls, added, result: IdentificationResult) -> Stage:
         return cls(added, result, whiteness_p(result))
 
     @property
@@ -189,7 +202,7 @@ class LoopResult:
     def effects(self) -> tuple[str, ...]:
         return tuple(s.added for s in self.stages[1:])
 
-    def closest(self) -> "Score | None":
+    def closest(self) -> Score | None:
         """Where a residual remains: the candidate of the last round that lowered chi2 most
         and was not kept, among :data:`CLOSE_CALLS` (what came closest to explaining it), or
         None."""
@@ -204,25 +217,39 @@ class LoopResult:
         for st in self.stages:
             r = st.result
             what = "declared model" if st.added is None else f"+ {st.added}"
-            lines.append(f"  {what:<28} chi2_reduced {r.chi2_reduced_reported:10.4g}  "
-                         f"rel_rms_residual {r.rel_rms_residual:.3g}  whiteness p "
-                         f"{st.ljung_box_p:.2g}")
+            lines.append(
+                f"  {what:<28} chi2_reduced {r.chi2_reduced_reported:10.4g}  "
+                f"rel_rms_residual {r.rel_rms_residual:.3g}  whiteness p "
+                f"{st.ljung_box_p:.2g}"
+            )
             for f in getattr(st.diagnosis, "features", ()):
                 lines.append(f"      residual: {f.note}")
             if st.alternatives:
-                lines.append("      compared: " + "; ".join(
-                    ("stop here" if a["added"] is None else a["added"])
-                    + (f" at {a['f_hz']:.4g} Hz" if a.get("f_hz") else "")
-                    + f" {a['probability']:.2g}" + (" (estimated)" if a.get("estimated") else "")
-                    for a in st.alternatives[:4]))
-        lines.append("  the residual " + ("still holds an effect no candidate explains "
-                                          "(unexplained_residual)" if self.unexplained_residual
-                                          else "is at the noise level"))
+                lines.append(
+                    "      compared: "
+                    + "; ".join(
+                        ("stop here" if a["added"] is None else a["added"])
+                        + (f" at {a['f_hz']:.4g} Hz" if a.get("f_hz") else "")
+                        + f" {a['probability']:.2g}"
+                        + (" (estimated)" if a.get("estimated") else "")
+                        for a in st.alternatives[:4]
+                    )
+                )
+        lines.append(
+            "  the residual "
+            + (
+                "still holds an effect no candidate explains (unexplained_residual)"
+                if self.unexplained_residual
+                else "is at the noise level"
+            )
+        )
         closest = self.closest()
         if closest is not None:
             last = self.stages[min(len(self.rounds), len(self.stages)) - 1].result
             share = closest.delta_chi2 / (last.chi2_reduced_reported * last.dof)
-            lines.append(f"  closest: {closest.name} (chi2 -{closest.delta_chi2:.3g}, "
-                         f"{100 * share:.0f} % of the misfit): {closest.note}")
+            lines.append(
+                f"  closest: {closest.name} (chi2 -{closest.delta_chi2:.3g}, "
+                f"{100 * share:.0f} % of the misfit): {closest.note}"
+            )
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines) + "\n" + self.final.summary()

@@ -40,8 +40,13 @@ import scipy.sparse as sp
 from vibid.errors import VibidError
 from vibid.identify.model.disc import assemble_disc, shifted_disc
 from vibid.identify.model.elements import ElementTriArgyrisLocal
-from vibid.identify.model.forms import (BENDING_FORMS, MODULI, edge_rotation, rotary_inertia,
-                                        translational_inertia)
+from vibid.identify.model.forms import (
+    BENDING_FORMS,
+    MODULI,
+    edge_rotation,
+    rotary_inertia,
+    translational_inertia,
+)
 from vibid.identify.model.mesh import Discretisation, plate_mesh
 from vibid.identify.model.terms import clash
 from vibid.identify.profile import timed
@@ -67,10 +72,18 @@ class Geometry:
     sensor_radius_m: float
 
     @classmethod
-    def from_setup(cls, setup) -> "Geometry":
+    def from_setup(cls, setup) -> Geometry:
         sp_, r = setup.specimen, setup.sensors.response
-        return cls(sp_.length_m, sp_.width_m, sp_.thickness_m, sp_.density_kg_m3,
-                   r.x_m, r.y_m, r.mass_kg, r.radius_m)
+        return cls(
+            sp_.length_m,
+            sp_.width_m,
+            sp_.thickness_m,
+            sp_.density_kg_m3,
+            r.x_m,
+            r.y_m,
+            r.mass_kg,
+            r.radius_m,
+        )
 
     @property
     def mass_per_area_kg_m2(self) -> float:
@@ -110,8 +123,9 @@ class AssemblyContext:
         """``ρh ∫ u v + m/(π r²) ∫_disc u v`` (kg): the plate's and the declared sensor's
         mass, without their rotary inertia."""
         g = self.geometry
-        uv, _, _ = assemble_disc(self.basis, np.array([g.sensor_x_m, g.sensor_y_m]),
-                                 g.sensor_radius_m)
+        uv, _, _ = assemble_disc(
+            self.basis, np.array([g.sensor_x_m, g.sensor_y_m]), g.sensor_radius_m
+        )
         plate = g.mass_per_area_kg_m2 * translational_inertia.assemble(self.basis)
         return (plate + g.sensor_mass_kg / (math.pi * g.sensor_radius_m**2) * uv).tocsr()
 
@@ -130,8 +144,9 @@ class AssemblyContext:
 
         mesh = self.basis.mesh
         facets = mesh.facets_satisfying(lambda x: np.isclose(x[0], 0.0), boundaries_only=True)
-        fb = FacetBasis(mesh, self.basis.elem, facets=facets,
-                        intorder=_intorder(self.discretisation.element))
+        fb = FacetBasis(
+            mesh, self.basis.elem, facets=facets, intorder=_intorder(self.discretisation.element)
+        )
         return edge_rotation.assemble(fb).tocsr()
 
 
@@ -185,13 +200,18 @@ class PlateMatrices:
         return p.matrix(p.data("M", coefficients or {k: 1.0 for k in self.inertia}))
 
     @functools.cached_property
-    def pattern(self) -> "SharedPattern":
+    def pattern(self) -> SharedPattern:
         """Every stiffness and inertia matrix on one sparsity pattern (made on first use)."""
-        return SharedPattern.of({**{("K", k): v for k, v in self.stiffness.items()},
-                                 **{("M", k): v for k, v in self.inertia.items()}})
+        return SharedPattern.of(
+            {
+                **{("K", k): v for k, v in self.stiffness.items()},
+                **{("M", k): v for k, v in self.inertia.items()},
+            }
+        )
 
-    def inertia_load(self, coefficients: dict | None = None, *,
-                     rotation: bool = False) -> np.ndarray:
+    def inertia_load(
+        self, coefficients: dict | None = None, *, rotation: bool = False
+    ) -> np.ndarray:
         """``Σ m_k (M_k r)[free]``, ``r`` the rigid translation (or with ``rotation`` the
         rigid rotation about the clamp line)."""
         c = coefficients or {k: 1.0 for k in self.inertia}
@@ -238,7 +258,7 @@ class SharedPattern:
     values: np.ndarray
 
     @staticmethod
-    def of(matrices: dict) -> "SharedPattern":
+    def of(matrices: dict) -> SharedPattern:
         mats = {k: sp.csc_matrix(v) for k, v in matrices.items()}
         for m in mats.values():
             m.sum_duplicates()  # canonical: sorted indices, no duplicates
@@ -251,8 +271,13 @@ class SharedPattern:
         for j, m in enumerate(mats.values()):
             mc = np.repeat(np.arange(m.shape[1]), np.diff(m.indptr))
             values[j, np.searchsorted(keys, mc.astype(np.int64) * n_rows + m.indices)] = m.data
-        return SharedPattern(union.indices.copy(), union.indptr.copy(), union.shape,
-                             {k: j for j, k in enumerate(mats)}, values)
+        return SharedPattern(
+            union.indices.copy(),
+            union.indptr.copy(),
+            union.shape,
+            {k: j for j, k in enumerate(mats)},
+            values,
+        )
 
     def data(self, kind: str, coefficients: dict) -> np.ndarray:
         """``Σ c_k V_k`` over the matrices of ``kind`` ("K" or "M") named in
@@ -313,8 +338,9 @@ def assemble_all(geometry: Geometry, discretisation: Discretisation) -> _AllDofs
     basis = Basis(mesh, make_element(d.element), intorder=_intorder(d.element))
     h = g.thickness_m
     stiffness = {name: BENDING_FORMS[name].assemble(basis) for name in MODULI}
-    plate = g.mass_per_area_kg_m2 * (translational_inertia.assemble(basis)
-                                     + h**2 / 12.0 * rotary_inertia.assemble(basis))
+    plate = g.mass_per_area_kg_m2 * (
+        translational_inertia.assemble(basis) + h**2 / 12.0 * rotary_inertia.assemble(basis)
+    )
     centre = np.array([g.sensor_x_m, g.sensor_y_m])
     sensor, area = _sensor_inertia(basis, g, centre)
     one = np.zeros(basis.N)
@@ -352,18 +378,24 @@ def _clamped_dofs(basis, names) -> np.ndarray:
     return np.unique(dofs.all(present)) if present else np.zeros(0, int)
 
 
-def model_matrices(geometry: Geometry, discretisation: Discretisation,
-                   effects: tuple = ()) -> PlateMatrices:
+def model_matrices(
+    geometry: Geometry, discretisation: Discretisation, effects: tuple = ()
+) -> PlateMatrices:
     """The matrices of a plate with the given effect terms, on its free degrees of freedom
     (see the module docstring); ``effects`` is ``PlateModel.effects``. Terms that bring no
     matrix, probe or released degree of freedom (a delay, a gain, a loss law) share the
     matrices of the model without them."""
     pair = clash(effects)
     if pair:
-        raise VibidError(f"the effects {pair[0]} and {pair[1]} cannot share a model "
-                         f"(vibid.identify.effects.{pair[0]} says why)")
-    own = tuple(t for t in effects if t.stiffness_matrices or t.inertia_matrices
-                or t.probe_vectors or t.released)
+        raise VibidError(
+            f"the effects {pair[0]} and {pair[1]} cannot share a model "
+            f"(vibid.identify.effects.{pair[0]} says why)"
+        )
+    own = tuple(
+        t
+        for t in effects
+        if t.stiffness_matrices or t.inertia_matrices or t.probe_vectors or t.released
+    )
     return _model_matrices(geometry, discretisation, own)
 
 
@@ -378,8 +410,9 @@ def _term_matrices(term, geometry: Geometry, discretisation: Discretisation) -> 
 @functools.lru_cache(maxsize=32)
 @numpy_only
 @timed("matrices")
-def _model_matrices(geometry: Geometry, discretisation: Discretisation,
-                    effects: tuple) -> PlateMatrices:
+def _model_matrices(
+    geometry: Geometry, discretisation: Discretisation, effects: tuple
+) -> PlateMatrices:
     full = assemble_all(geometry, discretisation)
     basis = full.context.basis
     released = {dof for t in effects for dof in t.released}
@@ -414,7 +447,8 @@ def _model_matrices(geometry: Geometry, discretisation: Discretisation,
 
     one, x = pad(full.one), pad(full.x)
     mats = PlateMatrices(
-        geometry=geometry, discretisation=discretisation,
+        geometry=geometry,
+        discretisation=discretisation,
         stiffness={k: restrict(a) for k, a in stiffness.items()},
         inertia={k: restrict(a) for k, a in inertia.items()},
         load={k: (a @ one)[free] for k, a in inertia.items()},
@@ -422,11 +456,20 @@ def _model_matrices(geometry: Geometry, discretisation: Discretisation,
         probes={k: c[free] for k, c in probes.items()},
         probes_rigid={k: float(c @ one) for k, c in probes.items()},
         probes_rotation={k: float(c @ x) for k, c in probes.items()},
-        n_dof=free.size, n_dof_total=size, sensor_area_m2=full.sensor_area_m2,
-        rigid_mass_kg={k: float(one @ (a @ one)) for k, a in inertia.items()}, free=free,
+        n_dof=free.size,
+        n_dof_total=size,
+        sensor_area_m2=full.sensor_area_m2,
+        rigid_mass_kg={k: float(one @ (a @ one)) for k, a in inertia.items()},
+        free=free,
     )
-    log.info("assembled %s %dx%d%s: %d free dof", discretisation.element, discretisation.nx,
-             discretisation.ny, "".join(f" +{t.name}" for t in effects), free.size)
+    log.info(
+        "assembled %s %dx%d%s: %d free dof",
+        discretisation.element,
+        discretisation.nx,
+        discretisation.ny,
+        "".join(f" +{t.name}" for t in effects),
+        free.size,
+    )
     return mats
 
 

@@ -242,8 +242,11 @@ def _fields_at(basis, points: np.ndarray):
     def mat(parts):
         return csr_matrix((np.array(parts).ravel(), (rows, cols)), shape=shape)
 
-    return (mat([f.value[:, 0] for f in fields]), mat([f.grad[0][:, 0] for f in fields]),
-            mat([f.grad[1][:, 0] for f in fields]))
+    return (
+        mat([f.value[:, 0] for f in fields]),
+        mat([f.grad[0][:, 0] for f in fields]),
+        mat([f.grad[1][:, 0] for f in fields]),
+    )
 
 
 def polynomial_through(f0, others, places) -> list:

@@ -22,7 +22,6 @@ import numpy as np
 from skfem import ElementTriArgyris
 from skfem.element.discrete_field import DiscreteField
 
-
 #: An element keeps state on its instance between calls (the monomials at the last points,
 #: the parent's functionals swapped out while the basis is built), and one instance serves
 #: every model of a mesh; threads build models at once (a loop round's refits,
@@ -54,8 +53,11 @@ class ElementTriArgyrisLocal(ElementTriArgyris):
         out = {}
         for diff, f in F.items():
             k = len(diff)
-            out[diff] = (lambda f_, k_: lambda x, y: f_((x - centre[0]) / scale,
-                                                        (y - centre[1]) / scale) / scale**k_)(f, k)
+            out[diff] = (
+                lambda f_, k_: (
+                    lambda x, y: f_((x - centre[0]) / scale, (y - centre[1]) / scale) / scale**k_
+                )
+            )(f, k)
         return out
 
     def _eval_dofs(self, mesh, tind=None):  # called from gbasis alone: under its lock
@@ -89,7 +91,6 @@ class ElementTriArgyrisLocal(ElementTriArgyris):
         s = self._scale[tind]
         c, s = c[:, :, None], s[:, None]  # x is (2, cells, points)
         xl = ((x[0] - c[0]) / s, (x[1] - c[1]) / s)
-        N = len(self._pbasis[()])
         key = (x.shape, xl[0].tobytes(), xl[1].tobytes())
         if getattr(self, "_mono_key", None) != key:
             # monomials at the points, shared by the 21 basis functions of one call sequence

@@ -18,7 +18,7 @@ below carry no coefficients; :mod:`vibid.identify.model.assembly` scales them.
 from skfem import BilinearForm
 from skfem.helpers import dd, dot, grad
 
-from vibid.identify.model.terms import MODULI  # noqa: E402  (the names of the six forms)
+from vibid.identify.model.terms import MODULI  # noqa: F401  (the names of the six forms, read beside them)
 
 
 @BilinearForm

@@ -82,8 +82,13 @@ from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, mode_heights, model_eigenvalues
 from vibid.identify.model.model_error import Extrapolation, richardson
-from vibid.identify.model.reduced import (ReducedAFC, ReducedBasis, cached_basis,
-                                          moving_parameters, same_coefficients)
+from vibid.identify.model.reduced import (
+    ReducedAFC,
+    ReducedBasis,
+    cached_basis,
+    moving_parameters,
+    same_coefficients,
+)
 from vibid.identify.model.structure import embed, embedding
 from vibid.identify.model.terms import PlateModel, theta_from_dict
 from vibid.identify.profile import timed
@@ -122,8 +127,13 @@ def bending_wavelength_m(rigidity_n_m: float, mass_per_area_kg_m2: float, f_hz: 
     return float(2 * np.pi * (rigidity_n_m / mass_per_area_kg_m2) ** 0.25 / np.sqrt(omega))
 
 
-def discretisation(geometry: Geometry, accuracy: str = "default", *, f_max_hz: float | None = None,
-                   rigidity_n_m: float | None = None) -> Discretisation:
+def discretisation(
+    geometry: Geometry,
+    accuracy: str = "default",
+    *,
+    f_max_hz: float | None = None,
+    rigidity_n_m: float | None = None,
+) -> Discretisation:
     """The Argyris discretisation of an accuracy preset for a specimen.
 
     Without a band (``f_max_hz``, and the softest bending rigidity ``rigidity_n_m`` the
@@ -154,8 +164,12 @@ def coarser_discretisation(d: Discretisation) -> Discretisation:
     """The next coarser level of :func:`finer_discretisation`'s family (cells 3/2 as large,
     one corner level fewer), the third mesh of the error's extrapolation; its finer level
     is ``d`` itself where the counts allow (the strip's 30 x 6 cells: 20 x 4)."""
-    return Discretisation(d.element, max(2, round(2 * d.nx / 3)), max(2, round(2 * d.ny / 3)),
-                          max(0, d.corner_levels - 1))
+    return Discretisation(
+        d.element,
+        max(2, round(2 * d.nx / 3)),
+        max(2, round(2 * d.ny / 3)),
+        max(0, d.corner_levels - 1),
+    )
 
 
 def cell_ratio(d: Discretisation, of: Discretisation) -> float:
@@ -198,6 +212,7 @@ def _f64(x):
 
 def covers(outer: dict, inner: dict, names) -> bool:
     """Whether the box ``outer`` contains ``inner`` for every parameter in ``names``."""
+
     def inside(n):
         (a, b), (c, d) = outer[n], inner[n]
         tol = 1e-12 * max(abs(a), abs(b), abs(c), abs(d))
@@ -245,11 +260,31 @@ class ForwardModel:
             raise ValueError(f"unknown basis kind {self.kind!r}")
         if self.basis is None and self.kind == "wide":
             many = len(moving_parameters(self.param, self.theta0)) > WIDE_FEW_PARAMETERS
-            set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                       snapshots=True, tol=WIDE_TOL_MANY if many else 1e-13))
+            set_(
+                "basis",
+                cached_basis(
+                    self.mats,
+                    self.param,
+                    self.theta0,
+                    self.bounds,
+                    f_max,
+                    snapshots=True,
+                    tol=WIDE_TOL_MANY if many else 1e-13,
+                ),
+            )
         elif self.basis is None:
-            set_("basis", cached_basis(self.mats, self.param, self.theta0, self.bounds, f_max,
-                                       snapshots=False, scale_ratio=LOCAL_SCALE_RATIO))
+            set_(
+                "basis",
+                cached_basis(
+                    self.mats,
+                    self.param,
+                    self.theta0,
+                    self.bounds,
+                    f_max,
+                    snapshots=False,
+                    scale_ratio=LOCAL_SCALE_RATIO,
+                ),
+            )
         set_("_reduced", ReducedAFC(self.basis, self.param, 2 * np.pi * self.frequencies_hz))
         set_("embedding", embedding(self.param, self._reduced.kernel.model))
 
@@ -268,29 +303,31 @@ class ForwardModel:
         """The reduced map's arrays (a pytree): models of one kernel and shape share code."""
         return self._reduced.arrays
 
-
     def afc(self, theta):
         """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
         return kernel_functions(self.kernel).afc(self.arrays, embed(self.embedding, _f64(theta)))
 
     def afc_batch(self, thetas):
         """(npop, nf) AFCs of a population of parameter vectors."""
-        return kernel_functions(self.kernel).afc_batch(self.arrays,
-                                                       embed(self.embedding, _f64(thetas)))
+        return kernel_functions(self.kernel).afc_batch(
+            self.arrays, embed(self.embedding, _f64(thetas))
+        )
 
     def modes_batch(self, thetas):
         """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
         the reduced model for a population of parameter vectors (proportional loss), as
         numpy arrays."""
         f_hz, height = kernel_functions(self.kernel).modes_batch(
-            self.arrays, embed(self.embedding, _f64(thetas)))
+            self.arrays, embed(self.embedding, _f64(thetas))
+        )
         return np.asarray(f_hz), np.asarray(height)
 
     def modes_afc_batch(self, thetas):
         """:meth:`modes_batch` and :meth:`afc_batch` from one evaluation of each member:
         ``(f_hz, height, H)``, numpy arrays."""
         f_hz, height, H = kernel_functions(self.kernel).modes_afc_batch(
-            self.arrays, embed(self.embedding, _f64(thetas)))
+            self.arrays, embed(self.embedding, _f64(thetas))
+        )
         return np.asarray(f_hz), np.asarray(height), np.asarray(H)
 
     def afc_full(self, theta) -> np.ndarray:
@@ -334,7 +371,7 @@ class ForwardModel:
         rel = float(np.max(np.abs(Hr[idx] - Hf) / np.maximum(np.abs(Hf), 1e-300)))
         return rel * np.abs(Hr) / math.sqrt(2.0)
 
-    def refresh(self, theta) -> "ForwardModel":
+    def refresh(self, theta) -> ForwardModel:
         """A model whose basis is local to ``theta``: ``self`` if it already is (built at
         ``theta``'s stiffness and inertia coefficients, or passing the a-posteriori check
         there), else a new one built at ``theta``."""
@@ -346,22 +383,29 @@ class ForwardModel:
             log.info("refresh: reduced error %.1e at theta; rebuilding the basis", err)
         return self.rebuilt(theta)
 
-    def rebuilt(self, theta) -> "ForwardModel":
+    def rebuilt(self, theta) -> ForwardModel:
         """The model on a local basis built at ``theta``, without the a-posteriori check:
         ``self`` if its basis was built there (where a start moves a stiffness far, the
         check fails all but always and costs what the basis costs)."""
         theta = np.asarray(theta, float)
         if self._built_at(theta):
             return self
-        return ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds,
-                            self.discretisation, theta, "local")
+        return ForwardModel(
+            self.geometry,
+            self.frequencies_hz,
+            self.param,
+            self.bounds,
+            self.discretisation,
+            theta,
+            "local",
+        )
 
     def _built_at(self, theta) -> bool:
         """Whether this model's basis is local and built at ``theta``'s stiffness and
         inertia coefficients (a rebuild would give it again)."""
         return self.kind == "local" and same_coefficients(self.param, theta, self.theta0)
 
-    def on_frequencies(self, frequencies_hz) -> "ForwardModel":
+    def on_frequencies(self, frequencies_hz) -> ForwardModel:
         """The same model (same basis) on other frequencies inside this one's band, Hz."""
         f = np.asarray(frequencies_hz, float)
         if f.size == 0 or f.max() > self.frequencies_hz.max() * (1 + 1e-12):
@@ -387,8 +431,9 @@ class ForwardModel:
 
     def _level_afc(self, disc: Discretisation, theta) -> np.ndarray:
         """The AFC at ``theta`` of this model on another discretisation (a local basis)."""
-        other = ForwardModel(self.geometry, self.frequencies_hz, self.param, self.bounds, disc,
-                             theta, "local")
+        other = ForwardModel(
+            self.geometry, self.frequencies_hz, self.param, self.bounds, disc, theta, "local"
+        )
         return np.asarray(other.afc(theta))
 
     def model_error(self, theta) -> np.ndarray:
@@ -428,11 +473,22 @@ def _discretisation_error(model: ForwardModel, theta_bytes: bytes) -> Discretisa
     H_coarse = None if coarse == own else model._level_afc(coarse, theta)
     ext = richardson(H_coarse, H, H_fine, cell_ratio(fine, own), cell_ratio(coarse, own))
     if ext.limited:
-        log.warning("the discretisation %s converges slower than h^%g between %s and %s: "
-                    "its error is bounded with that order", own.label, ext.order,
-                    coarse.label, fine.label)
-    log.info("discretisation error of %s: order %.3g from %s and %s, the finer step times %.4g",
-             own.label, ext.order, coarse.label, fine.label, ext.factor)
+        log.warning(
+            "the discretisation %s converges slower than h^%g between %s and %s: "
+            "its error is bounded with that order",
+            own.label,
+            ext.order,
+            coarse.label,
+            fine.label,
+        )
+    log.info(
+        "discretisation error of %s: order %.3g from %s and %s, the finer step times %.4g",
+        own.label,
+        ext.order,
+        coarse.label,
+        fine.label,
+        ext.factor,
+    )
     finer = H_fine - H
     d = ext.factor * finer
     for a in (d, finer):  # shared by every caller of the cache
@@ -478,7 +534,9 @@ def plate_model_for(names, effects=()) -> PlateModel:
         raise VibidError(str(exc.args[0])) from None
     unknown = sorted(set(effects) - set(EFFECTS))
     if unknown:
-        raise VibidError(f"unknown effect {', '.join(unknown)}, expected one of {', '.join(EFFECTS)}")
+        raise VibidError(
+            f"unknown effect {', '.join(unknown)}, expected one of {', '.join(EFFECTS)}"
+        )
     found = {t.name for t in effects_for(names)} | set(effects)
     terms = []
     for t in EFFECTS.values():
@@ -494,8 +552,9 @@ def plate_model_for(names, effects=()) -> PlateModel:
     model = PlateModel(material, tuple(terms))
     unknown = sorted(set(names) - set(model.names))
     if unknown:
-        raise VibidError(f"{', '.join(unknown)}: not a parameter of model {material.model!r} "
-                         "nor of any effect")
+        raise VibidError(
+            f"{', '.join(unknown)}: not a parameter of model {material.model!r} nor of any effect"
+        )
     for t in model.effects:
         needs = getattr(t, "requires", None)
         if needs and needs not in model.effect_names:
@@ -503,9 +562,18 @@ def plate_model_for(names, effects=()) -> PlateModel:
     return model
 
 
-def build_forward_model(setup, frequencies_hz=None, *, model=None, effects=(), theta0=None,
-                        bounds: dict | None = None, accuracy: str = "default",
-                        per_modulus_loss: bool = False, basis: str | None = None) -> ForwardModel:
+def build_forward_model(
+    setup,
+    frequencies_hz=None,
+    *,
+    model=None,
+    effects=(),
+    theta0=None,
+    bounds: dict | None = None,
+    accuracy: str = "default",
+    per_modulus_loss: bool = False,
+    basis: str | None = None,
+) -> ForwardModel:
     """Build the forward model of a declared setup.
 
     Parameters
@@ -553,8 +621,7 @@ def build_forward_model(setup, frequencies_hz=None, *, model=None, effects=(), t
     return ForwardModel(geometry, freqs, model, box, disc, th0, kind)
 
 
-def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default",
-                        effects=()):
+def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default", effects=()):
     """Natural frequencies and decay factors of the setup's plate (with its sensor).
 
     Parameters

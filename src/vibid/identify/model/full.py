@@ -32,8 +32,15 @@ from vibid.identify.profile import timed
 from vibid.identify.threads import numpy_only
 
 
-def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=False,
-               probe=None, rotation=False):
+def _solve_all(
+    mats,
+    coefficients,
+    frequencies_hz,
+    inertia=None,
+    sensitivities=False,
+    probe=None,
+    rotation=False,
+):
     """``coefficients``: (T,) complex, or (nf, T) per frequency, over ``mats.stiffness``;
     ``inertia`` and ``probe``: dicts of coefficients by name (default: the declared ones).
     With ``rotation`` the response to the rigid unit rotation about the clamp line instead
@@ -64,8 +71,9 @@ def _solve_all(mats, coefficients, frequencies_hz, inertia=None, sensitivities=F
     return H, S
 
 
-def afc_full(mats, complex_moduli, frequencies_hz, inertia=None, probe=None, *,
-             rotation: bool = False) -> np.ndarray:
+def afc_full(
+    mats, complex_moduli, frequencies_hz, inertia=None, probe=None, *, rotation: bool = False
+) -> np.ndarray:
     """The plate's AFC ``H(f)`` of the full model (before any term's map on H).
 
     Parameters
@@ -83,16 +91,25 @@ def afc_full(mats, complex_moduli, frequencies_hz, inertia=None, probe=None, *,
     (nf,) complex128: sensor displacement over base displacement (or, with ``rotation``,
     over the base's rotation, m/rad).
     """
-    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, probe=probe,
-                      rotation=rotation)[0]
+    return _solve_all(
+        mats, complex_moduli, frequencies_hz, inertia, probe=probe, rotation=rotation
+    )[0]
 
 
-def afc_full_with_sensitivities(mats, complex_moduli, frequencies_hz, inertia=None, probe=None,
-                                *, rotation: bool = False):
+def afc_full_with_sensitivities(
+    mats, complex_moduli, frequencies_hz, inertia=None, probe=None, *, rotation: bool = False
+):
     """``H`` (nf,) and ``∂H/∂c_k`` (nf, T) by the adjoint method (``A`` is complex
     symmetric, so ``∂H/∂c_k = −zᵀ K_k u`` with ``Aᵀ z = c``)."""
-    return _solve_all(mats, complex_moduli, frequencies_hz, inertia, sensitivities=True,
-                      probe=probe, rotation=rotation)
+    return _solve_all(
+        mats,
+        complex_moduli,
+        frequencies_hz,
+        inertia,
+        sensitivities=True,
+        probe=probe,
+        rotation=rotation,
+    )
 
 
 def stiffness_coefficients(model, theta, omega, xp=np):
@@ -116,7 +133,8 @@ def model_afc_full(mats, model, theta, frequencies_hz) -> np.ndarray:
     H = afc_full(mats, C, frequencies_hz, inertia, probe)
     if model.rotates_base:
         H = H + model.base_rotation(theta, omega, np) * afc_full(
-            mats, C, frequencies_hz, inertia, probe, rotation=True)
+            mats, C, frequencies_hz, inertia, probe, rotation=True
+        )
     return model.afc_map(theta, omega, H, np)
 
 
@@ -140,8 +158,9 @@ def make_full_afc_jax(mats, model, frequencies_hz):
         def host(C, m, c):
             inertia = dict(zip(model.inertia_names, np.asarray(m)))
             probe = dict(zip(model.probe_names, np.asarray(c)))
-            h, s = afc_full_with_sensitivities(mats, np.asarray(C), freqs, inertia, probe,
-                                               rotation=rotation)
+            h, s = afc_full_with_sensitivities(
+                mats, np.asarray(C), freqs, inertia, probe, rotation=rotation
+            )
             return h.astype(np.complex128), s.astype(np.complex128)
 
         @jax.custom_jvp

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from vibid.identify.model.terms import MODULI, Parameter, Term
+
 # The parameters' declarations (units, transforms, prior rules) are the catalogue's:
 # STIFFNESS (stiffness parameters of each model, in the order the identification uses),
 # PER_MODULUS_LOSS (loss factors of each model with one loss per modulus), MODELS.
@@ -104,8 +105,14 @@ class Material(Term):
         elif self.model == "isotropic":
             losses = (p["beta11"], p["beta12"], zero, p["beta11"], zero, p["beta66"])
         else:
-            losses = (p["beta11"], p["beta12"], p.get("beta16", zero), p["beta22"],
-                      p.get("beta26", zero), p["beta66"])
+            losses = (
+                p["beta11"],
+                p["beta12"],
+                p.get("beta16", zero),
+                p["beta22"],
+                p.get("beta26", zero),
+                p["beta66"],
+            )
         return dict(zip(MODULI, zip(vals, losses)))
 
     def bounds_from(self, bounds: dict) -> dict:
@@ -130,9 +137,12 @@ def infer_material(names) -> Material:
             m = Material(model, pml)
             if set(m.names) <= names and not (set(m.names) ^ names) & _MATERIAL_NAMES:
                 return m
-    raise KeyError("parameters " + ", ".join(sorted(names)) + " match no model: "
-                   "expected " + "; ".join(f"{m}: {' '.join(Material(m).names)}" for m in MODELS))
+    raise KeyError(
+        "parameters " + ", ".join(sorted(names)) + " match no model: "
+        "expected " + "; ".join(f"{m}: {' '.join(Material(m).names)}" for m in MODELS)
+    )
 
 
-_MATERIAL_NAMES = frozenset(n for m in MODELS for pml in (False, True)
-                            for n in Material(m, pml).names)
+_MATERIAL_NAMES = frozenset(
+    n for m in MODELS for pml in (False, True) for n in Material(m, pml).names
+)

@@ -38,14 +38,16 @@ class Discretisation:
     @property
     def label(self) -> str:
         return f"{self.element} {self.nx}x{self.ny}" + (
-            f" +{self.corner_levels} corner levels" if self.corner_levels else "")
+            f" +{self.corner_levels} corner levels" if self.corner_levels else ""
+        )
 
-    def refined(self, factor: int = 2) -> "Discretisation":
+    def refined(self, factor: int = 2) -> Discretisation:
         return Discretisation(self.element, self.nx * factor, self.ny * factor, self.corner_levels)
 
-    def coarsened(self, factor: int = 2) -> "Discretisation":
-        return Discretisation(self.element, max(1, self.nx // factor), max(1, self.ny // factor),
-                              self.corner_levels)
+    def coarsened(self, factor: int = 2) -> Discretisation:
+        return Discretisation(
+            self.element, max(1, self.nx // factor), max(1, self.ny // factor), self.corner_levels
+        )
 
 
 def plate_mesh(length_m: float, width_m: float, disc: Discretisation) -> MeshTri:
@@ -56,8 +58,9 @@ def plate_mesh(length_m: float, width_m: float, disc: Discretisation) -> MeshTri
     mesh to second-order convergence whatever the element; each level halves the cells
     within a radius (halved per level, starting at two cells) of each corner, conformingly.
     """
-    mesh = MeshTri.init_tensor(np.linspace(0.0, length_m, disc.nx + 1),
-                               np.linspace(0.0, width_m, disc.ny + 1))
+    mesh = MeshTri.init_tensor(
+        np.linspace(0.0, length_m, disc.nx + 1), np.linspace(0.0, width_m, disc.ny + 1)
+    )
     radius = 2.0 * max(length_m / disc.nx, width_m / disc.ny)
     for level in range(disc.corner_levels):
         c = mesh.p[:, mesh.t].mean(axis=1)

@@ -41,13 +41,27 @@ def complex_eigenvalues(mats, moduli, losses, n: int = 6, inertia=None) -> np.nd
     n = int(min(n, mats.n_dof - 2))
     if np.allclose(losses, losses[0]):
         K = mats.stiffness_matrix(dict(zip(names, moduli)))
-        lam = spla.eigsh(K, k=n, M=M, sigma=0.0, which="LM", return_eigenvectors=False,
-                         v0=arpack_start(K.shape[0]))
+        lam = spla.eigsh(
+            K,
+            k=n,
+            M=M,
+            sigma=0.0,
+            which="LM",
+            return_eigenvectors=False,
+            v0=arpack_start(K.shape[0]),
+        )
         lam = np.sort(lam) * (1.0 + 1j * losses[0])
     else:
         K = mats.stiffness_matrix(dict(zip(names, moduli * (1.0 + 1j * losses))))
-        lam = spla.eigs(K, k=n, M=M.astype(complex), sigma=0.0, which="LM",
-                        return_eigenvectors=False, v0=arpack_start(K.shape[0]).astype(complex))
+        lam = spla.eigs(
+            K,
+            k=n,
+            M=M.astype(complex),
+            sigma=0.0,
+            which="LM",
+            return_eigenvectors=False,
+            v0=arpack_start(K.shape[0]).astype(complex),
+        )
         lam = lam[np.argsort(lam.real)]
     return lam
 

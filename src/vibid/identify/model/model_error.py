@@ -102,8 +102,11 @@ def richardson(H_coarse, H, H_fine, s_fine: float, s_coarse: float) -> Extrapola
     H, H_fine = np.asarray(H, complex), np.asarray(H_fine, complex)
     scale = np.maximum(np.abs(H), 1e-300)
     fine = float(np.linalg.norm((H_fine - H) / scale))
-    coarse = (0.0 if H_coarse is None else
-              float(np.linalg.norm((H - np.asarray(H_coarse, complex)) / scale)))
+    coarse = (
+        0.0
+        if H_coarse is None
+        else float(np.linalg.norm((H - np.asarray(H_coarse, complex)) / scale))
+    )
     if H_coarse is None:
         s_coarse = max(s_coarse, 1.0 / s_fine)
     if fine == 0.0:  # the finer mesh moved nothing: nothing to extrapolate
@@ -127,8 +130,9 @@ class ModelErrorSplit:
         return np.outer(self.bias, self.bias)
 
 
-def split_model_error(J_theta: np.ndarray, d: np.ndarray, reduction,
-                      sigma: np.ndarray) -> ModelErrorSplit:
+def split_model_error(
+    J_theta: np.ndarray, d: np.ndarray, reduction, sigma: np.ndarray
+) -> ModelErrorSplit:
     """Split the model's error at the estimate into a parameter bias and a remainder.
 
     Parameters

@@ -104,8 +104,12 @@ def stiffness_scale_ratio(model, theta0, bounds) -> float:
     snapshots at the box's faces take their own modes (:func:`build_basis`)."""
     ratios = [1.0]
     for i, q in enumerate(model.parameters):
-        if (q.rule == "positive" and q.name in bounds and bounds[q.name][0] > 0
-                and _pure_scale(model, theta0, i)):
+        if (
+            q.rule == "positive"
+            and q.name in bounds
+            and bounds[q.name][0] > 0
+            and _pure_scale(model, theta0, i)
+        ):
             ratios.append(float(theta0[i]) / bounds[q.name][0])
     return max(ratios)
 
@@ -194,8 +198,9 @@ def spd_lu(K):
     for a positive definite matrix). On a strip mesh of 2861 unknowns 7.8 ms and
     0.21 ms a solve, against 12.0 and 0.27 ms for the general ordering; the same
     solutions to 3e-11 (its condition)."""
-    return spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                     options={"SymmetricMode": True})
+    return spla.splu(
+        K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
+    )
 
 
 #: The first eigensolve asks for this many modes at least (ARPACK's cost grows with the
@@ -217,8 +222,9 @@ def _modes(K, M, lu, n_min, n_max, f_top):
     most = min(n_max, K.shape[0] - 2)
     k = min(max(n_min + 2, FIRST_MODES), most)
     while True:
-        lam, Phi = spla.eigsh(K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM",
-                              v0=arpack_start(K.shape[0]))
+        lam, Phi = spla.eigsh(
+            K, k=k, M=M, sigma=0.0, OPinv=opinv, which="LM", v0=arpack_start(K.shape[0])
+        )
         order = np.argsort(lam)
         lam, Phi = lam[order], Phi[:, order]
         freqs = np.sqrt(np.abs(lam)) / (2 * np.pi)
@@ -248,10 +254,21 @@ def _orthonormal(V, E, tol):
 
 @numpy_only
 @timed("reduced bases")
-def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float = 2.0,
-                max_modes: int = 96, min_modes: int = 6, krylov: int = 2,
-                snapshots: bool = True, tol: float = 1e-13,
-                scale_ratio: float | None = None) -> ReducedBasis:
+def build_basis(
+    mats,
+    model,
+    theta0,
+    bounds,
+    f_max_hz: float,
+    *,
+    margin: float = 2.0,
+    max_modes: int = 96,
+    min_modes: int = 6,
+    krylov: int = 2,
+    snapshots: bool = True,
+    tol: float = 1e-13,
+    scale_ratio: float | None = None,
+) -> ReducedBasis:
     """Build the reduced basis around ``theta0`` (see the module docstring).
 
     Parameters
@@ -286,8 +303,11 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         K = mats.stiffness_matrix(dict(zip(names, s))).tocsc()
         M = mats.inertia_matrix(dict(zip(inertia_names, m))).tocsc()
         f = mats.inertia_load(dict(zip(inertia_names, m)))
-        loads = [f] + ([mats.inertia_load(dict(zip(inertia_names, m)), rotation=True)]
-                       if model.rotates_base else [])
+        loads = [f] + (
+            [mats.inertia_load(dict(zip(inertia_names, m)), rotation=True)]
+            if model.rotates_base
+            else []
+        )
         lu = spd_lu(K)
         # every point its own modes up to f_top: a face where one modulus is soft has more
         Phi, freqs = _modes(K, M, lu, min_modes, max_modes, f_top)
@@ -298,10 +318,16 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
             raise VibidError(
                 f"the plate model's {Phi.shape[1]} lowest modes reach only "
                 f"{freqs[-1]:.0f} Hz, below the AFC's highest frequency {f_max_hz:.0f} Hz: "
-                f"a band this wide holds more than {max_modes} modes; fit a narrower band")
+                f"a band this wide holds more than {max_modes} modes; fit a narrower band"
+            )
         if freqs[-1] < f_top:
-            log.warning("reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted%s",
-                        Phi.shape[1], freqs[-1], f_top, "" if j == 0 else " at a face")
+            log.warning(
+                "reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted%s",
+                Phi.shape[1],
+                freqs[-1],
+                f_top,
+                "" if j == 0 else " at a face",
+            )
         if j == 0:
             n_modes, f_reached = Phi.shape[1], float(freqs[-1])
         statics = []
@@ -323,8 +349,9 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
     V = np.column_stack(cols)
     n_candidates = V.shape[1]
     s0, m0 = _coefficients(model, theta0)
-    energy = (mats.stiffness_matrix(dict(zip(names, s0)))
-              + (2 * np.pi * f_max_hz) ** 2 * mats.inertia_matrix(dict(zip(inertia_names, m0))))
+    energy = mats.stiffness_matrix(dict(zip(names, s0))) + (
+        2 * np.pi * f_max_hz
+    ) ** 2 * mats.inertia_matrix(dict(zip(inertia_names, m0)))
     V = _orthonormal(V, energy, tol)
 
     def project(a):
@@ -332,23 +359,34 @@ def build_basis(mats, model, theta0, bounds, f_max_hz: float, *, margin: float =
         return 0.5 * (r + r.T)
 
     basis = ReducedBasis(
-        V=V, K=np.array([project(mats.stiffness[k]) for k in names]),
+        V=V,
+        K=np.array([project(mats.stiffness[k]) for k in names]),
         M=np.array([project(mats.inertia[k]) for k in inertia_names]),
         load=np.array([V.T @ mats.load[k] for k in inertia_names]),
         probe=np.array([V.T @ mats.probes[k] for k in probe_names]),
         probe_rigid=np.array([mats.probes_rigid[k] for k in probe_names]),
         load_rotation=np.array([V.T @ mats.load_rotation[k] for k in inertia_names]),
-        probe_rotation=np.array([mats.probes_rotation[k] for k in probe_names]), n_modes=n_modes,
-        f_top_hz=f_reached, theta0=theta0, moduli0=s0, inertia0=m0,
+        probe_rotation=np.array([mats.probes_rotation[k] for k in probe_names]),
+        n_modes=n_modes,
+        f_top_hz=f_reached,
+        theta0=theta0,
+        moduli0=s0,
+        inertia0=m0,
     )
-    log.info("reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
-             n_modes, f_reached, len(points), basis.size, n_candidates)
+    log.info(
+        "reduced basis: %d modes to %.0f Hz at %d points, size %d of %d candidates",
+        n_modes,
+        f_reached,
+        len(points),
+        basis.size,
+        n_candidates,
+    )
     return basis
 
 
 #: How many reduced bases are kept (each a few MB on the paper's strip).
 MAX_BASES = 12
-_BASES: "OrderedDict[tuple, ReducedBasis]" = OrderedDict()
+_BASES: OrderedDict[tuple, ReducedBasis] = OrderedDict()
 _BASES_LOCK = threading.Lock()  # a loop round's refits on threads, a batch's sessions
 
 
@@ -369,10 +407,24 @@ def basis_key(mats, model, theta0, bounds, f_max_hz: float, options: dict) -> tu
         Js, Jm = _coefficient_jacobians(model, th)
         directions = sorted(Js[:, i].tobytes() + Jm[:, i].tobytes() for i in moving)
         at.append((s.tobytes(), m.tobytes(), tuple(directions)))
-    return ((mats.geometry, mats.discretisation, tuple(mats.stiffness), tuple(mats.inertia),
-             tuple(mats.probes), mats.n_dof), model.stiffness_names, model.inertia_names,
-            model.probe_names, model.rotates_base, float(ratio), float(f_max_hz), tuple(at),
-            tuple(sorted((k, v) for k, v in options.items() if k != "scale_ratio")))
+    return (
+        (
+            mats.geometry,
+            mats.discretisation,
+            tuple(mats.stiffness),
+            tuple(mats.inertia),
+            tuple(mats.probes),
+            mats.n_dof,
+        ),
+        model.stiffness_names,
+        model.inertia_names,
+        model.probe_names,
+        model.rotates_base,
+        float(ratio),
+        float(f_max_hz),
+        tuple(at),
+        tuple(sorted((k, v) for k, v in options.items() if k != "scale_ratio")),
+    )
 
 
 def cached_basis(mats, model, theta0, bounds, f_max_hz: float, **options) -> ReducedBasis:
@@ -449,8 +501,10 @@ class ReducedKernel:
             mu, weights = modal = self._modal(a, s, Mr, [f for f, _ in loads], probe)
             loss = 1.0 + 1j * beta * (1.0 if law is None else law)
             denom = loss[..., None] * jnp.ones((w2.shape[0], 1)) - w2[:, None] * mu[None, :]
-            Hs = [r + (w2[:, None] * wt[None, :] / denom).sum(axis=1)
-                  for (_, r), wt in zip(loads, weights)]
+            Hs = [
+                r + (w2[:, None] * wt[None, :] / denom).sum(axis=1)
+                for (_, r), wt in zip(loads, weights)
+            ]
         else:
             b = model.losses(theta, jnp)
             c = s[None, :] * (1.0 + 1j * b[None, :] * (1.0 if law is None else law[:, None]))
@@ -601,8 +655,9 @@ def padded_arrays(basis: ReducedBasis, omega, model, structure) -> dict:
     M = laid_out(basis.M, model.inertia_names, structure.inertia_names, (m, m))
     load = laid_out(basis.load, model.inertia_names, structure.inertia_names, (m,))
     probe = laid_out(basis.probe, model.probe_names, structure.probe_names, (m,))
-    load_rotation = laid_out(basis.load_rotation, model.inertia_names, structure.inertia_names,
-                             (m,))
+    load_rotation = laid_out(
+        basis.load_rotation, model.inertia_names, structure.inertia_names, (m,)
+    )
     rigid = np.zeros(len(structure.probe_names))
     rotation = np.zeros(len(structure.probe_names))
     for k, i in enumerate(slots(model.probe_names, structure.probe_names)):
@@ -613,12 +668,22 @@ def padded_arrays(basis: ReducedBasis, omega, model, structure) -> dict:
     M_pad[n:, n:] = np.eye(n_pad)
     pad = np.zeros((m, m))
     if n_pad:
-        lam_max = largest_eigenvalue(np.tensordot(basis.moduli0, basis.K, axes=1),
-                                     np.tensordot(basis.inertia0, basis.M, axes=1))
+        lam_max = largest_eigenvalue(
+            np.tensordot(basis.moduli0, basis.K, axes=1),
+            np.tensordot(basis.inertia0, basis.M, axes=1),
+        )
         pad[n:, n:] = np.diag(1e4 * max(lam_max, 1.0) * (1.0 + np.arange(n_pad) / n_pad))
     # device_put, not jnp.asarray: no compiled conversion per array shape
-    arrays = {"K": K, "M": M, "M_pad": M_pad, "pad": pad, "load": load, "probe": probe,
-              "probe_rigid": rigid, "w2": np.asarray(omega, float) ** 2}
+    arrays = {
+        "K": K,
+        "M": M,
+        "M_pad": M_pad,
+        "pad": pad,
+        "load": load,
+        "probe": probe,
+        "probe_rigid": rigid,
+        "w2": np.asarray(omega, float) ** 2,
+    }
     if structure.rotates_base:
         arrays |= {"load_rotation": load_rotation, "probe_rotation": rotation}
     return jax.device_put(arrays)
@@ -648,8 +713,9 @@ class ReducedAFC:
 
         structure = structure_of(self.model)
         object.__setattr__(self, "kernel", ReducedKernel(structure))
-        object.__setattr__(self, "arrays", padded_arrays(self.basis, self.omega, self.model,
-                                                         structure))
+        object.__setattr__(
+            self, "arrays", padded_arrays(self.basis, self.omega, self.model, structure)
+        )
 
     def __call__(self, theta):
         from vibid.identify.model.structure import embed, embedding

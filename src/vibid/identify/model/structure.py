@@ -60,8 +60,9 @@ def structure_of(model: PlateModel) -> PlateModel:
         if t.in_every_structure:
             terms.append(t)
         else:
-            terms += sorted((e for e in model.effects if e.name == t.name),
-                            key=lambda e: e.instance or 0)
+            terms += sorted(
+                (e for e in model.effects if e.name == t.name), key=lambda e: e.instance or 0
+            )
     return PlateModel(material, tuple(terms))
 
 

@@ -127,7 +127,7 @@ class Term:
         found = [f for f in diagnosis.features if set(f.kinds) & set(self.explains)]
         return max(found, key=lambda f: f.significance, default=None)
 
-    def for_material(self, material) -> "Term":
+    def for_material(self, material) -> Term:
         """This term's form for a plate of ``material`` (a term whose parameters depend on
         the material, e.g. the transverse shear, returns its variant)."""
         return self
@@ -137,7 +137,7 @@ class Term:
         null (a parameter without a fixed null, a resonance's frequency, has none)."""
         return {q.name: q.null for q in self.parameters if q.null is not None}
 
-    def for_geometry(self, geometry) -> "Term":
+    def for_geometry(self, geometry) -> Term:
         """This term bound to a plate's geometry (a term whose coefficients need the
         declared dimensions, e.g. a stretch of the free length, returns its bound form)."""
         return self
@@ -200,25 +200,27 @@ class PlateModel:
         """True when a term rotates the base (the AFC then needs the rotation's load)."""
         return any(t.rotates_base for t in self.effects)
 
-    def with_effect(self, term: Term) -> "PlateModel":
+    def with_effect(self, term: Term) -> PlateModel:
         """This model with one more effect (a new value; this one is unchanged). An effect
         it has already (the same instance of it) is not added twice."""
         if any((t.name, t.instance) == (term.name, term.instance) for t in self.effects):
             return self
         return PlateModel(self.material, tuple(self.effects) + (term.for_material(self.material),))
 
-    def without_effect(self, term: Term) -> "PlateModel":
+    def without_effect(self, term: Term) -> PlateModel:
         """This model less one effect (that instance of it)."""
-        return PlateModel(self.material, tuple(
-            t for t in self.effects if (t.name, t.instance) != (term.name, term.instance)))
+        return PlateModel(
+            self.material,
+            tuple(t for t in self.effects if (t.name, t.instance) != (term.name, term.instance)),
+        )
 
-    def for_geometry(self, geometry) -> "PlateModel":
+    def for_geometry(self, geometry) -> PlateModel:
         """This model with each term bound to ``geometry``
         (:class:`~vibid.identify.model.assembly.Geometry`; see :meth:`Term.for_geometry`)."""
         effects = tuple(t.for_geometry(geometry) for t in self.effects)
         return self if effects == tuple(self.effects) else PlateModel(self.material, effects)
 
-    def with_material(self, material) -> "PlateModel":
+    def with_material(self, material) -> PlateModel:
         """This model's effects on another material (each in its form for that material)."""
         return PlateModel(material, tuple(t.for_material(material) for t in self.effects))
 
@@ -231,13 +233,15 @@ class PlateModel:
 
     @property
     def inertia_names(self) -> tuple[str, ...]:
-        return tuple(dict.fromkeys(BASE_INERTIA + tuple(
-            k for t in self.effects for k in t.inertia_matrices)))
+        return tuple(
+            dict.fromkeys(BASE_INERTIA + tuple(k for t in self.effects for k in t.inertia_matrices))
+        )
 
     @property
     def probe_names(self) -> tuple[str, ...]:
-        return tuple(dict.fromkeys(BASE_PROBE + tuple(
-            k for t in self.effects for k in t.probe_vectors)))
+        return tuple(
+            dict.fromkeys(BASE_PROBE + tuple(k for t in self.effects for k in t.probe_vectors))
+        )
 
     def values(self, theta) -> dict:
         """``{name: theta[i]}`` (entries of a numpy or JAX vector)."""
@@ -341,7 +345,7 @@ class PlateModel:
         """Prior boxes for every parameter: the given ones, else the material's rule
         (:meth:`Material.bounds_from`), else the effect's default."""
         out = dict(self.material.bounds_from(bounds))
-        for q in self.parameters[len(self.material.parameters):]:
+        for q in self.parameters[len(self.material.parameters) :]:
             if q.name in bounds:
                 out[q.name] = tuple(bounds[q.name])
             elif q.bounds is not None:

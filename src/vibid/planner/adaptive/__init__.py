@@ -42,5 +42,13 @@ from vibid.planner.adaptive.campaign import AdaptiveCampaign
 from vibid.planner.adaptive.fit import CurrentFit, fit_steps, reached
 from vibid.planner.adaptive.options import AdaptiveOptions, coarse_sweep
 
-__all__ = ["AdaptiveCampaign", "AdaptiveOptions", "Batch", "CurrentFit", "coarse_sweep",
-           "fit_steps", "next_batch", "reached"]
+__all__ = [
+    "AdaptiveCampaign",
+    "AdaptiveOptions",
+    "Batch",
+    "CurrentFit",
+    "coarse_sweep",
+    "fit_steps",
+    "next_batch",
+    "reached",
+]

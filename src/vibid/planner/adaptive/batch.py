@@ -62,7 +62,9 @@ def posterior_draws(result, box: dict, n: int, seed: int) -> np.ndarray:
         cov = np.diag(np.nan_to_num(np.asarray(result.std, float), nan=0.0) ** 2)
     w, v = np.linalg.eigh(0.5 * (cov + cov.T))
     root = v * np.sqrt(np.clip(w, 0.0, None))
-    u = np.clip(qmc.Sobol(len(names), scramble=True, seed=seed).random(max(n - 1, 1)), 1e-6, 1 - 1e-6)
+    u = np.clip(
+        qmc.Sobol(len(names), scramble=True, seed=seed).random(max(n - 1, 1)), 1e-6, 1 - 1e-6
+    )
     draws = np.vstack([theta, theta + norm.ppf(u) @ root.T])[:n]
     lo = np.array([box[k][0] for k in names], float)
     hi = np.array([box[k][1] for k in names], float)
@@ -70,9 +72,18 @@ def posterior_draws(result, box: dict, n: int, seed: int) -> np.ndarray:
     return np.clip(draws, lo + 1e-6 * span, hi - 1e-6 * span)
 
 
-def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOptions,
-               measured_hz, measured_record_s, *, spent_s: float, floor_s: float,
-               seed: int = 0) -> Batch:
+def next_batch(
+    setup,
+    config: StandConfig,
+    fit: CurrentFit,
+    options: AdaptiveOptions,
+    measured_hz,
+    measured_record_s,
+    *,
+    spent_s: float,
+    floor_s: float,
+    seed: int = 0,
+) -> Batch:
     """The next steps (module doc, 4): at most ``options.batch_size``, within the stand
     time left under the cap and no more than all the steps before took (so that a batch the
     information overrates wastes at most as much as was spent)."""
@@ -85,8 +96,17 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     draws, n_rivals = design_draws(r, box, seed)
     forced = unexpected_steps(fit, measured_hz)
     measured_hz = np.asarray(measured_hz, float)
-    info = information(setup, names, draws, options.band_hz, noise=fit.noise,
-                       extra_hz=measured_hz, plate=r.plate_model, bounds=box, more_hz=forced)
+    info = information(
+        setup,
+        names,
+        draws,
+        options.band_hz,
+        noise=fit.noise,
+        extra_hz=measured_hz,
+        plate=r.plate_model,
+        bounds=box,
+        more_hz=forced,
+    )
     n_cand = info.frequency_hz.size - measured_hz.size
     measured = (n_cand + np.arange(measured_hz.size), np.asarray(measured_record_s, float))
     targeted = [names.index(t.name) for t in options.targets]
@@ -98,16 +118,31 @@ def next_batch(setup, config: StandConfig, fit: CurrentFit, options: AdaptiveOpt
     if not n_rivals:
         t_std = t_std * calibration(info, measured, r, targeted)
     fs = setup.daq.sample_rate_hz
-    shortest = np.array([record_samples(f, fs, config.timing) / fs for f in info.frequency_hz[:n_cand]])
+    shortest = np.array(
+        [record_samples(f, fs, config.timing) / fs for f in info.frequency_hz[:n_cand]]
+    )
     weak = np.diag(1.0 / prior_std(names, box, {}, draws[0]) ** 2)  # the box: keeps A invertible
     A0 = weak[None] + fisher(info, *measured).sum(axis=1)
     start = np.searchsorted(info.frequency_hz[:n_cand], np.round(forced, 6)).clip(0, n_cand - 1)
-    start = np.unique(np.concatenate([start, telling_apart(info, n_cand, n_rivals, shortest,
-                                                           floor_s)])).astype(int)
-    steps = greedy(info, np.arange(n_cand), shortest, t_std, targeted, A0, floor_s=floor_s,
-                   cap_s=config.timing.max_settle_s, quantile=0.5, settle_quantile=0.9,
-                   max_stand_time_s=max(min(options.max_stand_time_s - spent_s, spent_s), 0.0),
-                   start=start, max_steps=max(options.batch_size, start.size), measured=measured)
+    start = np.unique(
+        np.concatenate([start, telling_apart(info, n_cand, n_rivals, shortest, floor_s)])
+    ).astype(int)
+    steps = greedy(
+        info,
+        np.arange(n_cand),
+        shortest,
+        t_std,
+        targeted,
+        A0,
+        floor_s=floor_s,
+        cap_s=config.timing.max_settle_s,
+        quantile=0.5,
+        settle_quantile=0.9,
+        max_stand_time_s=max(min(options.max_stand_time_s - spent_s, spent_s), 0.0),
+        start=start,
+        max_steps=max(options.batch_size, start.size),
+        measured=measured,
+    )
     gain = predicted_gain(info, measured, (steps.index, steps.record_s), targeted, t_std[0])
     return Batch(info.frequency_hz[steps.index], steps.settle_s, steps.record_s, gain)
 
@@ -138,7 +173,12 @@ def predicted_gain(info, measured, new, targeted, t_std) -> float:
     from vibid.planner.design import data_std
 
     def worst(index, record):
-        return float(np.max(data_std(info, np.asarray(index, int), np.asarray(record, float))[0, targeted] / t_std))
+        return float(
+            np.max(
+                data_std(info, np.asarray(index, int), np.asarray(record, float))[0, targeted]
+                / t_std
+            )
+        )
 
     before = worst(*measured)
     after = worst(np.concatenate([measured[0], new[0]]), np.concatenate([measured[1], new[1]]))

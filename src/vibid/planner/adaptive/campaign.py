@@ -6,13 +6,20 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Generator
+from typing import Any
 
 import numpy as np
 
-from vibid.acquisition.plan import (Pause, PlanError, StepCommand, StepOutcome, play_step,
-                                    record_samples)
+from vibid.acquisition.plan import (
+    Pause,
+    PlanError,
+    StepCommand,
+    StepOutcome,
+    play_step,
+    record_samples,
+)
 from vibid.acquisition.stand_config import StandConfig
 from vibid.errors import VibidError
 from vibid.planner.adaptive.batch import Batch, next_batch
@@ -48,9 +55,9 @@ class _Measured:
     each step's AFC point once the signal stage has fitted it (a step is fitted once, not
     at every batch)."""
 
-    records: list = field(default_factory=list)   # StepRecord, in acquisition order
+    records: list = field(default_factory=list)  # StepRecord, in acquisition order
     stand_s: float = 0.0
-    points: dict = field(default_factory=dict)    # step index -> AfcPoint
+    points: dict = field(default_factory=dict)  # step index -> AfcPoint
 
     @property
     def record_s(self) -> list[float]:
@@ -74,10 +81,19 @@ class AdaptiveCampaign:
     loop's between batches.
     """
 
-    def __init__(self, setup, config: StandConfig, options: AdaptiveOptions, *,
-                 loop: bool = True, candidates=None, restarts: int = 5, seed: int = 0,
-                 on_fit: Callable[[CurrentFit, int, float], Any] | None = None,
-                 say: Callable[[str], Any] | None = None):
+    def __init__(
+        self,
+        setup,
+        config: StandConfig,
+        options: AdaptiveOptions,
+        *,
+        loop: bool = True,
+        candidates=None,
+        restarts: int = 5,
+        seed: int = 0,
+        on_fit: Callable[[CurrentFit, int, float], Any] | None = None,
+        say: Callable[[str], Any] | None = None,
+    ):
         options.check(setup)
         #: the identification's global search, as the report runs it
         self.restarts, self.seed = int(restarts), int(seed)
@@ -86,7 +102,7 @@ class AdaptiveCampaign:
         self.on_fit = on_fit or (lambda fit, n, stand_s: None)
         self.say = say or log.info
         self.attribute = options.attribute()
-        self.compute_s = 0.0   #: seconds spent fitting and choosing, beside the stand time
+        self.compute_s = 0.0  #: seconds spent fitting and choosing, beside the stand time
         self.fit: CurrentFit | None = None
         #: after each fit, the worst ratio of a targeted std to its target
         self.progress: list[float] = []
@@ -101,18 +117,22 @@ class AdaptiveCampaign:
         """What a dry run prints: the coarse sweep and the rule."""
         o = self.options
         f = coarse_sweep(o)
-        return [f"adaptive campaign: coarse sweep of {f.size} steps {f[0]:g}-{f[-1]:g} Hz "
-                f"(geometric), settle {self.floor_s:g} s each",
-                "  " + " ".join(f"{x:.4g}" for x in f),
-                f"then batches of {o.batch_size} steps where the current fit's information per "
-                "second of stand time is largest (each mode's half-power band evenly in phase; "
-                "resonances the residual shows where the model has none), settled as the fit's "
-                f"Q asks (at least {self.floor_s:g} s), a fit after each batch (the closed loop "
-                f"{'when the residual asks for it' if self.loop else 'off'})",
-                f"until {', '.join(map(str, o.targets))} (the report's standard uncertainty) or "
-                f"{o.max_stand_time_s:g} s of stand time"]
+        return [
+            f"adaptive campaign: coarse sweep of {f.size} steps {f[0]:g}-{f[-1]:g} Hz "
+            f"(geometric), settle {self.floor_s:g} s each",
+            "  " + " ".join(f"{x:.4g}" for x in f),
+            f"then batches of {o.batch_size} steps where the current fit's information per "
+            "second of stand time is largest (each mode's half-power band evenly in phase; "
+            "resonances the residual shows where the model has none), settled as the fit's "
+            f"Q asks (at least {self.floor_s:g} s), a fit after each batch (the closed loop "
+            f"{'when the residual asks for it' if self.loop else 'off'})",
+            f"until {', '.join(map(str, o.targets))} (the report's standard uncertainty) or "
+            f"{o.max_stand_time_s:g} s of stand time",
+        ]
 
-    def plan(self, session_path: str | None, start: int) -> Generator[StepCommand | Pause, StepOutcome | None, str]:
+    def plan(
+        self, session_path: str | None, start: int
+    ) -> Generator[StepCommand | Pause, StepOutcome | None, str]:
         measured = _Measured()
         if session_path is not None:
             measured = _from_file(session_path)
@@ -131,7 +151,9 @@ class AdaptiveCampaign:
                 try:
                     why = self._decide(measured, batch_no)
                 except VibidError as exc:
-                    raise PlanError(f"the fit of {len(measured.records)} steps failed: {exc}") from None
+                    raise PlanError(
+                        f"the fit of {len(measured.records)} steps failed: {exc}"
+                    ) from None
                 finally:
                     self.compute_s += time.perf_counter() - t0
                 if isinstance(why, str):
@@ -141,13 +163,22 @@ class AdaptiveCampaign:
             batch_no += 1
             # re-records wait the current fit's Q; the coarse sweep records once: a step still
             # ringing there is flagged and left out, and the batches measure the modes settled
-            timing = replace(self.config.timing, expected_loss_factor=self._beta(),
-                             **({"settle_time_constants": 0.0} if coarse else {}))
+            timing = replace(
+                self.config.timing,
+                expected_loss_factor=self._beta(),
+                **({"settle_time_constants": 0.0} if coarse else {}),
+            )
             fs = self.setup.daq.sample_rate_hz
             n_planned = index + len(batch)
             for f, settle, rec in zip(batch.frequency_hz, batch.settle_s, batch.record_s):
-                first = StepCommand(index, n_planned, float(f), float(settle),
-                                    record_samples(float(f), fs, self.config.timing, float(rec) or None), fs)
+                first = StepCommand(
+                    index,
+                    n_planned,
+                    float(f),
+                    float(settle),
+                    record_samples(float(f), fs, self.config.timing, float(rec) or None),
+                    fs,
+                )
                 last = yield from _recorded(play_step(first, timing))
                 if last is not None and last.reading is not None:
                     self._keep(measured, index, first, last)
@@ -160,9 +191,18 @@ class AdaptiveCampaign:
         """Fit what is measured; the stop line, or the next :class:`Batch`."""
         o = self.options
         afc = measured.afc()
-        fit = lambda previous: fit_steps(self.setup, afc, previous, loop=self.loop,  # noqa: E731
-                                         candidates=self.candidates, restarts=self.restarts,
-                                         seed=self.seed)
+
+        def fit(previous):
+            return fit_steps(
+                self.setup,
+                afc,
+                previous,
+                loop=self.loop,
+                candidates=self.candidates,
+                restarts=self.restarts,
+                seed=self.seed,
+            )
+
         self.fit = fit(self.fit)
         ok, where = reached(self.fit, o.targets)
         if ok and self.fit.warm:
@@ -173,36 +213,64 @@ class AdaptiveCampaign:
         n = len(measured.records)
         self.on_fit(self.fit, n, measured.stand_s)
         self.progress.append(worst_ratio(self.fit, o.targets))
-        effects = [t.name for t in (self.fit.result.plate_model.effects if self.fit.result.plate_model else ())]
-        self.say(f"fit of {n} steps ({measured.stand_s:.1f} s of stand time): {where}"
-                 f"{'; effects ' + ', '.join(effects) if effects else ''}"
-                 f" ({self.fit.seconds:.1f} s)")
-        tail = (f" after {n} steps, stand time {measured.stand_s:.1f} s "
-                f"(computing {self.compute_s + self.fit.seconds:.0f} s beside it)")
+        effects = [
+            t.name
+            for t in (self.fit.result.plate_model.effects if self.fit.result.plate_model else ())
+        ]
+        self.say(
+            f"fit of {n} steps ({measured.stand_s:.1f} s of stand time): {where}"
+            f"{'; effects ' + ', '.join(effects) if effects else ''}"
+            f" ({self.fit.seconds:.1f} s)"
+        )
+        tail = (
+            f" after {n} steps, stand time {measured.stand_s:.1f} s "
+            f"(computing {self.compute_s + self.fit.seconds:.0f} s beside it)"
+        )
         if ok:
             return f"target reached: {where}{tail}"
         if measured.stand_s >= o.max_stand_time_s:
             return f"stand-time cap {o.max_stand_time_s:g} s reached: {where}{tail}"
         if stalled(self.progress, [d["predicted_gain"] for d in self.history]):
-            return (f"the standard uncertainty no longer falls as the steps' information "
-                    f"says it should (the last {STALL_BATCHES} batches brought under "
-                    f"{100 * STALL_SHARE:g} % of the predicted gain: the model's own error or "
-                    f"a residual limits it, not the steps): {where}{tail}")
+            return (
+                f"the standard uncertainty no longer falls as the steps' information "
+                f"says it should (the last {STALL_BATCHES} batches brought under "
+                f"{100 * STALL_SHARE:g} % of the predicted gain: the model's own error or "
+                f"a residual limits it, not the steps): {where}{tail}"
+            )
         measured_hz = [r.frequency_hz for r in measured.records]
-        batch = next_batch(self.setup, self.config, self.fit, o, measured_hz, measured.record_s,
-                           spent_s=measured.stand_s, floor_s=self.floor_s, seed=o.seed + batch_no)
+        batch = next_batch(
+            self.setup,
+            self.config,
+            self.fit,
+            o,
+            measured_hz,
+            measured.record_s,
+            spent_s=measured.stand_s,
+            floor_s=self.floor_s,
+            seed=o.seed + batch_no,
+        )
         if not len(batch):
             return f"no step left under the stand-time cap {o.max_stand_time_s:g} s: {where}{tail}"
-        self.history.append({"steps": n, "stand_time_s": measured.stand_s,
-                             "effects": tuple(effects), "unexpected": self.fit.unexpected,
-                             "batch_hz": tuple(float(f) for f in batch.frequency_hz),
-                             "predicted_gain": batch.predicted_gain})
+        self.history.append(
+            {
+                "steps": n,
+                "stand_time_s": measured.stand_s,
+                "effects": tuple(effects),
+                "unexpected": self.fit.unexpected,
+                "batch_hz": tuple(float(f) for f in batch.frequency_hz),
+                "predicted_gain": batch.predicted_gain,
+            }
+        )
         if self.fit.unexpected:
-            self.say("resonance where the model has none: " + ", ".join(
-                f"{f:.1f} Hz (Q {q:.0f})" for f, q in self.fit.unexpected))
-        self.say(f"batch {batch_no + 1}: {len(batch)} steps "
-                 f"{', '.join(f'{f:.2f}' for f in batch.frequency_hz)} Hz, "
-                 f"{batch.stand_time_s:.1f} s of stand time predicted")
+            self.say(
+                "resonance where the model has none: "
+                + ", ".join(f"{f:.1f} Hz (Q {q:.0f})" for f, q in self.fit.unexpected)
+            )
+        self.say(
+            f"batch {batch_no + 1}: {len(batch)} steps "
+            f"{', '.join(f'{f:.2f}' for f in batch.frequency_hz)} Hz, "
+            f"{batch.stand_time_s:.1f} s of stand time predicted"
+        )
         return batch
 
     def _beta(self) -> float:
@@ -219,8 +287,16 @@ class AdaptiveCampaign:
 
         r = last.reading
         status = "overload" if r.overloaded else "ok"  # as the runner writes it
-        measured.records.append(StepRecord(cmd.frequency_hz, r.sample_rate_hz, r.base_m_s2,
-                                           r.response_m_s2, status=status, index=index))
+        measured.records.append(
+            StepRecord(
+                cmd.frequency_hz,
+                r.sample_rate_hz,
+                r.base_m_s2,
+                r.response_m_s2,
+                status=status,
+                index=index,
+            )
+        )
         measured.stand_s += float(last.settle_s) + r.base_m_s2.size / r.sample_rate_hz
 
 
@@ -243,6 +319,15 @@ def _from_file(path: str) -> _Measured:
     from vibid.signal import StepRecord
 
     with read_session(path) as s:
-        records = [StepRecord(step.frequency_hz, step.sample_rate_hz, step.base, step.response,
-                              status=step.status, index=step.index) for step in s.steps()]
+        records = [
+            StepRecord(
+                step.frequency_hz,
+                step.sample_rate_hz,
+                step.base,
+                step.response,
+                status=step.status,
+                index=step.index,
+            )
+            for step in s.steps()
+        ]
         return _Measured(records, s.driven_s() or 0.0)

@@ -72,8 +72,16 @@ def worst_ratio(fit: CurrentFit, targets) -> float:
     return out
 
 
-def fit_steps(setup, afc, previous: CurrentFit | None = None, *, loop: bool = True,
-              candidates=None, restarts: int = 5, seed: int = 0) -> CurrentFit:
+def fit_steps(
+    setup,
+    afc,
+    previous: CurrentFit | None = None,
+    *,
+    loop: bool = True,
+    candidates=None,
+    restarts: int = 5,
+    seed: int = 0,
+) -> CurrentFit:
     """Fit the AFC of the steps so far (sorted by frequency), as the module doc says.
     Without ``previous``, the report's own identification (``restarts``, ``seed``)."""
     from vibid.identify.fit import identify
@@ -85,24 +93,45 @@ def fit_steps(setup, afc, previous: CurrentFit | None = None, *, loop: bool = Tr
         if previous is not None:
             warm = _local(setup, afc, previous.result)
             if warm is not None and explains(warm):
-                return CurrentFit(warm, previous.declared, previous.loop, noise_level(afc),
-                                  seconds=time.perf_counter() - t0, warm=True)
+                return CurrentFit(
+                    warm,
+                    previous.declared,
+                    previous.loop,
+                    noise_level(afc),
+                    seconds=time.perf_counter() - t0,
+                    warm=True,
+                )
         declared = None
         if previous is not None:
             declared = _local(setup, afc, previous.declared)
         if declared is None or not declared.converged:
-            declared = identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                                restarts=restarts, seed=seed)
+            declared = identify(
+                setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, restarts=restarts, seed=seed
+            )
         result, closed = declared, None
         if loop and declared.converged and not explains(declared):
             from vibid.identify.loop import close_loop
 
-            closed = close_loop(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                                candidates=candidates, declared=declared)
+            closed = close_loop(
+                setup,
+                afc.frequency_hz,
+                afc.H,
+                afc.std,
+                used=afc.used,
+                candidates=candidates,
+                declared=declared,
+            )
             result = closed.final
         unexpected = () if explains(result) else _unexpected(setup, result, closed)
-    return CurrentFit(result, declared, closed, noise_level(afc), unexpected,
-                      time.perf_counter() - t0, warm=previous is not None)
+    return CurrentFit(
+        result,
+        declared,
+        closed,
+        noise_level(afc),
+        unexpected,
+        time.perf_counter() - t0,
+        warm=previous is not None,
+    )
 
 
 def _local(setup, afc, start_result):
@@ -117,11 +146,21 @@ def _local(setup, afc, start_result):
     start = {n: float(v) for n, v in zip(start_result.parameter_names, start_result.values)}
     box = plate.default_bounds(dict(setup.identification.bounds))
     try:
-        fm = build_forward_model(setup, afc.frequency_hz[afc.used], model=plate, theta0=start,
-                                 bounds=box)
-        return identify(setup, afc.frequency_hz, afc.H, afc.std, used=afc.used,
-                        model=plate.model, forward_model=fm, method="local", start=start,
-                        bounds=box)
+        fm = build_forward_model(
+            setup, afc.frequency_hz[afc.used], model=plate, theta0=start, bounds=box
+        )
+        return identify(
+            setup,
+            afc.frequency_hz,
+            afc.H,
+            afc.std,
+            used=afc.used,
+            model=plate.model,
+            forward_model=fm,
+            method="local",
+            start=start,
+            bounds=box,
+        )
     except VibidError as exc:
         log.info("adaptive: the local refit failed (%s); searching again", exc)
         return None
@@ -138,8 +177,11 @@ def _unexpected(setup, result, closed) -> tuple[tuple[float, float], ...]:
         diagnosis = diagnosis_of(setup, result)
     if diagnosis is None:
         return ()
-    return tuple((float(f.f_hz), float(f.q)) for f in diagnosis.features
-                 if f.kind == "extra_pole" and np.isfinite(f.f_hz) and f.q > 2)
+    return tuple(
+        (float(f.f_hz), float(f.q))
+        for f in diagnosis.features
+        if f.kind == "extra_pole" and np.isfinite(f.f_hz) and f.q > 2
+    )
 
 
 def noise_level(afc) -> float:

@@ -28,17 +28,27 @@ class AdaptiveOptions:
 
     def attribute(self) -> dict:
         """The session's ``adaptive`` root attribute (session-format.md)."""
-        return {"target": [str(t) for t in self.targets], "band_hz": [float(b) for b in self.band_hz],
-                "max_stand_time_s": float(self.max_stand_time_s), "batch_size": int(self.batch_size),
-                "coarse_steps": int(self.coarse_steps), "seed": int(self.seed)}
+        return {
+            "target": [str(t) for t in self.targets],
+            "band_hz": [float(b) for b in self.band_hz],
+            "max_stand_time_s": float(self.max_stand_time_s),
+            "batch_size": int(self.batch_size),
+            "coarse_steps": int(self.coarse_steps),
+            "seed": int(self.seed),
+        }
 
     @classmethod
-    def from_attribute(cls, doc: dict, names) -> "AdaptiveOptions":
+    def from_attribute(cls, doc: dict, names) -> AdaptiveOptions:
         """The options a session's ``adaptive`` attribute records (one-line errors)."""
         try:
-            return cls(parse_targets(doc["target"], names), tuple(float(b) for b in doc["band_hz"]),
-                       float(doc["max_stand_time_s"]), int(doc["batch_size"]),
-                       int(doc.get("coarse_steps", 16)), int(doc.get("seed", 0)))
+            return cls(
+                parse_targets(doc["target"], names),
+                tuple(float(b) for b in doc["band_hz"]),
+                float(doc["max_stand_time_s"]),
+                int(doc["batch_size"]),
+                int(doc.get("coarse_steps", 16)),
+                int(doc.get("seed", 0)),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise VibidError(f"the session's adaptive attribute cannot be read ({exc})") from None
 
@@ -46,7 +56,9 @@ class AdaptiveOptions:
         lo, hi = self.band_hz
         nyquist = setup.daq.sample_rate_hz / 2
         if not 0 < lo < hi < nyquist:
-            raise VibidError(f"--band {lo:g}:{hi:g}: needs 0 < low < high < {nyquist:g} Hz (Nyquist)")
+            raise VibidError(
+                f"--band {lo:g}:{hi:g}: needs 0 < low < high < {nyquist:g} Hz (Nyquist)"
+            )
         check_stand_time_cap(self.max_stand_time_s)
         if self.batch_size < 1 or self.coarse_steps < 4:
             raise VibidError("--batch must be at least 1 and the coarse sweep at least 4 steps")
