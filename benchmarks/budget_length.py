@@ -7,7 +7,7 @@ The titanium strip in the clamp the steel strip calibrated
 the whole loop, as ``vibid identify`` runs it; then the loop's final model refitted locally
 at the length one standard uncertainty longer and shorter, with Poisson's ratio free and
 held where the loop held it. The budget's length part of E
-(:func:`vibid.identify.budget.estimate_shifts`, first order) should match the refit with
+(:func:`vibid.identify.assess.budget.estimate_shifts`, first order) should match the refit with
 the loop's held parameters held (BENCHMARKS.md, "The real strips' first resonances left
 out, …").
 """
@@ -22,14 +22,14 @@ SETUP = os.path.join(HERE, "..", "examples", "real-steel", "titanium_setup.json"
 
 
 def main() -> None:
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure()
-    from vibid.identify.budget import engineering_budget, with_declared
-    from vibid.identify.engineering import constants
+    from vibid.identify.assess.budget import engineering_budget, with_declared
+    from vibid.identify.assess.engineering import constants
+    from vibid.identify.engine.threads import jax_turn
     from vibid.identify.fit.strategy import identify
     from vibid.identify.model.forward import build_forward_model
-    from vibid.identify.threads import jax_turn
     from vibid.pipeline import afc_file, identify_afc
 
     data = afc_file(AFC, SETUP)

@@ -53,7 +53,7 @@ def words(d) -> str:
 
 
 def main() -> int:
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure()
     import vibid.identify.loop.diagnosis as diagnosis

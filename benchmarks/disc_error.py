@@ -184,7 +184,7 @@ def plate() -> dict:
 
 
 def main() -> int:
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure()
     parser = argparse.ArgumentParser()

@@ -32,7 +32,7 @@ Cases (``benchmarks/loop_cases.py``):
 ``--cases all`` (the default) runs all of them, one after the other.
 
 For each case the data are made first (not timed: the stand's part), then three stages are
-timed side by side in one run, each with :func:`vibid.identify.profile.recording` (wall
+timed side by side in one run, each with :func:`vibid.identify.engine.profile.recording` (wall
 seconds, JAX compilations and their seconds): the signal stage (a session's harmonic fits;
 for the titanium CSV, reading the AFC and its setup as ``vibid identify`` does; none for a
 Table 2 row, whose data and forward model are built beforehand as paper_table.py does),
@@ -68,7 +68,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from vibid.identify.runtime import configure  # noqa: E402
+from vibid.identify.engine.runtime import configure  # noqa: E402
 
 # No configure() (JAX, scipy) at import: the session reader's probe process (a fork-server
 # child) imports this script as its __main__, once per session read, which would add about
@@ -102,7 +102,7 @@ def _combined(*profiles) -> dict:
 
 
 def _engineering(res, setup) -> dict:
-    from vibid.identify.engineering import engineering_constants
+    from vibid.identify.assess.engineering import engineering_constants
 
     model = getattr(getattr(res, "plate_model", None), "model", None) or res.model
     sp = setup.specimen
@@ -120,9 +120,9 @@ def _engineering(res, setup) -> dict:
 def analyse(case: Case, source: dict, seed: int) -> dict:
     """The timed stages of one case on its prepared data (:func:`loop_cases.prepare`): the
     signal stage, the declared fit, the loop; the row of the table and the JSON."""
+    from vibid.identify.engine.profile import recording
     from vibid.identify.fit import identify
     from vibid.identify.loop import close_loop
-    from vibid.identify.profile import recording
     from vibid.pipeline import fit_points
 
     configure()

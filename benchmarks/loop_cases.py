@@ -63,7 +63,7 @@ PLATE_BETA = 0.005
 
 def orthotropic_moduli(E1_Pa, E2_Pa, nu12, G12_Pa, thickness_m) -> dict:
     """``D11, D12, D22, D66`` (N m) of a homogeneous orthotropic plate (the inverse of
-    :mod:`vibid.identify.engineering`'s conversion)."""
+    :mod:`vibid.identify.assess.engineering`'s conversion)."""
     nu21 = nu12 * E2_Pa / E1_Pa
     q = thickness_m**3 / (12.0 * (1.0 - nu12 * nu21))
     return {

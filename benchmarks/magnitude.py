@@ -14,7 +14,7 @@ import os
 import sys
 import time
 
-from vibid.identify.runtime import configure
+from vibid.identify.engine.runtime import configure
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))

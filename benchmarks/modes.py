@@ -63,7 +63,7 @@ def main(argv=None) -> int:
     ap.add_argument("--busy", action="store_true", help="one CPU-bound process beside it")
     args = ap.parse_args(argv)
 
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure()
     import scipy.sparse.linalg as spla

@@ -35,7 +35,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from vibid.identify.runtime import configure  # noqa: E402
+from vibid.identify.engine.runtime import configure  # noqa: E402
 from vibid.setup_model import example_setup  # noqa: E402
 
 configure()  # 64-bit JAX, the compilation cache, one BLAS thread: as the CLI does

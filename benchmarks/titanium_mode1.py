@@ -4,7 +4,7 @@
 
 The real AFC (``tests/data/titanium_afc.csv.gz``) from 150 to 260 Hz (901 bins), fitted with
 linear rational models of 1-3 pole pairs plus a constant and a slope (the modes outside the
-band), in relative terms (:func:`vibid.identify.linearity.rational_fit`, the report's
+band), in relative terms (:func:`vibid.identify.assess.linearity.rational_fit`, the report's
 linearity test), against the data's own point-to-point scatter. Two linear modes close
 together would be fitted by two pole pairs down to that scatter; a response that depends on
 its amplitude (a clamp whose friction grows with the motion) is fitted by no number of
@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from vibid.identify.linearity import rational_fit, relative_scatter
+from vibid.identify.assess.linearity import rational_fit, relative_scatter
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 BAND_HZ = (150.0, 260.0)

@@ -110,7 +110,7 @@ def main() -> None:
     ap.add_argument("report")
     ap.add_argument("--data", default="../shared/data/real-titanium")
     args = ap.parse_args()
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure()
     from vibid.setup_model import parse_setup

@@ -1,4 +1,4 @@
-"""The uncertainty budget of the engineering constants (vibid.identify.budget) and the
+"""The uncertainty budget of the engineering constants (vibid.identify.assess.budget) and the
 plausibility of the constants in the report.
 
 Analytic references: a Kirchhoff plate with a massless sensor has natural frequencies
@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vibid.identify.budget import engineering_budget, model_spread
+from vibid.identify.assess.budget import engineering_budget, model_spread
 from vibid.setup_model import example_setup
 
 TRUE = {"D": 17.97, "nu": 0.286, "beta": 0.003}
@@ -80,8 +80,8 @@ def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_th
     it into ``fit`` √(gᵀ (C − b bᵀ) g) and ``discretisation`` |gᵀ b|, g the constant's
     gradient, which add in quadrature to the std C alone gave before the split. g here is
     the closed form's: E = 12 D (1 − ν²) / h³, G = 6 D (1 − ν) / h³."""
-    from vibid.identify.budget import fit_parts
-    from vibid.identify.engineering import sensitivities
+    from vibid.identify.assess.budget import fit_parts
+    from vibid.identify.assess.engineering import sensitivities
 
     s, result = massless
     b = np.asarray(result.model_error_bias, float)
@@ -119,7 +119,7 @@ def test_the_discretisation_part_is_the_bias_through_the_conversion_and_keeps_th
 def test_the_fit_part_is_the_covariance_less_the_bias_term():
     """A covariance A + b bᵀ: ``fit`` is √(gᵀ A g), ``discretisation`` |gᵀ b|, whatever
     their sizes; a bias that is all of C leaves the fit's part at 0, never NaN."""
-    from vibid.identify.budget import fit_parts
+    from vibid.identify.assess.budget import fit_parts
 
     rng = np.random.default_rng(0)
     M = rng.normal(size=(3, 3))
@@ -171,8 +171,8 @@ def test_the_clamp_line_part_is_the_refit_at_a_longer_span_times_the_box(massles
     sensor 0.1 mm further from the clamp, the definition) times the standard uncertainty
     of a rectangular distribution over the free length's box. Without a loop's residual,
     or with the length's uncertainty declared, there is none."""
-    from vibid.identify.budget import clamp_line, with_declared
-    from vibid.identify.engineering import constants
+    from vibid.identify.assess.budget import clamp_line, with_declared
+    from vibid.identify.assess.engineering import constants
     from vibid.identify.fit import identify
 
     declared, result = massless
@@ -349,10 +349,10 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     from pathlib import Path
 
     from vibid.identify import configure
-    from vibid.identify.budget import with_declared
-    from vibid.identify.engineering import constants
+    from vibid.identify.assess.budget import with_declared
+    from vibid.identify.assess.engineering import constants
+    from vibid.identify.assess.linearity import linear_part
     from vibid.identify.fit import identify
-    from vibid.identify.linearity import linear_part
     from vibid.setup_model import parse_setup
 
     configure()
@@ -383,8 +383,8 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     assert part == pytest.approx(abs(moved), rel=0.2)
     # nu held (as the loop holds a parameter it kept inside its box): the shift moves the
     # others alone, as the refit with nu held does
-    from vibid.identify.budget import estimate_shifts
-    from vibid.identify.engineering import sensitivities
+    from vibid.identify.assess.budget import estimate_shifts
+    from vibid.identify.assess.engineering import sensitivities
 
     nu = fitted.parameters["nu"]
     (shift,) = estimate_shifts(s, fitted, ["length_m"], held=("nu",)).values()

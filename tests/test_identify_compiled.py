@@ -8,12 +8,12 @@ compilation events, not timed) and the pieces that make it exact.
 import numpy as np
 import pytest
 
+from vibid.identify.engine.profile import recording
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.problem import LeastSquaresProblem, padded_count
 from vibid.identify.fit.space import ParameterSpace, from_u_coefficients
 from vibid.identify.model.forward import build_forward_model
 from vibid.identify.model.structure import embed, embedding, structure_of
-from vibid.identify.profile import recording
 from vibid.setup_model import example_setup
 
 TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}

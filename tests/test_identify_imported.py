@@ -14,7 +14,7 @@ from afc_files import csv_lines, write_afc_csv
 from plate_helpers import PAPER_D
 from vibid.cli import main
 from vibid.errors import VibidError
-from vibid.identify.engineering import engineering_constants
+from vibid.identify.assess.engineering import engineering_constants
 from vibid.setup_model import example_setup
 from vibid.signal.imported import read_afc
 

@@ -19,8 +19,8 @@ import beam_reference as beam
 import beam_sessions as bs
 import modal_slip
 from loop_data import noisy
+from vibid.identify.assess.linearity import linear_part
 from vibid.identify.fit import identify
-from vibid.identify.linearity import linear_part
 
 F = np.arange(40.0, 600.0, 0.05)  # two bending modes, 20 points per Hz
 

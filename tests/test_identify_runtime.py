@@ -69,7 +69,7 @@ def test_configure_switches_on_64_bits_and_the_cache(tmp_path):
 
 
 def test_configure_adds_vibids_xla_flags_and_keeps_the_users(tmp_path, monkeypatch):
-    from vibid.identify.runtime import XLA_CPU_FLAGS, use_xla_flags
+    from vibid.identify.engine.runtime import XLA_CPU_FLAGS, use_xla_flags
 
     out = _run(
         "import os\nfrom vibid.identify import configure\nconfigure()\n"

@@ -1,4 +1,4 @@
-"""Is a measured resonance linear? (vibid.identify.linearity), on data from models vibid did
+"""Is a measured resonance linear? (vibid.identify.assess.linearity), on data from models vibid did
 not write: two close linear modes (a rational function), a single-degree-of-freedom
 oscillator on a moving base with Coulomb friction in series with its viscous damper, solved
 by harmonic balance in closed form (its equivalent damping grows as the motion shrinks, so
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from modal_slip import stepped_sine
-from vibid.identify.linearity import linear_part, resonance_linearity
+from vibid.identify.assess.linearity import linear_part, resonance_linearity
 
 F_HZ = np.arange(150.0, 260.0, 0.122)  # the titanium AFC's FFT grid near its first mode
 S = 2j * np.pi * F_HZ
@@ -184,8 +184,8 @@ def test_the_steel_strips_first_resonance_slips_as_the_titaniums_does():
     fitted it "linearly"); its flanks are one linear mode, four times less damped than its
     top and higher, as on the titanium strip: the clamp's micro-slip, and the top is left
     out of the fit."""
+    from vibid.identify.assess.linearity import rational_fit
     from vibid.identify.fit.peaks import measured_peaks
-    from vibid.identify.linearity import rational_fit
 
     path = Path(__file__).parents[1] / "examples" / "real-steel" / "afc.csv"
     f, re, im, std = np.loadtxt(path, delimiter=",", skiprows=1, unpack=True)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from test_identify_compiled import _problem  # the paper strip, 120 frequencies
-from vibid.identify.compiled import kernel_functions
+from vibid.identify.engine.compiled import kernel_functions
 from vibid.identify.model.structure import embed
 
 CALL = re.compile(
@@ -49,7 +49,7 @@ def test_the_parser_sees_a_batched_solve():
     import jax
     import jax.numpy as jnp
 
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure(cache=False)
     A = jnp.eye(3, dtype=complex)[None] * jnp.ones((5, 1, 1))
@@ -83,7 +83,7 @@ def _compiled(jitted, *args) -> str:
     ],
 )
 def test_every_lapack_call_of_the_fit_sees_one_matrix(effects, extra, proportional):
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure(cache=False)
     problem, theta = _problem(effects, extra)

@@ -34,12 +34,9 @@ def test_setup_layer_imports_no_numerical_core():
 
 
 def test_parameter_is_one_class():
-    from vibid.identify.model import catalogue as model_catalogue
     from vibid.identify.model.terms import Parameter as TermsParameter
 
     assert TermsParameter is Parameter
-    assert model_catalogue.known_parameter is known_parameter
-    assert model_catalogue.catalogue() == catalogue()
 
 
 def test_every_effect_term_takes_its_parameters_from_the_catalogue():

@@ -1,4 +1,4 @@
-"""Traced programs kept on disk (vibid.identify.persist): a second process runs the kept
+"""Traced programs kept on disk (vibid.identify.engine.persist): a second process runs the kept
 program without tracing the model's code, to the same numbers; anything that changes the
 program (the code, the shapes, the function) gets a program of its own; a damaged artefact
 is traced again."""
@@ -13,14 +13,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vibid.identify import persist
-from vibid.identify.persist import Persisted, identity_of
+from vibid.identify.engine import persist
+from vibid.identify.engine.persist import Persisted, identity_of
 
 #: A script that builds the paper's strip problem, counts how often the reduced model's code
 #: is traced while its Hessian is computed, and prints the count and the Hessian.
 HESSIAN = """
 import numpy as np
-from vibid.identify.runtime import configure
+from vibid.identify.engine.runtime import configure
 
 def main():
     configure()

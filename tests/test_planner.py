@@ -100,7 +100,7 @@ def test_settle_is_the_ring_down_of_the_jump_to_a_third_of_the_noise():
 def strip(tmp_path_factory):
     """A 40-step sweep of the example strip, simulated at the truth (full FE model, 0.04 %
     noise), identified without the loop."""
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
 
     configure()
     d = tmp_path_factory.mktemp("plan")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vibid.identify.plausibility import HANDBOOK, material_class, plausibility
+from vibid.identify.assess.plausibility import HANDBOOK, material_class, plausibility
 
 GPa = 1e9
 
@@ -298,7 +298,7 @@ def test_what_the_declared_strip_would_need_counts_the_sensor_s_mass():
     import re
     from types import SimpleNamespace
 
-    from vibid.identify.plausibility import sensor_share
+    from vibid.identify.assess.plausibility import sensor_share
 
     strip = SimpleNamespace(length_m=0.0996, width_m=0.02, thickness_m=0.003, density_kg_m3=4550.0)
     sensor = SimpleNamespace(mass_kg=0.0017, x_m=0.0956)

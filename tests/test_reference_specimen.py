@@ -1,5 +1,5 @@
 """A reference specimen of known modulus calibrates the clamp's free length
-(vibid.identify.reference), checked on data from a model vibid did not write: the exact
+(vibid.identify.assess.reference), checked on data from a model vibid did not write: the exact
 beam of tests/beam_reference.py, its free length 3 mm longer than the declared one (a clamp
 whose line lies inside its jaws), the sensor moving out with the free end."""
 
@@ -10,7 +10,7 @@ import pytest
 
 import beam_sessions as bs
 from vibid.cli import main
-from vibid.identify.reference import Reference, calibrate_free_length
+from vibid.identify.assess.reference import Reference, calibrate_free_length
 from vibid.setup_model import Identification
 
 #: the clamp's line inside its jaws: the beam's free span is this much longer than declared

@@ -4,7 +4,7 @@ Found: a stepped session of an isotropic metal strip whose loop ended in the ort
 material; ``vibid identify`` then exited 1 with ``no bounds given for D11, D12, D22, D66``,
 and no report. The cause: the budget's model part judged the loop's models against the
 setup's boxes, which hold none for a material the loop switched to
-(:func:`vibid.identify.budget.loop_box` now gives the loop's own). Whatever else fails after
+(:func:`vibid.identify.assess.budget.loop_box` now gives the loop's own). Whatever else fails after
 the fit, the report is written, says what it could not do in one line (its ``not_done``),
 and the command exits 0 when the identification converged."""
 
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from vibid.errors import VibidError
-from vibid.identify.budget import loop_box, model_spread
+from vibid.identify.assess.budget import loop_box, model_spread
 from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel
 from vibid.report.not_done import attempt, not_done_lines, reason
@@ -156,7 +156,8 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
         )
     )
 
-    from vibid.identify import budget, fit, reference
+    from vibid.identify import fit
+    from vibid.identify.assess import budget, reference
     from vibid.report import figures
 
     real = fit.identify

@@ -9,10 +9,10 @@ import threading
 import numpy as np
 from skfem import Basis
 
+from vibid.identify.engine.profile import recording, section
 from vibid.identify.model.disc import assemble_disc
 from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.mesh import plate_mesh
-from vibid.identify.profile import recording, section
 
 
 def _on_threads(fn, args):

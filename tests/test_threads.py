@@ -1,4 +1,4 @@
-"""Work on two threads (vibid.identify.threads): a loop round's scores and refits taken in
+"""Work on two threads (vibid.identify.engine.threads): a loop round's scores and refits taken in
 the round's order, stopped where the round stops; compiled JAX code on one thread at a time
 (the JAX turn), the numpy-only work beside it; and the loop's results the same to the last
 digit as on one thread."""
@@ -13,9 +13,9 @@ import pytest
 
 from loop_data import F, data, declared_fit, strip_on
 from vibid.errors import VibidError
-from vibid.identify import threads as th
+from vibid.identify.engine import threads as th
+from vibid.identify.engine.threads import holds_turn, in_order, jax_turn, numpy_only, threads
 from vibid.identify.loop import close_loop
-from vibid.identify.threads import holds_turn, in_order, jax_turn, numpy_only, threads
 
 
 class Overlap:
@@ -216,7 +216,7 @@ def test_an_in_order_inside_an_item_runs_on_that_items_thread():
 def test_a_lock_is_waited_for_with_the_turn_lent():
     """The lock's holder needs the turn to finish (it compiled with the turn lent): the
     waiter lends it while it waits, or neither would go on."""
-    from vibid.identify.threads import holding
+    from vibid.identify.engine.threads import holding
 
     lock, order, locked = threading.Lock(), [], threading.Event()
 

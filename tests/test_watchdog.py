@@ -98,7 +98,7 @@ def test_a_bad_limit_is_one_line(raw):
 
 CHILD = textwrap.dedent("""
     import sys, threading
-    from vibid.identify import persist
+    from vibid.identify.engine import persist
 
     call = persist.Persisted._call
 

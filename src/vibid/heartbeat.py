@@ -6,7 +6,7 @@ the command with one line, not sit until somebody kills it. The numerical code s
 it is and that it moves; the command line decides what to do when it stops:
 
 * :func:`stage` (a context manager) names what runs now, "local fits", "closed loop"
-  (:func:`vibid.identify.profile.section` opens one for every section it times), and
+  (:func:`vibid.identify.engine.profile.section` opens one for every section it times), and
   :func:`beat` says "still moving" (every evaluation of a fit's model, every finished
   stage). Both cost a clock read and a dict update: the fits call them thousands of times.
 * :class:`Watchdog` (a daemon thread, started by ``vibid``'s entry point,

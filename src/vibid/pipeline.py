@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.identify.threads import jax_turn
+from vibid.identify.engine.threads import jax_turn
 
 # One compiled JAX program at a time per process: two identifications running in two
 # threads of one process (a thread-pool task runner, an in-process Dask cluster)
 # deadlocked inside XLA's CPU executions on the project's 2-core machine (both threads
 # waiting in ``chi2_batch``, with one BLAS thread and XLA's single-threaded Eigen alike).
-# The stages that run the model hold the JAX turn (:mod:`vibid.identify.threads`); the
+# The stages that run the model hold the JAX turn (:mod:`vibid.identify.engine.threads`); the
 # signal stage, file writing and the model's numpy-only work (assembly, reduced bases)
 # run beside them.
 
@@ -47,7 +47,7 @@ class Identified:
     :class:`~vibid.identify.fit.result.IdentificationResult` (the loop's last stage when
     the loop ran), ``loop`` the :class:`~vibid.identify.loop.LoopResult` or None, and
     ``summary`` the lines for the console; ``linearity`` the tests of the measured
-    resonances made before the fit (:func:`vibid.identify.linearity.linear_part`), some of
+    resonances made before the fit (:func:`vibid.identify.assess.linearity.linear_part`), some of
     whose tops the fit may have left out."""
 
     result: Any
@@ -84,7 +84,7 @@ def parse_candidates(candidates) -> tuple[str, ...] | None:
 def session_afc(session_path: str | os.PathLike) -> SessionAfc:
     """Read a session file and fit the AFC of every step (:func:`vibid.signal.afc_from_session`),
     sorted by frequency (the file keeps the order acquired: an adaptive campaign's is not)."""
-    from vibid.identify.profile import section
+    from vibid.identify.engine.profile import section
     from vibid.session import read_session
     from vibid.signal import afc_from_session
 
@@ -137,11 +137,11 @@ def write_afc_uff(data: SessionAfc, path: str | os.PathLike) -> int:
 
 def fit_points(afc, *, magnitude_only: bool = False, nonlinear_tops: bool = False):
     """(the points to fit, the linearity tests): ``afc.used`` less the tops of resonances
-    whose response depends on their amplitude (:func:`vibid.identify.linearity.linear_part`),
+    whose response depends on their amplitude (:func:`vibid.identify.assess.linearity.linear_part`),
     unless ``nonlinear_tops``; |H| alone is not tested (the test needs the complex AFC)."""
     if magnitude_only:
         return afc.used, ()
-    from vibid.identify.linearity import linear_part
+    from vibid.identify.assess.linearity import linear_part
 
     kept, tests = linear_part(afc.frequency_hz, afc.H, afc.std, afc.used)
     if not any(t.left_out_hz is not None for t in tests):
@@ -175,7 +175,7 @@ def identify_afc(
     phase is not trusted); the loop then tries the candidates |H| can see.
 
     A resonance whose top is shown to depend on its amplitude (on an FFT analyser's dense
-    grid: :func:`vibid.identify.linearity.linear_part`) has its top left out of every fit,
+    grid: :func:`vibid.identify.assess.linearity.linear_part`) has its top left out of every fit,
     unless ``nonlinear_tops``: the plate model is linear, and the flanks hold the structure
     at small motion.
     """
@@ -271,7 +271,7 @@ def write_outputs(
     ``report_dir`` (if given) and the JSON report to ``json_path`` (if given). Returns the
     report and the paths written, by file name (``"json"`` for ``json_path``).
     ``reference``: the specimen's known modulus, a reference specimen that calibrates the
-    clamp (:mod:`vibid.identify.reference`).
+    clamp (:mod:`vibid.identify.assess.reference`).
 
     The fit's result is never lost here: a stage after it that fails (the reference, the
     budget, the figures, ...) is left out, in one line of the report's ``not_done``
@@ -304,12 +304,12 @@ def write_outputs(
 
 def reference_block(data: SessionAfc, identified: Identified, reference) -> dict | None:
     """The report's ``reference`` block: the clamp's effective free length that the
-    specimen's known modulus gives (:mod:`vibid.identify.reference`), or why there is none;
+    specimen's known modulus gives (:mod:`vibid.identify.assess.reference`), or why there is none;
     None without a reference."""
     if reference is None:
         return None
-    from vibid.identify.budget import loop_box
-    from vibid.identify.reference import calibrate_free_length
+    from vibid.identify.assess.budget import loop_box
+    from vibid.identify.assess.reference import calibrate_free_length
 
     box = loop_box(data.setup, getattr(identified, "loop", None))
     try:

@@ -59,7 +59,7 @@ class Specimen:
 
 
 #: The optional fields (written only when given): standard uncertainties of the declared
-#: values (shared/spec/session-format.md; the uncertainty budget, vibid.identify.budget).
+#: values (shared/spec/session-format.md; the uncertainty budget, vibid.identify.assess.budget).
 SPECIMEN_STD = ("thickness_std_m", "length_std_m", "width_std_m", "density_std_kg_m3")
 SPECIMEN_OPTIONAL = SPECIMEN_STD + ("material",)
 RESPONSE_STD = ("x_std_m", "y_std_m", "mass_std_kg")

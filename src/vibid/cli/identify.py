@@ -4,12 +4,12 @@ loop (effects the residual asks for, :mod:`vibid.identify.loop`); writes the rep
 shared/spec/report-format.md, and with ``--report`` a readable report.md with figures.
 
 With ``--reference-E`` the specimen is a reference of known modulus: the report gives the
-clamp's effective free length (:mod:`vibid.identify.reference`).
+clamp's effective free length (:mod:`vibid.identify.assess.reference`).
 
 `vibid identify --afc AFC.csv|AFC.uff --setup SETUP.json [...]` does the same on an AFC
 measured by another system, CSV or UFF58 (:mod:`vibid.signal.imported`). On such an AFC's
 dense grid, the top of a resonance whose response depends on its amplitude is left out of
-the fit unless ``--nonlinear-tops`` (:func:`vibid.identify.linearity.linear_part`)."""
+the fit unless ``--nonlinear-tops`` (:func:`vibid.identify.assess.linearity.linear_part`)."""
 
 from __future__ import annotations
 

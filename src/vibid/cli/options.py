@@ -101,7 +101,7 @@ def add_identification_options(p, *, methods: bool = True) -> None:
 
 def add_reference_options(p) -> None:
     """``--reference-E`` and its std: the specimen is a reference of known modulus, and the
-    report gives the clamp's effective free length (:mod:`vibid.identify.reference`)."""
+    report gives the clamp's effective free length (:mod:`vibid.identify.assess.reference`)."""
     p.add_argument(
         "--reference-E",
         metavar="PA",
@@ -120,9 +120,9 @@ def add_reference_options(p) -> None:
 
 
 def reference_of(args):
-    """The :class:`~vibid.identify.reference.Reference` of ``--reference-E`` (None without
+    """The :class:`~vibid.identify.assess.reference.Reference` of ``--reference-E`` (None without
     it); checked before the identification's minutes (a bad one: a one-line error)."""
-    from vibid.identify.reference import reference_from
+    from vibid.identify.assess.reference import reference_from
 
     return reference_from(
         args.reference_E, args.reference_E_std, names=("--reference-E", "--reference-E-std")
@@ -132,11 +132,11 @@ def reference_of(args):
 @contextlib.contextmanager
 def profiled(on: bool):
     """With ``on`` (``--profile``), print where the time went when the block ends
-    (:mod:`vibid.identify.profile`)."""
+    (:mod:`vibid.identify.engine.profile`)."""
     if not on:
         yield
         return
-    from vibid.identify.profile import recording
+    from vibid.identify.engine.profile import recording
 
     with recording() as prof:
         yield

@@ -128,7 +128,7 @@ def check_options(args):
 
 
 def run(args) -> int:
-    from vibid.identify.runtime import configure
+    from vibid.identify.engine.runtime import configure
     from vibid.planner import plan_test, planned_setup
 
     setup, config, targets, priors, band = check_options(args)

@@ -72,13 +72,13 @@ def replay_flow(
     magnitude_only: identify from |H| alone (``vibid identify --magnitude-only``).
     reference_E_pa, reference_E_std_pa: the specimen is a reference of known modulus (Pa)
         and its std: the report gives the clamp's effective free length (``vibid identify
-        --reference-E``, :mod:`vibid.identify.reference`).
+        --reference-E``, :mod:`vibid.identify.assess.reference`).
 
     Returns the report (a dict). A run that did not converge writes its report, then fails.
     """
     if (session_path is None) == (afc_path is None) or (afc_path is None) != (setup_path is None):
         raise VibidError("replay: give a session file, or an AFC file with its setup")
-    from vibid.identify.reference import reference_from
+    from vibid.identify.assess.reference import reference_from
 
     # checked before the identification's minutes
     reference = reference_from(reference_E_pa, reference_E_std_pa)

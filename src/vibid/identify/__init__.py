@@ -11,7 +11,7 @@ Three layers, one folder each:
   and global methods, uncertainty) and :func:`identify`, the strategy.
 
 Nothing here changes the process on import: entry points call
-:func:`vibid.identify.runtime.configure` (64-bit JAX, compilation cache). The names below
+:func:`vibid.identify.engine.runtime.configure` (64-bit JAX, compilation cache). The names below
 load their modules on first use.
 """
 
@@ -28,7 +28,7 @@ _EXPORTS = {
     "identify": "vibid.identify.fit.strategy",
     "IdentificationResult": "vibid.identify.fit.result",
     "EFFECTS": "vibid.identify.effects",
-    "configure": "vibid.identify.runtime",
+    "configure": "vibid.identify.engine.runtime",
 }
 
 __all__ = sorted(_EXPORTS)

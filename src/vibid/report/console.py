@@ -41,7 +41,7 @@ def console_summary(report: dict) -> str:
 def plausibility_lines(report: dict) -> list[str]:
     """The report's plausibility findings for the console: never silent about a constant
     no material allows or one outside its material's handbook range; then what a
-    reference specimen says of the clamp (:mod:`vibid.identify.reference`); then, one line
+    reference specimen says of the clamp (:mod:`vibid.identify.assess.reference`); then, one line
     each, the stages the report could not do (:func:`vibid.report.not_done.not_done_lines`)."""
     pl = report.get("plausibility") or {}
     return (

@@ -85,8 +85,8 @@ def free_length_share(result) -> str | None:
 def plausibility_block(model: str, result, constants: dict, setup, loop) -> tuple[dict, list]:
     """(the report's ``plausibility`` block, its warnings): constants no material allows,
     with what the loop tried, and the comparison with the handbook range of the specimen's
-    material class (:mod:`vibid.identify.plausibility`)."""
-    from vibid.identify.plausibility import plausibility
+    material class (:mod:`vibid.identify.assess.plausibility`)."""
+    from vibid.identify.assess.plausibility import plausibility
 
     sp = setup.specimen
     found = plausibility(
@@ -119,10 +119,10 @@ def plausibility_block(model: str, result, constants: dict, setup, loop) -> tupl
 def linearity_block(result, tests=None) -> list[dict]:
     """The ``linearity`` block: whether each measured resonance the grid resolves is the
     response of a linear structure, and which tops were left out of the fit
-    (:mod:`vibid.identify.linearity`; the measured AFC alone, complex data only); empty
+    (:mod:`vibid.identify.assess.linearity`; the measured AFC alone, complex data only); empty
     where no resonance is resolved. ``tests``: the tests made before the fit
     (:func:`vibid.pipeline.identify_afc`), whose points the fit's own no longer hold."""
-    from vibid.identify.linearity import linear_part
+    from vibid.identify.assess.linearity import linear_part
 
     if tests is None:  # tested here, after a fit that left nothing out
         if result.magnitude:
@@ -240,9 +240,9 @@ def discretisation_block(result) -> dict[str, Any] | None:
 
 def fit_constants(setup, result) -> dict:
     """The engineering constants with the fit's covariance and the declared thickness's
-    uncertainty through the conversion alone (:func:`vibid.identify.engineering.
+    uncertainty through the conversion alone (:func:`vibid.identify.assess.engineering.
     engineering_constants`): the report's block where the budget could not be made."""
-    from vibid.identify.engineering import engineering_constants
+    from vibid.identify.assess.engineering import engineering_constants
 
     model = getattr(result.plate_model, "model", None) or result.model
     sp = setup.specimen
@@ -282,7 +282,7 @@ def build_report(
         from the points in ``result``.
     setup: the declared setup; with it the report gains the ``engineering`` block (E, nu,
         G from the stiffnesses and the declared thickness) with its uncertainty budget
-        (:mod:`vibid.identify.budget`).
+        (:mod:`vibid.identify.assess.budget`).
     linearity: the linearity tests made before the fit (:func:`linearity_block`).
     reference: with ``setup``, the ``reference`` block: what the specimen's known modulus
         says of the clamp's free length (:func:`vibid.pipeline.reference_block`).
@@ -325,7 +325,7 @@ def build_report(
         warnings.extend(t["note"] for t in tested if not t["linear"])
         warnings.extend(t.left_out_note for t in linearity or () if t.left_out_hz is not None)
     if setup is not None:
-        from vibid.identify.budget import engineering_budget
+        from vibid.identify.assess.budget import engineering_budget
 
         block = attempt("uncertainty budget", not_done, engineering_budget, setup, result, loop)
         if block is None:  # the constants with the fit's std alone

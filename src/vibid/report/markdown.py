@@ -25,7 +25,7 @@ from vibid.report.values import (
 )
 
 #: What the budget's columns that are no declared quantity hold
-#: (:mod:`vibid.identify.budget`; a declared quantity's column is named by its setup field).
+#: (:mod:`vibid.identify.assess.budget`; a declared quantity's column is named by its setup field).
 BUDGET_PARTS = {
     "fit": "the data's noise and the model's misfit",
     "discretisation": "the mesh's error, Richardson-extrapolated over three meshes (the shift "

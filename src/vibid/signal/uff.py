@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.signal.imported import ImportedAfc, checked_afc, content_session_id
+from vibid.signal.afc_file import ImportedAfc, checked_afc, content_session_id
 
 AFC_ID = "vibid AFC"
 STD_ID = "vibid AFC std"

@@ -25,9 +25,9 @@ import logging
 
 import numpy as np
 
+from vibid.identify.engine.profile import timed
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import GlobalResult
-from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 

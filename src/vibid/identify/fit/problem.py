@@ -24,6 +24,7 @@ other data make a new problem (:meth:`~LeastSquaresProblem.with_sigma`,
 
 from __future__ import annotations
 
+import functools
 import logging
 import weakref
 from collections.abc import Callable
@@ -35,9 +36,9 @@ import numpy as np
 
 from vibid.errors import VibidError
 from vibid.heartbeat import beat
+from vibid.identify.engine.runtime import require_x64
 from vibid.identify.fit.data import FitData
 from vibid.identify.fit.space import ParameterSpace
-from vibid.identify.runtime import require_x64
 
 log = logging.getLogger(__name__)
 
@@ -106,8 +107,8 @@ def compile_problem(afc, magnitude: bool = False):
     import jax
     import jax.numpy as jnp
 
+    from vibid.identify.engine.runtime import over_population
     from vibid.identify.fit.space import from_u_coefficients
-    from vibid.identify.runtime import over_population
 
     def placed(place, theta):
         return place["base"].at[place["index"]].set(theta)[:-1]
@@ -189,6 +190,32 @@ class GivesModes(Protocol):
         """:meth:`modes_batch` and the (npop, nf) AFCs, from one evaluation of each."""
 
 
+#: How many fitted problems (a kernel, on the complex AFC or its magnitude) keep their
+#: compiled code.
+MAX_PROBLEMS = 16
+
+
+@functools.lru_cache(maxsize=MAX_PROBLEMS)
+def problem_functions(kernel, magnitude: bool = False):
+    """The least-squares functions of a kernel, whatever the points fitted, the data, the
+    weights and the parameter space (arguments of each function:
+    :func:`compile_problem`); ``magnitude``: on |H| alone."""
+    from dataclasses import fields, replace
+
+    from vibid.identify.engine.persist import Persisted, identity_of
+
+    functions = compile_problem(kernel, magnitude)
+    identity = identity_of(kernel)
+    prefix = "problem.magnitude" if magnitude else "problem"
+    return replace(
+        functions,
+        **{
+            f.name: Persisted(getattr(functions, f.name), f"{prefix}.{f.name}", identity)
+            for f in fields(functions)
+        },
+    )
+
+
 @runtime_checkable
 class SharedStructure(Protocol):
     """A forward model whose compiled code is shared with others: a hashable ``kernel``
@@ -203,11 +230,9 @@ class SharedStructure(Protocol):
 
 def _functions(model, magnitude: bool = False):
     """``(compiled functions, arrays, (base, index))`` for any ForwardModel: shared through
-    :mod:`vibid.identify.compiled` by every model of one structure (the functions then take
+    :func:`problem_functions` by every model of one structure (the functions then take
     the structure's whole parameter vector: one compilation serves every model of the
     structure, whatever parameters it fits), else compiled for this model."""
-    from vibid.identify.compiled import problem_functions
-
     if isinstance(model, SharedStructure):
         return problem_functions(model.kernel, magnitude), model.arrays, model.embedding
     p = len(model.parameter_names)

@@ -18,7 +18,7 @@ normalisation chosen so that the prior box ``[low, high]`` of the setup maps ont
 * ``linear`` for signed quantities without limits (D12, D16, D26, delays).
 
 Each parameter's term declares its map (``Parameter.kind``,
-:mod:`vibid.identify.model.catalogue`); a name no term declares falls back to ``log`` for a
+:mod:`vibid.parameters`); a name no term declares falls back to ``log`` for a
 positive box that spans more than a factor 10, else ``linear``.
 """
 
@@ -126,7 +126,7 @@ def make_transform(name: str, low: float, high: float, kind: tuple | None = None
     if not (math.isfinite(low) and math.isfinite(high) and low < high):
         raise VibidError(f"bounds of {name}: need finite low < high, got [{low!r}, {high!r}]")
     if kind is None:
-        from vibid.identify.model.catalogue import known_parameter
+        from vibid.parameters import known_parameter
 
         declared = known_parameter(name)
         kind = None if declared is None else declared.kind

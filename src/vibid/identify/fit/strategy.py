@@ -44,6 +44,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from vibid.errors import VibidError
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.threads import in_order
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.global_search import differential_evolution, robust_score
 from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_by_continuation
@@ -66,8 +68,6 @@ from vibid.identify.fit.result import (
 from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
-from vibid.identify.profile import timed
-from vibid.identify.threads import in_order
 
 log = logging.getLogger(__name__)
 
@@ -119,7 +119,7 @@ def polish(
     """Local fits from each start, each on a model rebuilt around its start (the search's
     model only has to find basins; models of one shape share their compiled functions).
     The starts are independent: the next one's runs on the second core
-    (:mod:`vibid.identify.threads`), the fits come back in the starts' order."""
+    (:mod:`vibid.identify.engine.threads`), the fits come back in the starts' order."""
 
     def from_start(u0):
         p = refreshed(problem, problem.space.theta(u0)) if opts.refresh else problem

@@ -53,9 +53,9 @@ import math
 
 import numpy as np
 
+from vibid.identify.engine.profile import timed
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import HistoryEntry, LocalResult, Status
-from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 

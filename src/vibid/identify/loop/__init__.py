@@ -36,7 +36,7 @@ Birge ratio squared) and by the residual's autocorrelation time along frequency:
 then measures how far the model is from the data.
 
 A round's scores and refits start from the same state, so the next ones run beside the
-one the round is weighing (on the machine's second core: :mod:`vibid.identify.threads`);
+one the round is weighing (on the machine's second core: :mod:`vibid.identify.engine.threads`);
 the round takes them in its own order, so it decides as it would one after the other.
 """
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from vibid.identify.engine.profile import timed
 from vibid.identify.fit.compress import TOL_STD
 from vibid.identify.fit.local import run_local
 from vibid.identify.fit.minima import best_inside_prior
@@ -44,7 +45,6 @@ from vibid.identify.fit.strategy import gives_modes, identify
 from vibid.identify.loop.held import Held, held_inside
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem
-from vibid.identify.profile import timed
 
 log = logging.getLogger(__name__)
 

@@ -13,6 +13,8 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
 from vibid.errors import VibidError
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.threads import in_order, numpy_only
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.result import IdentificationResult
@@ -29,8 +31,6 @@ from vibid.identify.loop.evidence import (
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
-from vibid.identify.profile import timed
-from vibid.identify.threads import in_order, numpy_only
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +95,7 @@ def close_loop(
     ``declared``: the declared model's result when already computed;
     ``magnitude``: fit |H| alone, with the candidates |H| can see (not a channel delay);
     ``left_out_hz``: (lo, hi) Hz, the bands ``used`` leaves out because a linear model
-    cannot fit them (:func:`vibid.identify.linearity.linear_part`), which the diagnoses
+    cannot fit them (:func:`vibid.identify.assess.linearity.linear_part`), which the diagnoses
     ignore (:func:`diagnosis_of`); ``policy``: the loop's numbers
     (:class:`~vibid.identify.loop.policy.Policy`).
     """
@@ -471,7 +471,7 @@ def fit_and_weigh(
     first = [s for s in ranked if s is not later]
     fits_noise = False
     with contextlib.closing(
-        in_order(  # the next refits start early (vibid.identify.threads)
+        in_order(  # the next refits start early (vibid.identify.engine.threads)
             lambda k: attempt(first[k], False), range(len(first))
         )
     ) as runs:

@@ -33,7 +33,7 @@ class Verdict(enum.Enum):
     def compared(self) -> bool:
         """Whether the refit is a model the round compared (converged, its evidence
         weighed), chosen or not: the budget's spread is over these
-        (:func:`vibid.identify.budget.model_spread`)."""
+        (:func:`vibid.identify.assess.budget.model_spread`)."""
         return self in (Verdict.CHOSEN, Verdict.LESS_PROBABLE, Verdict.COMPARED)
 
     def sentence(self, **d) -> str:
@@ -184,7 +184,7 @@ class LoopResult:
     seconds: float = math.nan
     #: the refits the data support (:attr:`Verdict.compared`) that were not chosen: with
     #: the stages, the models the loop compared (the uncertainty budget's model part,
-    #: :mod:`vibid.identify.budget`)
+    #: :mod:`vibid.identify.assess.budget`)
     alternatives: tuple = ()
 
     @property

@@ -38,6 +38,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from vibid.errors import VibidError
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.threads import numpy_only
 from vibid.identify.model.disc import assemble_disc, shifted_disc
 from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import (
@@ -49,8 +51,6 @@ from vibid.identify.model.forms import (
 )
 from vibid.identify.model.mesh import Discretisation, plate_mesh
 from vibid.identify.model.terms import clash
-from vibid.identify.profile import timed
-from vibid.identify.threads import numpy_only
 
 log = logging.getLogger(__name__)
 

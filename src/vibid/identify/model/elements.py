@@ -25,7 +25,7 @@ from skfem.element.discrete_field import DiscreteField
 #: An element keeps state on its instance between calls (the monomials at the last points,
 #: the parent's functionals swapped out while the basis is built), and one instance serves
 #: every model of a mesh; threads build models at once (a loop round's refits,
-#: :mod:`vibid.identify.threads`, assemble with the JAX turn lent; a batch's sessions on
+#: :mod:`vibid.identify.engine.threads`, assemble with the JAX turn lent; a batch's sessions on
 #: Prefect's thread runner), so its basis is evaluated under this lock.
 #: (Without it, two threads' monomials met in one ``einsum``: a closed-loop candidate's
 #: score failed with "operands could not be broadcast together".)

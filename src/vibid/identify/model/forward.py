@@ -75,7 +75,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.identify.compiled import kernel_functions
+from vibid.identify.engine.compiled import kernel_functions
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.runtime import require_x64
 from vibid.identify.model.assembly import Geometry, PlateMatrices, model_matrices
 from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.materials import Material, infer_material
@@ -91,8 +93,6 @@ from vibid.identify.model.reduced import (
 )
 from vibid.identify.model.structure import embed, embedding
 from vibid.identify.model.terms import PlateModel, theta_from_dict
-from vibid.identify.profile import timed
-from vibid.identify.runtime import require_x64
 
 log = logging.getLogger(__name__)
 

@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from vibid.identify.profile import timed
-from vibid.identify.threads import numpy_only
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.threads import numpy_only
 
 
 def _solve_all(

@@ -47,9 +47,9 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from vibid.errors import VibidError
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.threads import numpy_only
 from vibid.identify.model.modal import arpack_start
-from vibid.identify.profile import timed
-from vibid.identify.threads import numpy_only
 
 log = logging.getLogger(__name__)
 

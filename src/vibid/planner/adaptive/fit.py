@@ -84,9 +84,9 @@ def fit_steps(
 ) -> CurrentFit:
     """Fit the AFC of the steps so far (sorted by frequency), as the module doc says.
     Without ``previous``, the report's own identification (``restarts``, ``seed``)."""
+    from vibid.identify.engine.threads import jax_turn
     from vibid.identify.fit import identify
     from vibid.identify.fit.noise import explains
-    from vibid.identify.threads import jax_turn
 
     t0 = time.perf_counter()
     with jax_turn():

@@ -187,6 +187,6 @@ def require_x64() -> None:
     if not jax.config.jax_enable_x64:
         raise VibidError(
             "vibid's plate model needs 64-bit JAX: call "
-            "vibid.identify.runtime.configure() (or set JAX_ENABLE_X64=1) "
+            "vibid.identify.engine.runtime.configure() (or set JAX_ENABLE_X64=1) "
             "before using it"
         )

@@ -8,7 +8,7 @@ estimate, another restart's, another session's) shares the compiled functions bu
 passing its own arrays; JAX compiles each once per array shape. The caches are LRUs of a
 few entries: a long-running worker that replays hundreds of sessions keeps only the code of
 the last few structures, and an evicted entry frees its compiled code. Each function also
-keeps the programs it traces on disk (:mod:`vibid.identify.persist`), so that another
+keeps the programs it traces on disk (:mod:`vibid.identify.engine.persist`), so that another
 process does not trace them again.
 """
 
@@ -18,9 +18,8 @@ import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
-#: How many model structures (kernels) and fitted problems keep their compiled code.
+#: How many model structures (kernels) keep their compiled code.
 MAX_KERNELS = 8
-MAX_PROBLEMS = 16
 
 
 @dataclass(frozen=True)
@@ -37,8 +36,8 @@ class KernelFunctions:
 def kernel_functions(kernel) -> KernelFunctions:
     import jax
 
-    from vibid.identify.persist import Persisted, identity_of
-    from vibid.identify.runtime import over_population
+    from vibid.identify.engine.persist import Persisted, identity_of
+    from vibid.identify.engine.runtime import over_population
 
     identity = identity_of(kernel)
 
@@ -50,26 +49,4 @@ def kernel_functions(kernel) -> KernelFunctions:
         afc_batch=kept("afc_batch", over_population(kernel)),
         modes_batch=kept("modes_batch", over_population(kernel.modes)),
         modes_afc_batch=kept("modes_afc_batch", over_population(kernel.modes_and_afc)),
-    )
-
-
-@functools.lru_cache(maxsize=MAX_PROBLEMS)
-def problem_functions(kernel, magnitude: bool = False):
-    """The least-squares functions of a kernel, whatever the points fitted, the data, the
-    weights and the parameter space (arguments of each function:
-    :func:`vibid.identify.fit.problem.compile_problem`); ``magnitude``: on |H| alone."""
-    from dataclasses import fields, replace
-
-    from vibid.identify.fit.problem import compile_problem
-    from vibid.identify.persist import Persisted, identity_of
-
-    functions = compile_problem(kernel, magnitude)
-    identity = identity_of(kernel)
-    prefix = "problem.magnitude" if magnitude else "problem"
-    return replace(
-        functions,
-        **{
-            f.name: Persisted(getattr(functions, f.name), f"{prefix}.{f.name}", identity)
-            for f in fields(functions)
-        },
     )

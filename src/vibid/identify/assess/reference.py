@@ -1,7 +1,7 @@
 """A reference specimen calibrates the clamp: its known modulus gives the free length.
 
 From bending resonances the modulus along the length goes as ``E ∝ ρ L⁴ / h²``
-(:mod:`vibid.identify.plausibility`): the data fix ``E L⁻⁴`` and no fit of one AFC can tell
+(:mod:`vibid.identify.assess.plausibility`): the data fix ``E L⁻⁴`` and no fit of one AFC can tell
 a stiffer strip from a longer one. A clamp's effective line lies where the strip stops
 turning, often inside its jaws (a soft or worn clamp, a clamping force too low for the
 strip's thickness), so the free length that the resonances see is longer than the one
@@ -157,10 +157,10 @@ def calibrate_free_length(
 ) -> ClampCalibration:
     """The clamp's effective free length from a reference specimen (module doc): ``result``
     is the specimen's identification (the loop's final stage), ``setup`` its declared
-    setup; ``box``: the prior boxes the loop used (:func:`vibid.identify.budget.loop_box`:
+    setup; ``box``: the prior boxes the loop used (:func:`vibid.identify.assess.budget.loop_box`:
     a material it switched to has none in the setup), default the setup's."""
+    from vibid.identify.assess.engineering import engineering_constants, sensitivities
     from vibid.identify.effects.free_length import EFFECT as FREE_LENGTH
-    from vibid.identify.engineering import engineering_constants, sensitivities
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.local import LOCAL_METHODS, HeldProblem
     from vibid.identify.fit.problem import LeastSquaresProblem

@@ -1,6 +1,6 @@
 """Traced programs kept on disk, so that a new process does not trace them again.
 
-JAX's persistent compilation cache (:mod:`vibid.identify.runtime`) spares a new process
+JAX's persistent compilation cache (:mod:`vibid.identify.engine.runtime`) spares a new process
 XLA's compilation, not the work before it: every process traces each function again in
 Python and lowers it to StableHLO, only to find the compiled code under that program's
 hash. For the reduced model's Hessian that is 0.3 s of the 0.5 s its first call takes with
@@ -35,7 +35,7 @@ from pathlib import Path
 import jax
 
 from vibid.heartbeat import stage
-from vibid.identify.threads import compiled, holding
+from vibid.identify.engine.threads import compiled, holding
 
 log = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """Is an identified plate physically possible, and does it look like its material?
 
 :func:`plausibility` judges the identified parameters and the report's engineering
-constants (:mod:`vibid.identify.engineering`) and returns sentences; it reads, prints and
+constants (:mod:`vibid.identify.assess.engineering`) and returns sentences; it reads, prints and
 logs nothing (the report, the console and the loop say them).
 
 * Violations, whatever the material: an isotropic Poisson's ratio outside (−1, 0.5)

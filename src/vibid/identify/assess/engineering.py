@@ -65,7 +65,7 @@ def engineering_constants(
 ) -> dict:
     """``{name: {"value", "std"}}``: the constants with the parameters' covariance and the
     thickness's standard uncertainty propagated through the conversion alone (moduli as
-    h⁻³). The report's figure is the budget's (:mod:`vibid.identify.budget`), which also
+    h⁻³). The report's figure is the budget's (:mod:`vibid.identify.assess.budget`), which also
     carries the thickness through the fit (a thicker plate is heavier, so the fitted D
     grows with h: E then scales as h⁻², not h⁻³)."""
     values = np.asarray(values, float)

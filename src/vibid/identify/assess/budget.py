@@ -48,7 +48,7 @@ root sum of squares of independent parts:
   declared edge (no ``free_length`` or ``clamp_compliance`` of its own) and the setup
   declares no ``length_std_m``: the free length that bending resonances see starts where
   the strip stops turning, often inside the jaws, and one AFC barely tells a longer span
-  from a softer plate (:mod:`vibid.identify.reference`: ``E ∝ L⁴``). The part is
+  from a softer plate (:mod:`vibid.identify.assess.reference`: ``E ∝ L⁴``). The part is
   ``|∂c/∂dL| u(dL)``: ∂c/∂dL the estimate's shift when the free end and the sensor both
   lie further from the line (as a declared quantity's, above), u(dL) the standard
   uncertainty of a rectangular distribution over the free length's box (``dL_m``: the
@@ -74,7 +74,7 @@ import math
 
 import numpy as np
 
-from vibid.identify.engineering import constants, sensitivities
+from vibid.identify.assess.engineering import constants, sensitivities
 from vibid.identify.fit.noise import residual_correlation
 from vibid.parameters import DL
 from vibid.setup_model import RESPONSE_STD, SPECIMEN_STD

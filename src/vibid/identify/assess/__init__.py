@@ -1,0 +1,9 @@
+"""assess: judging what was identified, after the fit and the loop, before the report.
+
+* :mod:`~vibid.identify.assess.engineering`: engineering constants (E, ν, G; E1, E2, G12,
+  ν12) from the bending stiffnesses and the thickness;
+* :mod:`~vibid.identify.assess.budget`: their uncertainty budget, as the GUM writes one;
+* :mod:`~vibid.identify.assess.plausibility`: physically possible, and like its material?
+* :mod:`~vibid.identify.assess.reference`: a reference specimen calibrates the clamp;
+* :mod:`~vibid.identify.assess.linearity`: is a measured resonance a linear structure's?
+"""
