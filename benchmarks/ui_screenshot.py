@@ -1,4 +1,4 @@
-"""The README's Prefect UI screenshots, reproduced with one command:
+"""The Prefect UI screenshots of docs/prefect-and-ui.md, reproduced with one command:
 
     python benchmarks/ui_screenshot.py [--docs DIR] [--keep DIR]
 

@@ -26,7 +26,7 @@ SPEC_KEYS = {
     "note",
     "hidden_mode_hz",
     "causal",
-}  # the last two added by vibid (README, report fields)
+}  # the last two added by vibid (docs/report-additions.md)
 
 
 def modal_afc(f_hz, modes_hz=MODES_HZ, q=Q):

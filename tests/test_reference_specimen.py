@@ -110,7 +110,7 @@ def test_a_bad_reference_is_one_line_before_any_fit(tmp_path, capsys, args, mess
 
 
 def test_the_report_and_the_console_carry_the_calibration(long_beam):
-    """The pipeline's ``reference`` block (the report's, README's "What vibid adds") and
+    """The pipeline's ``reference`` block (the report's, docs/formats.md, "What vibid adds to the formats") and
     its console line; a model without a modulus along the length says why, one line."""
     from types import SimpleNamespace
 

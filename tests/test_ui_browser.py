@@ -20,7 +20,7 @@ chromium``); skipped without it. One test, about a minute:
    the page's DOM), must fail the same check: the check sees the image, not the page.
 
 ``python tests/test_ui_browser.py [--docs DIR]`` (or ``python benchmarks/ui_screenshot.py``)
-does the same outside pytest and writes the README's screenshots
+does the same outside pytest and writes the screenshots of docs/prefect-and-ui.md
 (``docs/ui-report-artifact.png``, ``docs/ui-live-artifact.png``).
 
 Every subprocess runs under a time-out; the server and Chromium are started in their own
@@ -251,7 +251,7 @@ def run_campaign(folder: Path, api_url: str, *, timeout_s: float = CAMPAIGN_TIME
 
 
 def artifact_key(specimen: str, suffix: str) -> str:
-    """The key vibid publishes a specimen's artifacts under (README: ``<specimen>-report``,
+    """The key vibid publishes a specimen's artifacts under (docs/prefect-and-ui.md: ``<specimen>-report``,
     ``<specimen>-live``): the name in lowercase, runs of other characters as one dash."""
     slug = re.sub(r"[^a-z0-9]+", "-", specimen.lower()).strip("-")
     return f"{slug or 'specimen'}-{suffix}"
@@ -479,7 +479,7 @@ def crop_for_docs(
     max_width: int = 1000,
     max_bytes: int = 300_000,
 ) -> Path:
-    """The README's picture: the page from its top down to the figure area ``box`` (plus
+    """The docs' picture: the page from its top down to the figure area ``box`` (plus
     ``below`` rows) where the figure starts within ``near_top`` rows; else the UI's header
     (the artifact's key and id), a grey cut, and the page from ``above`` rows over the
     figure, cropped on the right past the figure and the header's text. Downscaled to
@@ -543,7 +543,7 @@ def screenshot_showing(url: str, path: Path, window, *, line, points, min_line_c
 
 def check_in_browser(folder: Path, *, docs: Path | None = None, log=print) -> dict:
     """Server, campaign, artifacts, screenshots and their checks (see the module's text);
-    with ``docs``, the README's two pictures written there. Returns what it found; raises
+    with ``docs``, docs/prefect-and-ui.md's two pictures written there. Returns what it found; raises
     AssertionError where the UI does not show a figure."""
     folder = Path(folder)
     t0 = time.monotonic()
@@ -640,7 +640,7 @@ def main(argv=None) -> int:
         description="Run a short campaign against a temporary Prefect "
         "server, screenshot its report and live AFC artifacts in "
         "headless Chromium, check that they show the figures, and "
-        "write the README's pictures."
+        "write the pictures of docs/prefect-and-ui.md."
     )
     p.add_argument(
         "--docs",
