@@ -301,6 +301,8 @@ def quality_flags(
     ``estimate_snr_db`` is ``10 log10(|X|² / var)`` of each channel's fundamental phasor,
     ``var`` its variance per real component; ``harmonic_chi2`` is ``Σ_k |X_k|² / var_k`` over
     the harmonics (``harmonic_dof = 2 (K - 1)`` degrees of freedom under noise alone).
+    Each step's flags come in this order: its status, flat tops, settling, SNR,
+    distortion, clock, ringing, record length, convergence.
     """
     thr = thresholds
     amp_limit = unsettled_chi2_limit(thr.unsettled_sigma, 1)
@@ -310,88 +312,135 @@ def quality_flags(
     )
     out = []
     for i, st in enumerate(status):
-        flags: list[Flag] = []
-        if st == "overload":
-            flags.append(Flag("overload", "step status is 'overload' (an input clipped)"))
-        elif st == "aborted":
-            flags.append(Flag("aborted", "step status is 'aborted'"))
-        elif st != "ok":
-            flags.append(Flag("invalid", f"unknown step status {st!r}"))
-        for c, name in enumerate(CHANNELS):
-            if flat_top[i, c] > thr.flat_top_fraction and st != "overload":
-                flags.append(
-                    Flag(
-                        "overload",
-                        f"{name} has flat tops: {100 * flat_top[i, c]:.1f} % of samples at "
-                        f"its extreme (limit {100 * thr.flat_top_fraction:.1f} %), clipping",
-                    )
-                )
-        for c, name in enumerate(CHANNELS):
-            if amplitude_change_chi2[i, c] > amp_limit:
-                flags.append(
-                    Flag(
-                        "unsettled",
-                        f"{name} amplitude changes between the record halves: "
-                        f"chi2 {amplitude_change_chi2[i, c]:.1f} > {amp_limit:.1f} "
-                        f"(1 dof, {thr.unsettled_sigma:g} sigma)",
-                    )
-                )
-        if h_change_chi2[i] > h_limit:
-            flags.append(
-                Flag(
-                    "unsettled",
-                    f"H changes between the record halves: chi2 {h_change_chi2[i]:.1f} "
-                    f"> {h_limit:.1f} (2 dof, {thr.unsettled_sigma:g} sigma)",
-                )
-            )
-        for c, name in enumerate(CHANNELS):
-            if not estimate_snr_db[i, c] >= thr.min_snr_db:
-                flags.append(
-                    Flag(
-                        "low_snr",
-                        f"{name} fundamental is {estimate_snr_db[i, c]:.1f} dB above its "
-                        f"uncertainty (minimum {thr.min_snr_db:g} dB)",
-                    )
-                )
-        for c, name in enumerate(CHANNELS):
-            if thd_db[i, c] > thr.max_thd_db and harmonic_chi2[i, c] > harmonic_limit:
-                flags.append(
-                    Flag(
-                        "distortion",
-                        f"{name} harmonic distortion {thd_db[i, c]:.1f} dB "
-                        f"(limit {thr.max_thd_db:g} dB)",
-                    )
-                )
-        off, std = clock_offset_ppm[i], clock_std_ppm[i]
-        if abs(off) - 5.0 * std > thr.max_clock_offset_ppm:
-            flags.append(
-                Flag(
-                    "clock",
-                    f"frequency in the record is {off:+.0f} ppm from the commanded "
-                    f"(tolerance {thr.max_clock_offset_ppm:g} ppm)",
-                )
-            )
-        for c, name in enumerate(CHANNELS):
-            ring = None if ringing is None else ringing[i][c]
-            if ring is not None and ring.unsettled(thr.unsettled_sigma, thr.ringing_leak_std):
-                flags.append(
-                    Flag(
-                        "ringing",
-                        f"{name} rings at {ring.frequency_hz:.1f} Hz, dying out "
-                        f"(decay z {ring.decay_z:.1f}), moving the phasor "
-                        f"{ring.leak_std:.1f} std",
-                    )
-                )
-        if cycles[i] < thr.min_cycles:
-            flags.append(
-                Flag(
-                    "few_cycles",
-                    f"record holds {cycles[i]:.2f} cycles (minimum {thr.min_cycles:g})",
-                )
-            )
-        if not converged[i]:
-            flags.append(
-                Flag("fit", "frequency search did not converge; fitted at the commanded frequency")
-            )
+        flags = [
+            *_status_flags(st),
+            *_flat_top_flags(flat_top[i], st, thr),
+            *_unsettled_flags(amplitude_change_chi2[i], h_change_chi2[i], amp_limit, h_limit, thr),
+            *_snr_flags(estimate_snr_db[i], thr),
+            *_distortion_flags(thd_db[i], harmonic_chi2[i], harmonic_limit, thr),
+            *_clock_flags(clock_offset_ppm[i], clock_std_ppm[i], thr),
+            *_ringing_flags(None if ringing is None else ringing[i], thr),
+            *_record_flags(cycles[i], converged[i], thr),
+        ]
         out.append(tuple(flags))
     return out
+
+
+def _status_flags(st: str) -> list[Flag]:
+    """``overload``, ``aborted`` or ``invalid`` from the step's status (none for ``ok``)."""
+    if st == "overload":
+        return [Flag("overload", "step status is 'overload' (an input clipped)")]
+    if st == "aborted":
+        return [Flag("aborted", "step status is 'aborted'")]
+    if st != "ok":
+        return [Flag("invalid", f"unknown step status {st!r}")]
+    return []
+
+
+def _flat_top_flags(flat_top, st: str, thr: FlagThresholds) -> list[Flag]:
+    """``overload`` per channel with flat tops (``flat_top`` (2,)), unless the status says it."""
+    return [
+        Flag(
+            "overload",
+            f"{name} has flat tops: {100 * flat_top[c]:.1f} % of samples at "
+            f"its extreme (limit {100 * thr.flat_top_fraction:.1f} %), clipping",
+        )
+        for c, name in enumerate(CHANNELS)
+        if flat_top[c] > thr.flat_top_fraction and st != "overload"
+    ]
+
+
+def _unsettled_flags(
+    amplitude_chi2, h_chi2, amp_limit: float, h_limit: float, thr: FlagThresholds
+) -> list[Flag]:
+    """``unsettled`` per channel whose amplitude changes between the record halves
+    (``amplitude_chi2`` (2,)), then for H (``h_chi2`` a scalar)."""
+    flags = [
+        Flag(
+            "unsettled",
+            f"{name} amplitude changes between the record halves: "
+            f"chi2 {amplitude_chi2[c]:.1f} > {amp_limit:.1f} "
+            f"(1 dof, {thr.unsettled_sigma:g} sigma)",
+        )
+        for c, name in enumerate(CHANNELS)
+        if amplitude_chi2[c] > amp_limit
+    ]
+    if h_chi2 > h_limit:
+        flags.append(
+            Flag(
+                "unsettled",
+                f"H changes between the record halves: chi2 {h_chi2:.1f} "
+                f"> {h_limit:.1f} (2 dof, {thr.unsettled_sigma:g} sigma)",
+            )
+        )
+    return flags
+
+
+def _snr_flags(snr_db, thr: FlagThresholds) -> list[Flag]:
+    """``low_snr`` per channel (``snr_db`` (2,); NaN fires it)."""
+    return [
+        Flag(
+            "low_snr",
+            f"{name} fundamental is {snr_db[c]:.1f} dB above its "
+            f"uncertainty (minimum {thr.min_snr_db:g} dB)",
+        )
+        for c, name in enumerate(CHANNELS)
+        if not snr_db[c] >= thr.min_snr_db
+    ]
+
+
+def _distortion_flags(thd_db, harmonic_chi2, limit: float, thr: FlagThresholds) -> list[Flag]:
+    """``distortion`` per channel whose harmonics are strong and out of the noise."""
+    return [
+        Flag(
+            "distortion",
+            f"{name} harmonic distortion {thd_db[c]:.1f} dB (limit {thr.max_thd_db:g} dB)",
+        )
+        for c, name in enumerate(CHANNELS)
+        if thd_db[c] > thr.max_thd_db and harmonic_chi2[c] > limit
+    ]
+
+
+def _clock_flags(off, std, thr: FlagThresholds) -> list[Flag]:
+    """``clock`` when the refined frequency is off the commanded beyond tolerance + 5σ."""
+    if abs(off) - 5.0 * std > thr.max_clock_offset_ppm:
+        return [
+            Flag(
+                "clock",
+                f"frequency in the record is {off:+.0f} ppm from the commanded "
+                f"(tolerance {thr.max_clock_offset_ppm:g} ppm)",
+            )
+        ]
+    return []
+
+
+def _ringing_flags(rings, thr: FlagThresholds) -> list[Flag]:
+    """``ringing`` per channel whose :class:`FreeVibration` (``rings[c]``, None: not looked
+    for; ``rings`` None: none looked for) dies out and moves the phasor."""
+    flags = []
+    for c, name in enumerate(CHANNELS):
+        ring = None if rings is None else rings[c]
+        if ring is not None and ring.unsettled(thr.unsettled_sigma, thr.ringing_leak_std):
+            flags.append(
+                Flag(
+                    "ringing",
+                    f"{name} rings at {ring.frequency_hz:.1f} Hz, dying out "
+                    f"(decay z {ring.decay_z:.1f}), moving the phasor "
+                    f"{ring.leak_std:.1f} std",
+                )
+            )
+    return flags
+
+
+def _record_flags(cycles, converged, thr: FlagThresholds) -> list[Flag]:
+    """``few_cycles`` for a record too short, then ``fit`` where the search did not converge."""
+    flags = []
+    if cycles < thr.min_cycles:
+        flags.append(
+            Flag("few_cycles", f"record holds {cycles:.2f} cycles (minimum {thr.min_cycles:g})")
+        )
+    if not converged:
+        flags.append(
+            Flag("fit", "frequency search did not converge; fitted at the commanded frequency")
+        )
+    return flags
