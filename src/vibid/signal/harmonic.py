@@ -257,86 +257,128 @@ def _solve(
 ) -> _Store:
     """Variable-projection Gauss-Newton on ν for every record of the batch.
 
-    ``final=False`` only refines ν (no residuals, halves or covariances are kept).
+    Each iteration projects the active records at their ν (:func:`_iterate`); a record whose
+    step is small enough (or undetermined, or out of iterations) is kept (:func:`_keep`) and
+    leaves the batch, the others step on. ``final=False`` only refines ν (no residuals,
+    halves or covariances are kept).
     """
     s, n_channels, _ = rec.after.shape
-    par = layout.parity
     dof = rec.n - layout.n_model - (1.0 / n_channels if refine else 0.0)
     floor = 1e-28 * rec.xx + 1e-300
     store = _Store(nu, n_channels, layout, dof, refine)
     buffer = np.empty((s, layout.n_model, rec.u.size))
     active = np.arange(s)
     for it in range(1, max_iterations + 1):
-        m = columns(store.nu[active], rec.u, layout, out=buffer[: active.size])
-        mt = m.transpose(0, 2, 1)
-        after, before = rec.after[active], rec.before[active]
-        gp, pp, qn = m @ mt, after @ mt, before @ mt
-        dd = gp * (1.0 + np.outer(par, par))
-        pf = pp + qn * par
-        if rec.centre is not None:
-            dd += np.outer(layout.centre_row, layout.centre_row)
-            pf += rec.centre[active][..., None] * layout.centre_row
-        ddi = np.linalg.inv(dd)
-        theta = np.einsum("sij,scj->sci", ddi, pf)
-        rss = np.maximum(rec.xx[active] - np.einsum("sci,sci->sc", theta, pf), floor[active])
-        # g_c = ∂(model_c)/∂ν = g_even + g_odd on the half grid, g(-u) = g_even - g_odd
-        g_even, g_odd = _derivative_halves(theta, m, rec.u, layout)
-        dg_even, dg_odd = g_even @ mt, g_odd @ mt
-        dg = 2.0 * np.where(par > 0, dg_even, dg_odd)  # Σ over the record of D g_c
-        gx = np.einsum("scn,scn->sc", g_even, rec.x_even[active]) + np.einsum(
-            "scn,scn->sc", g_odd, rec.x_odd[active]
-        )
-        gg = 2.0 * (
-            np.einsum("scn,scn->sc", g_even, g_even) + np.einsum("scn,scn->sc", g_odd, g_odd)
-        )
-        v = np.einsum("sij,scj->sci", ddi, dg)
-        gr = gx - np.einsum("sci,sci->sc", theta, dg)
-        gg = gg - np.einsum("sci,sci->sc", dg, v)
-        sig2 = rss / dof
-        num, den = (gr / sig2).sum(-1), (gg / sig2).sum(-1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dnu = num / den
-            # Gauss-Newton is quadratic here: after a step Δ the error is about κΔ² with
-            # κ ≲ 1/rad (κ ≈ 0.3 measured). Once that is 1 % of std(ν), take the step to first
-            # order, θ(ν + Δ) = θ(ν) - vΔ (halves likewise), and stop.
-            last = _KAPPA * dnu**2 * np.sqrt(den) <= 0.01
-        bad = ~np.isfinite(dnu) | (den <= 0)
-        done = (last | bad | (it == max_iterations)) if refine else np.ones_like(bad)
-        take = np.where(last & ~bad, dnu, 0.0) if refine else np.zeros_like(dnu)
+        x = _iterate(rec, active, store.nu[active], layout, buffer[: active.size], floor, dof)
+        bad = ~np.isfinite(x.dnu) | (x.den <= 0)
+        done = (x.last | bad | (it == max_iterations)) if refine else np.ones_like(bad)
+        take = np.where(x.last & ~bad, x.dnu, 0.0) if refine else np.zeros_like(x.dnu)
         if not final:
             store.nu[active[done]] += take[done]
         elif np.any(done):
             d = slice(None) if np.all(done) else done
-            idx = active[d]
-            t = take[d, None, None]
-            store.put(
-                idx,
-                theta=theta[d] - v[d] * t,
-                ddi=ddi[d],
-                v=v[d],
-                gg=gg[d],
-                gp=gp[d],
-                pp=pp[d] - (dg_even[d] + dg_odd[d]) * t,
-                qn=qn[d] - (dg_even[d] - dg_odd[d]) * t,
-                **_residual_ss(
-                    theta[d],
-                    m[d],
-                    after[d],
-                    before[d],
-                    None if rec.centre is None else rec.centre[idx],
-                    layout,
-                    floor[idx],
-                ),
-                iterations=it,
-                converged=~bad[d] & (last[d] | (not refine)),
-            )
-            store.nu[idx] += take[d]
-        step = np.clip(dnu[~done], -_MAX_STEP, _MAX_STEP)
+            converged = ~bad[d] & (x.last[d] | (not refine))
+            _keep(store, x, rec, active[d], d, take[d], layout, floor, it, converged)
+        step = np.clip(x.dnu[~done], -_MAX_STEP, _MAX_STEP)
         active = active[~done]
         store.nu[active] += step
         if active.size == 0:
             break
     return store
+
+
+@dataclass(frozen=True)
+class _Iterate:
+    """One Gauss-Newton iterate of the active records (shapes of :func:`_solve`'s batch):
+    the columns ``m`` at ν and the halves they project, their Gram products (``gp`` the
+    half's, ``pp``/``qn`` the records' after/before), the linear fit (``ddi`` the inverse
+    normal matrix, ``theta``), the derivative's projections (``dg_even``/``dg_odd``, ``v``
+    = ``ddi`` times them, ``gg`` the reduced curvature), and the step ``dnu`` with its
+    curvature ``den`` and whether it is the last (``last``)."""
+
+    m: np.ndarray
+    after: np.ndarray
+    before: np.ndarray
+    gp: np.ndarray
+    pp: np.ndarray
+    qn: np.ndarray
+    ddi: np.ndarray
+    theta: np.ndarray
+    dg_even: np.ndarray
+    dg_odd: np.ndarray
+    v: np.ndarray
+    gg: np.ndarray
+    dnu: np.ndarray
+    den: np.ndarray
+    last: np.ndarray
+
+
+def _iterate(rec: _Records, active, nu, layout: Layout, buffer, floor, dof: float) -> _Iterate:
+    """The linear least squares of the records ``active`` at ``nu`` and the Gauss-Newton
+    step on ν of the reduced problem (each channel weighted by its residual variance)."""
+    par = layout.parity
+    m = columns(nu, rec.u, layout, out=buffer)
+    mt = m.transpose(0, 2, 1)
+    after, before = rec.after[active], rec.before[active]
+    gp, pp, qn = m @ mt, after @ mt, before @ mt
+    dd = gp * (1.0 + np.outer(par, par))
+    pf = pp + qn * par
+    if rec.centre is not None:
+        dd += np.outer(layout.centre_row, layout.centre_row)
+        pf += rec.centre[active][..., None] * layout.centre_row
+    ddi = np.linalg.inv(dd)
+    theta = np.einsum("sij,scj->sci", ddi, pf)
+    rss = np.maximum(rec.xx[active] - np.einsum("sci,sci->sc", theta, pf), floor[active])
+    # g_c = ∂(model_c)/∂ν = g_even + g_odd on the half grid, g(-u) = g_even - g_odd
+    g_even, g_odd = _derivative_halves(theta, m, rec.u, layout)
+    dg_even, dg_odd = g_even @ mt, g_odd @ mt
+    dg = 2.0 * np.where(par > 0, dg_even, dg_odd)  # Σ over the record of D g_c
+    gx = np.einsum("scn,scn->sc", g_even, rec.x_even[active]) + np.einsum(
+        "scn,scn->sc", g_odd, rec.x_odd[active]
+    )
+    gg = 2.0 * (np.einsum("scn,scn->sc", g_even, g_even) + np.einsum("scn,scn->sc", g_odd, g_odd))
+    v = np.einsum("sij,scj->sci", ddi, dg)
+    gr = gx - np.einsum("sci,sci->sc", theta, dg)
+    gg = gg - np.einsum("sci,sci->sc", dg, v)
+    sig2 = rss / dof
+    num, den = (gr / sig2).sum(-1), (gg / sig2).sum(-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dnu = num / den
+        # Gauss-Newton is quadratic here: after a step Δ the error is about κΔ² with
+        # κ ≲ 1/rad (κ ≈ 0.3 measured). Once that is 1 % of std(ν), take the step to first
+        # order, θ(ν + Δ) = θ(ν) - vΔ (halves likewise), and stop.
+        last = _KAPPA * dnu**2 * np.sqrt(den) <= 0.01
+    return _Iterate(
+        m, after, before, gp, pp, qn, ddi, theta, dg_even, dg_odd, v, gg, dnu, den, last
+    )
+
+
+def _keep(store: _Store, x: _Iterate, rec: _Records, idx, d, take, layout, floor, it, converged):
+    """Keep the records ``idx`` (``d`` of the iterate ``x``) in ``store``, their last step
+    ``take`` taken to first order in θ and in the halves' projections."""
+    t = take[:, None, None]
+    store.put(
+        idx,
+        theta=x.theta[d] - x.v[d] * t,
+        ddi=x.ddi[d],
+        v=x.v[d],
+        gg=x.gg[d],
+        gp=x.gp[d],
+        pp=x.pp[d] - (x.dg_even[d] + x.dg_odd[d]) * t,
+        qn=x.qn[d] - (x.dg_even[d] - x.dg_odd[d]) * t,
+        **_residual_ss(
+            x.theta[d],
+            x.m[d],
+            x.after[d],
+            x.before[d],
+            None if rec.centre is None else rec.centre[idx],
+            layout,
+            floor[idx],
+        ),
+        iterations=it,
+        converged=converged,
+    )
+    store.nu[idx] += take
 
 
 def _derivative_halves(theta, m, u, layout: Layout):
