@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -164,6 +165,184 @@ def _newton_decrease(g: np.ndarray, B: np.ndarray) -> float:
         return np.inf
 
 
+@dataclass(frozen=True)
+class Iterate:
+    """Where the trust region stands: the point ``u``, chi2 ``f`` and its gradient ``g``
+    there, the quadratic model's matrix ``B``, and whether ``B`` is the exact Hessian at
+    ``u`` (always for ``"exact"``; for BFGS at the start and after a check)."""
+
+    u: np.ndarray
+    f: float
+    g: np.ndarray
+    B: np.ndarray
+    exact: bool
+
+
+@dataclass(frozen=True)
+class Trial:
+    """A trial step ``p`` from an iterate: whether it reached the trust region's boundary,
+    the decrease the model predicted, chi2 and its gradient at the end, the ratio ``rho`` of
+    actual to predicted decrease, whether it was bent by the second-order correction, and
+    the chi2 evaluations it cost."""
+
+    p: np.ndarray
+    on_boundary: bool
+    predicted: float
+    f_new: float
+    g_new: np.ndarray
+    rho: float
+    corrected: bool = False
+    evaluations: int = 1
+
+
+def predicted_decrease(g: np.ndarray, B: np.ndarray, p: np.ndarray) -> float:
+    """The decrease of chi2 the quadratic model predicts for the step ``p``."""
+    return -(g @ p + 0.5 * p @ B @ p)
+
+
+def decrease_ratio(f: float, f_new: float, predicted: float) -> float:
+    """``rho``: actual over predicted decrease (-inf where chi2 is not finite at the end;
+    without a predicted decrease, -inf for an increase and 0 otherwise)."""
+    actual = f - f_new if np.isfinite(f_new) else -np.inf
+    return actual / predicted if predicted > 0 else (-np.inf if actual < 0 else 0.0)
+
+
+def next_radius(rho: float, radius: float, on_boundary: bool, max_radius: float) -> float:
+    """N&W Algorithm 4.1's radius update: a quarter of it under a quarter of the predicted
+    decrease, twice it (up to ``max_radius``) over three quarters on the boundary."""
+    if rho < 0.25:
+        return 0.25 * radius
+    if rho > 0.75 and on_boundary:
+        return min(2 * radius, max_radius)
+    return radius
+
+
+def bfgs_update(B: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The BFGS update of ``B`` for the step ``s`` and gradient change ``y`` (N&W eq.
+    6.19); ``B`` itself where the curvature condition s^T y > 0 fails."""
+    sy = s @ y
+    if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+        Bs = B @ s
+        B = B + np.outer(y, y) / sy - np.outer(Bs, Bs) / (s @ Bs)
+    return B
+
+
+def stop_on_model(problem, it: Iterate, f_floor: float, ftol: float, decrement_tol: float):
+    """The stop tests on the current model, before any trial step (no trial value enters).
+    Returns ``(iterate, decrement, rounding level, stop)``, ``stop`` a ``(status, detail)``
+    or None; a quasi-Newton ``B`` that predicts too little is checked with the exact
+    Hessian, which the returned iterate then carries (BFGS goes on from it)."""
+    if not np.all(np.isfinite(it.B)):
+        return it, None, None, (Status.NOT_FINITE, "the Hessian is not finite")
+    if it.f <= f_floor or not np.any(it.g):
+        return it, None, None, (Status.CONVERGED, "the residual vanished to rounding")
+    f_round = max(chi2_rounding_level(it.f, f_floor, ftol), decrement_tol)
+    decrement = _newton_decrease(it.g, it.B)
+    if decrement <= f_round and not it.exact:
+        # a quasi-Newton B may be far too stiff along a valley: check with the exact
+        # Hessian, and go on from it (BFGS restarted) if it still predicts a decrease
+        it = replace(it, B=problem.hessian(it.u), exact=True)
+        if not np.all(np.isfinite(it.B)):
+            return it, decrement, f_round, (Status.NOT_FINITE, "the Hessian is not finite")
+        decrement = _newton_decrease(it.g, it.B)
+    if decrement <= f_round:
+        detail = (
+            "the decrease still predicted is below the "
+            f"rounding level of chi2 ({decrement:.1e} <= {f_round:.1e})"
+        )
+        return it, decrement, f_round, (Status.CONVERGED, detail)
+    return it, decrement, f_round, None
+
+
+def trial_step(problem, it: Iterate, radius: float) -> Trial:
+    """The model's step within ``radius`` and how chi2 answered it; where that was under
+    three quarters of the predicted decrease, bent by the second-order correction if the
+    bent step does better (its ratio judged against the straight step's prediction)."""
+    p, on_boundary = solve_subproblem(it.g, it.B, radius)
+    predicted = predicted_decrease(it.g, it.B, p)
+    f_new, g_new = problem.value_and_grad(it.u + p)
+    trial = Trial(p, on_boundary, predicted, f_new, g_new, decrease_ratio(it.f, f_new, predicted))
+    if trial.rho < 0.75 and predicted > 0 and np.isfinite(f_new) and np.all(np.isfinite(g_new)):
+        return _bent(problem, it, trial)
+    return trial
+
+
+def _bent(problem, it: Iterate, trial: Trial) -> Trial:
+    """``trial`` bent back onto the valley floor (:func:`_second_order_correction`) where
+    that gives a larger ratio and a finite gradient; ``trial`` otherwise."""
+    c = _second_order_correction(trial.p, it.g, trial.g_new, it.B)
+    if c is None:
+        return trial
+    f_c, g_c = problem.value_and_grad(it.u + trial.p + c)
+    rho_c = (it.f - f_c) / trial.predicted if np.isfinite(f_c) else -np.inf
+    if rho_c > trial.rho and np.all(np.isfinite(g_c)):
+        return replace(
+            trial, p=trial.p + c, f_new=f_c, g_new=g_c, rho=rho_c, corrected=True, evaluations=2
+        )
+    return replace(trial, evaluations=2)
+
+
+def accepted_step(problem, hessian: str, it: Iterate, trial: Trial) -> Iterate:
+    """The iterate at the end of an accepted trial step: the exact Hessian there, or the
+    BFGS update of ``B``."""
+    s, y = trial.p, trial.g_new - it.g
+    u = it.u + trial.p
+    if hessian == "exact":
+        return Iterate(u, float(trial.f_new), trial.g_new, problem.hessian(u), True)
+    return Iterate(u, float(trial.f_new), trial.g_new, bfgs_update(it.B, s, y), False)
+
+
+def radius_collapsed(problem, it: Iterate, f_floor: float, radius: float) -> tuple[Status, str]:
+    """The verdict once the radius fell below 1e-14 (no step helps any more): at the
+    minimum to rounding if the quadratic model (on the exact Hessian) predicts nothing worth
+    having (chi2's own rounding is ~1e-16 chi2 per point), stalled otherwise."""
+    scale = max(it.f, f_floor)
+    B = it.B if it.exact else problem.hessian(it.u)
+    if _newton_decrease(it.g, B) <= 1e-6 * scale or np.linalg.norm(it.g) <= 1e-4 * scale:
+        return Status.CONVERGED, "no further decrease above rounding"
+    return Status.STALLED, f"trust radius {radius:.1e}"
+
+
+def _local_result(method, space, u, f, status, detail, k, n_eval, history) -> LocalResult:
+    return LocalResult(
+        method,
+        u.copy(),
+        space.theta(u),
+        f,
+        status,
+        status.sentence(detail),
+        k,
+        n_eval,
+        tuple(history),
+    )
+
+
+def _log_step(method, k, it, decrement, f_round, step, radius, trial, accepted) -> None:
+    log.debug(
+        "%s it %d chi2 %.12g |g| %.3g decrement %.3g rounding %.3g step %.3g%s "
+        "radius %.3g predicted %.3g rho %.3g%s",
+        method,
+        k,
+        it.f,
+        np.linalg.norm(it.g),
+        decrement,
+        f_round,
+        step,
+        " (corrected)" if trial.corrected else "",
+        radius,
+        trial.predicted,
+        trial.rho,
+        "" if accepted else " rejected",
+    )
+
+
+def _check_settings(hessian: str, eta: float) -> None:
+    if hessian not in ("exact", "bfgs"):
+        raise ValueError(f"trust_region: hessian must be 'exact' or 'bfgs', got {hessian!r}")
+    if not 0 <= eta < 0.25:
+        raise ValueError(f"trust_region: eta must lie in [0, 1/4), got {eta!r}")
+
+
 @timed("local fits")
 def trust_region(
     problem: LeastSquaresProblem,
@@ -204,126 +383,42 @@ def trust_region(
     -------
     LocalResult with ``method`` "trust-region-newton" or "trust-region-bfgs".
     """
-    if hessian not in ("exact", "bfgs"):
-        raise ValueError(f"trust_region: hessian must be 'exact' or 'bfgs', got {hessian!r}")
-    if not 0 <= eta < 0.25:
-        raise ValueError(f"trust_region: eta must lie in [0, 1/4), got {eta!r}")
+    _check_settings(hessian, eta)
     method = "trust-region-newton" if hessian == "exact" else "trust-region-bfgs"
     space = problem.space
     u = np.asarray(u0, dtype=float).copy()
     f, g = problem.value_and_grad(u)
     n_eval = 1
     history: list[HistoryEntry] = []
-
-    def result(status, detail, k):
-        return LocalResult(
-            method,
-            u.copy(),
-            space.theta(u),
-            f,
-            status,
-            status.sentence(detail),
-            k,
-            n_eval,
-            tuple(history),
-        )
-
     if not (np.isfinite(f) and np.all(np.isfinite(g))):
-        return result(Status.NOT_FINITE, f"chi2 = {f}", 0)
-    B = problem.hessian(u)
-    B_exact = True  # B is the exact Hessian at u (always for "exact"; BFGS: at the start)
+        return _local_result(method, space, u, f, Status.NOT_FINITE, f"chi2 = {f}", 0, 1, ())
+    it = Iterate(u, f, g, problem.hessian(u), True)
     radius = radius0
     # chi2 below which a zero-residual fit is exact to rounding (relative residual 1e-10)
     f_floor = 1e-20 * getattr(problem, "n_points", 100)
     history.append(HistoryEntry(0, f, tuple(space.theta(u)), None, radius))
+
+    def result(status, detail, k):
+        return _local_result(method, space, it.u, it.f, status, detail, k, n_eval, history)
+
     for k in range(1, max_iter + 1):
-        if not np.all(np.isfinite(B)):
-            return result(Status.NOT_FINITE, "the Hessian is not finite", k - 1)
-        # stop tests on the current model, deterministic (no trial value enters)
-        if f <= f_floor or not np.any(g):
-            return result(Status.CONVERGED, "the residual vanished to rounding", k - 1)
-        f_round = max(chi2_rounding_level(f, f_floor, ftol), decrement_tol)
-        decrement = _newton_decrease(g, B)
-        if decrement <= f_round and not B_exact:
-            # a quasi-Newton B may be far too stiff along a valley: check with the exact
-            # Hessian, and go on from it (BFGS restarted) if it still predicts a decrease
-            B, B_exact = problem.hessian(u), True
-            if not np.all(np.isfinite(B)):
-                return result(Status.NOT_FINITE, "the Hessian is not finite", k - 1)
-            decrement = _newton_decrease(g, B)
-        if decrement <= f_round:
-            return result(
-                Status.CONVERGED,
-                "the decrease still predicted is below the "
-                f"rounding level of chi2 ({decrement:.1e} <= {f_round:.1e})",
-                k - 1,
-            )
-        p, on_boundary = solve_subproblem(g, B, radius)
-        predicted = -(g @ p + 0.5 * p @ B @ p)
-        f_new, g_new = problem.value_and_grad(u + p)
-        n_eval += 1
-        actual = f - f_new if np.isfinite(f_new) else -np.inf
-        rho = actual / predicted if predicted > 0 else (-np.inf if actual < 0 else 0.0)
-        corrected = False
-        if rho < 0.75 and predicted > 0 and np.isfinite(f_new) and np.all(np.isfinite(g_new)):
-            # second-order correction: bend the step back onto the valley floor
-            c = _second_order_correction(p, g, g_new, B)
-            if c is not None:
-                f_c, g_c = problem.value_and_grad(u + p + c)
-                n_eval += 1
-                rho_c = (f - f_c) / predicted if np.isfinite(f_c) else -np.inf
-                if rho_c > rho and np.all(np.isfinite(g_c)):
-                    p, f_new, g_new, rho, corrected = p + c, f_c, g_c, rho_c, True
-        step = float(np.linalg.norm(p))
-        if rho < 0.25:
-            radius_next = 0.25 * radius
-        elif rho > 0.75 and on_boundary:
-            radius_next = min(2 * radius, max_radius)
-        else:
-            radius_next = radius
-        accepted = bool(rho > eta and np.isfinite(f_new))
+        it, decrement, f_round, stop = stop_on_model(problem, it, f_floor, ftol, decrement_tol)
+        if stop is not None:
+            return result(*stop, k - 1)
+        trial = trial_step(problem, it, radius)
+        n_eval += trial.evaluations
+        accepted = bool(trial.rho > eta and np.isfinite(trial.f_new))
         if accepted:
-            s, y = p, g_new - g
-            u, f, g = u + p, float(f_new), g_new
-            if hessian == "exact":
-                B = problem.hessian(u)
-            else:
-                sy = s @ y
-                if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
-                    Bs = B @ s
-                    B = B + np.outer(y, y) / sy - np.outer(Bs, Bs) / (s @ Bs)
-                B_exact = False
-        history.append(
-            HistoryEntry(k, f, tuple(space.theta(u)), step, radius, float(rho), accepted)
-        )
-        log.debug(
-            "%s it %d chi2 %.12g |g| %.3g decrement %.3g rounding %.3g step %.3g%s "
-            "radius %.3g predicted %.3g rho %.3g%s",
-            method,
-            k,
-            f,
-            np.linalg.norm(g),
-            decrement,
-            f_round,
-            step,
-            " (corrected)" if corrected else "",
-            radius,
-            predicted,
-            rho,
-            "" if accepted else " rejected",
-        )
-        if accepted and not on_boundary and np.max(np.abs(p)) <= xtol:
+            it = accepted_step(problem, hessian, it, trial)
+        step = float(np.linalg.norm(trial.p))
+        theta = tuple(space.theta(it.u))
+        history.append(HistoryEntry(k, it.f, theta, step, radius, float(trial.rho), accepted))
+        _log_step(method, k, it, decrement, f_round, step, radius, trial, accepted)
+        if accepted and not trial.on_boundary and np.max(np.abs(trial.p)) <= xtol:
             return result(Status.CONVERGED, "the step became negligible", k)
-        radius = radius_next
+        radius = next_radius(trial.rho, radius, trial.on_boundary, max_radius)
         if radius < 1e-14:
-            # no step helps any more: at the minimum to rounding if the quadratic model
-            # predicts nothing worth having (chi2's own rounding is ~1e-16 chi2 per point)
-            scale = max(f, f_floor)
-            if not B_exact:
-                B = problem.hessian(u)
-            if _newton_decrease(g, B) <= 1e-6 * scale or np.linalg.norm(g) <= 1e-4 * scale:
-                return result(Status.CONVERGED, "no further decrease above rounding", k)
-            return result(Status.STALLED, f"trust radius {radius:.1e}", k)
+            return result(*radius_collapsed(problem, it, f_floor, radius), k)
     return result(Status.MAX_ITERATIONS, f"{max_iter} iterations", max_iter)
 
 
