@@ -104,10 +104,39 @@ def differential_evolution(
     GlobalResult: best point of each restart, sorted by their loss (best first), with
     the fixed parameters filled in.
     """
-    from scipy.optimize import differential_evolution as scipy_de
-
     rng = np.random.default_rng(rng)
     space = problem.space
+    free, u_fixed = _held(space, fixed)
+    objective = _Objective(problem, free, u_fixed, score)
+    generations = _Generations(progress, label, restarts * max_generations)
+    settings = dict(mutation=mutation, recombination=recombination, tol=tol)
+    us, losses, messages = [], [], []
+    for r in range(restarts):
+        init = latin_hypercube_u(space, popsize * len(free), rng, free)
+        sol = _restart(objective, init, rng, generations, max_generations, settings)
+        u = u_fixed.copy()
+        u[free] = sol.x
+        us.append(u)
+        losses.append(float(sol.fun))
+        messages.append(_restart_ended(label, r, sol, space, u))
+        if agree and r + 1 < restarts and _agreeing(us, losses, agree_tol, agree_rtol) >= agree:
+            log.info("%s: %d restarts agree, the other %d skipped", label, agree, restarts - r - 1)
+            generations.finish(float(min(losses)))
+            break
+    order = np.argsort(losses)
+    U = np.array(us)[order]
+    return GlobalResult(
+        U,
+        space.theta(U),
+        np.array(losses)[order],
+        objective.evaluations,
+        tuple(messages[i] for i in order),
+    )
+
+
+def _held(space, fixed: dict[str, float] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The indices of the searched parameters, and the point ``u`` that holds the fixed
+    ones at their values (zero elsewhere)."""
     fixed = dict(fixed or {})
     unknown = set(fixed) - set(space.names)
     if unknown:
@@ -119,74 +148,87 @@ def differential_evolution(
     for n, v in fixed.items():
         i = space.names.index(n)
         u_fixed[i] = float(space.transforms[i].to_u(v))
-    n_eval = [0]
+    return free, u_fixed
 
-    def full(U_free):  # (k, S) -> (S, p)
-        U = np.repeat(u_fixed[None, :], U_free.shape[1], axis=0)
-        U[:, free] = U_free.T
+
+class _Objective:
+    """chi2 (or ``score``) of a population given in the searched coordinates (one column
+    per member, scipy's vectorised layout), the fixed parameters filled in; counts the
+    points it evaluated."""
+
+    def __init__(self, problem, free, u_fixed, score):
+        self.problem, self.free, self.u_fixed, self.score = problem, free, u_fixed, score
+        self.evaluations = 0
+
+    def full(self, U_free):  # (k, S) -> (S, p)
+        U = np.repeat(self.u_fixed[None, :], U_free.shape[1], axis=0)
+        U[:, self.free] = U_free.T
         return U
 
-    def objective(U_free):
+    def __call__(self, U_free):
         U_free = np.atleast_2d(U_free.T).T if U_free.ndim == 1 else U_free
-        n_eval[0] += U_free.shape[1]
-        U = full(U_free)
-        return problem.chi2_batch(U) if score is None else np.asarray(score(U))
+        self.evaluations += U_free.shape[1]
+        U = self.full(U_free)
+        return self.problem.chi2_batch(U) if self.score is None else np.asarray(self.score(U))
 
-    total = restarts * max_generations
-    done = [0]
-    us, losses, messages = [], [], []
-    n_pop = popsize * len(free)
-    for r in range(restarts):
-        init = latin_hypercube_u(space, n_pop, rng, free)
-        gens = [0]
 
-        def callback(intermediate_result):
-            gens[0] += 1
-            done[0] += 1
-            if progress is not None:
-                progress(label, done[0], total, float(intermediate_result.fun))
+class _Generations:
+    """The progress report over every restart: ``done`` of ``total`` generations."""
 
-        sol = scipy_de(
-            objective,
-            [(-1.0, 1.0)] * len(free),
-            init=init,
-            mutation=mutation,
-            recombination=recombination,
-            tol=tol,
-            maxiter=max_generations,
-            polish=False,
-            vectorized=True,
-            updating="deferred",
-            rng=rng,
-            callback=callback,
-        )
-        done[0] += max_generations - gens[0]  # a restart that converged early
-        if progress is not None:
-            progress(label, done[0], total, float(sol.fun))
-        u = u_fixed.copy()
-        u[free] = sol.x
-        us.append(u)
-        losses.append(float(sol.fun))
-        messages.append(f"{label}, restart {r + 1}: {sol.message} ({sol.nit} generations)")
-        log.info(
-            "%s, restart %d: %.6g at %s (%d generations)",
-            label,
-            r + 1,
-            sol.fun,
-            space.as_dict(space.theta(u)),
-            sol.nit,
-        )
-        if agree and r + 1 < restarts and _agreeing(us, losses, agree_tol, agree_rtol) >= agree:
-            log.info("%s: %d restarts agree, the other %d skipped", label, agree, restarts - r - 1)
-            if progress is not None:
-                done[0] = total
-                progress(label, done[0], total, float(min(losses)))
-            break
-    order = np.argsort(losses)
-    U = np.array(us)[order]
-    return GlobalResult(
-        U, space.theta(U), np.array(losses)[order], n_eval[0], tuple(messages[i] for i in order)
+    def __init__(self, progress, label: str, total: int):
+        self.progress, self.label, self.total, self.done = progress, label, total, 0
+
+    def report(self, best: float) -> None:
+        if self.progress is not None:
+            self.progress(self.label, self.done, self.total, best)
+
+    def finish(self, best: float) -> None:
+        """The restarts that will not run (they agree) count as done."""
+        if self.progress is not None:
+            self.done = self.total
+            self.report(best)
+
+
+def _restart(objective, init, rng, generations: _Generations, max_generations: int, settings):
+    """One run of scipy's differential evolution from the population ``init``, reporting
+    every generation; a run that converged early counts its remaining generations done."""
+    from scipy.optimize import differential_evolution as scipy_de
+
+    ran = [0]
+
+    def callback(intermediate_result):
+        ran[0] += 1
+        generations.done += 1
+        generations.report(float(intermediate_result.fun))
+
+    sol = scipy_de(
+        objective,
+        [(-1.0, 1.0)] * init.shape[1],
+        init=init,
+        maxiter=max_generations,
+        polish=False,
+        vectorized=True,
+        updating="deferred",
+        rng=rng,
+        callback=callback,
+        **settings,
     )
+    generations.done += max_generations - ran[0]  # a restart that converged early
+    generations.report(float(sol.fun))
+    return sol
+
+
+def _restart_ended(label: str, r: int, sol, space, u) -> str:
+    """Log restart ``r``'s end at ``u``; its message."""
+    log.info(
+        "%s, restart %d: %.6g at %s (%d generations)",
+        label,
+        r + 1,
+        sol.fun,
+        space.as_dict(space.theta(u)),
+        sol.nit,
+    )
+    return f"{label}, restart {r + 1}: {sol.message} ({sol.nit} generations)"
 
 
 def _agreeing(us, losses, agree_tol: float, agree_rtol: float | None) -> int:
