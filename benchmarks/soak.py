@@ -11,7 +11,7 @@ adaptive campaigns (``vibid campaign --adaptive``, batches of ``--batch``) one a
 other, each on its own specimen (D, nu, beta drawn 10 % around the example stand's, its own
 noise seed) at ``--noise`` per channel, each struck by ``--faults`` of each kind at random
 steps of its coarse sweep and first batches (steps 1-19, drawn from the seed:
-:func:`vibid.hardware_mocks.soak.fault_plan`): a generator that stops answering
+:func:`vibid.soak.fault_plan`): a generator that stops answering
 (``no_reply``), a dropped serial link (``drop``), a knock on the table that overloads the
 response channel (``overload``), and SIGKILL of the campaign process (``kill``: ``vibid
 campaign --adaptive`` runs as a process, its Prefect flow and all, is killed at a random
@@ -25,7 +25,7 @@ Prints each run, then per campaign and in total: the faults survived, the steps 
 file, duplicates), the orphaned processes a killed flow left (removed), the stand time,
 chi2/dof, ``unexplained_residual`` and |error|/std of each parameter against the truth for
 the soaked and the uninterrupted session. Exit 1 when a check fails
-(:class:`vibid.hardware_mocks.soak.SoakError`) or a fault was not survived.
+(:class:`vibid.soak.SoakError`) or a fault was not survived.
 """
 
 from __future__ import annotations
@@ -67,8 +67,8 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
 
     logging.getLogger("vibid.acquisition.generator").setLevel(logging.ERROR)  # the lost links
-    from vibid.hardware_mocks.soak import KINDS, SoakError, fault_plan, soak
     from vibid.session import load_setup
+    from vibid.soak import KINDS, SoakError, SoakOptions, fault_plan, soak
 
     setup = load_setup(EXAMPLES / "strip_setup.json")
     noise = args.noise if args.noise is not None else (4e-4 if args.uniform else 0.03)
@@ -120,11 +120,13 @@ def main(argv=None) -> int:
                     config,
                     Path(folder) / "soak.h5",
                     plan,
-                    seed=args.seed + c,
-                    reference=True,
-                    restarts=args.restarts,
-                    log=log,
-                    adaptive=adaptive,
+                    SoakOptions(
+                        seed=args.seed + c,
+                        reference=True,
+                        restarts=args.restarts,
+                        log=log,
+                        adaptive=adaptive,
+                    ),
                 )
             except SoakError as exc:
                 print(f"soak failed: {exc}", file=sys.stderr)

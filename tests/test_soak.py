@@ -25,10 +25,10 @@ from scipy.stats import chi2
 
 from vibid.acquisition.generator import GeneratorError
 from vibid.acquisition.stand_config import StandConfig
-from vibid.hardware_mocks.soak import Fault, fault_plan, soak
 from vibid.hardware_mocks.virtual_stand import lookup_stand, open_simulated_stand
 from vibid.session import load_setup
 from vibid.setup_model import Excitation, example_setup
+from vibid.soak import Fault, SoakOptions, fault_plan, soak
 
 EXAMPLES = Path(__file__).parent.parent / "examples"
 #: the example stand's drive (|H| reaches a few hundred: 1 m/s² of base keeps the response in
@@ -111,7 +111,7 @@ def test_a_campaign_survives_faults_at_random_steps_and_identifies_as_without_th
     config = StandConfig.from_dict(STAND)
     # seed 0: two overloads on the way to the second SIGKILL (the killed process injects them)
     plan = fault_plan(len(freqs), {"no_reply": 2, "drop": 2, "overload": 2, "kill": 2}, seed=0)
-    result = soak(setup, config, tmp_path / "soak.h5", plan, reference=True, seed=1)
+    result = soak(setup, config, tmp_path / "soak.h5", plan, SoakOptions(reference=True, seed=1))
     print("\n" + "\n".join(result.log) + "\n" + result.summary())
     assert result.survived == len(plan), result.outcomes
     for o in result.outcomes:
@@ -151,7 +151,11 @@ def test_an_adaptive_campaign_survives_faults_and_identifies_as_without_them(tmp
     )
     plan = fault_plan(24, {"no_reply": 1, "drop": 1, "overload": 1, "kill": 1}, seed=0)
     result = soak(
-        setup, config, tmp_path / "soak.h5", plan, adaptive=options, reference=True, seed=1
+        setup,
+        config,
+        tmp_path / "soak.h5",
+        plan,
+        SoakOptions(adaptive=options, reference=True, seed=1),
     )
     print("\n" + "\n".join(result.log) + "\n" + result.summary())
     assert result.survived == len(plan), result.outcomes
@@ -170,8 +174,14 @@ def test_an_adaptive_campaign_survives_faults_and_identifies_as_without_them(tmp
 
 
 def test_two_faults_at_one_step_are_refused(tmp_path):
-    from vibid.hardware_mocks.soak import SoakError
+    from vibid.soak import SoakError
 
     setup, config = _stand("soak-two", [])
     with pytest.raises(SoakError, match="two faults at one step"):
-        soak(setup, config, tmp_path / "s.h5", [Fault(1, "drop"), Fault(1, "kill")], identify=False)
+        soak(
+            setup,
+            config,
+            tmp_path / "s.h5",
+            [Fault(1, "drop"), Fault(1, "kill")],
+            SoakOptions(identify=False),
+        )

@@ -3,7 +3,7 @@
 Where no ``PREFECT_API_URL`` names a server, Prefect 3 starts a temporary one as a child
 process (uvicorn) and stops it at exit, from an ``atexit`` hook. A process killed with
 SIGKILL runs no hook: its server stays, and a campaign resumed after every crash leaves one
-more each time (seen in the soak: :mod:`vibid.hardware_mocks.soak`). On Linux the kernel
+more each time (seen in the soak: :mod:`vibid.soak`). On Linux the kernel
 signals a child when the thread that started it ends (``prctl(PR_SET_PDEATHSIG)``):
 :func:`tie_temporary_server` has Prefect start that server asking for SIGTERM then, where
 it is started from the main thread (whose end is the process's); elsewhere nothing changes.
