@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -41,8 +42,57 @@ def summarise(
     chi2 = float(r @ r)
     dof = problem.dof
     chi2_red = chi2 / dof if dof > 0 else math.nan
+    cov, rivals = covariance(problem, data, best, compared, chi2_red, systematic, warnings)
+    std, corr = std_and_correlation(cov)
+    model_afc, rel_rms, chi2_red_data = model_afc_on(problem, data, theta, dof)
+    status, message = final_status(best, space, theta, chi2)
+    if not status.ok:
+        warnings.append(f"the local optimisation {message}")
+    if throw and not status.ok:
+        raise VibidError(f"identification of model {model!r}: {message}")
+    result = IdentificationResult(
+        model=model,
+        parameter_names=space.names,
+        values=np.asarray(theta, float),
+        std=std,
+        covariance=cov,
+        correlation=corr,
+        chi2=chi2,
+        chi2_reduced=chi2_red,
+        dof=dof,
+        rel_rms_residual=rel_rms,
+        status=status,
+        message=message,
+        noise_known=data.noise_known,
+        frequency_hz=data.frequency_hz,
+        H=data.H,
+        H_std=data.std,
+        used=data.used,
+        model_afc=model_afc,
+        global_result=global_result,
+        local_results=tuple(runs),
+        warnings=(),
+        model_error_bias=None if systematic is None else systematic.bias,
+        chi2_reduced_data_weights=chi2_red_data,
+        seconds=time.perf_counter() - t0,
+        weights=np.asarray(problem.sigma, float).copy(),
+        plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel) else None),
+        magnitude=data.magnitude,
+        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta),
+        rivals=rivals,
+    )
+    reaches_noise = fits_noise(chi2, dof, data.noise_known) is not False
+    warnings += estimate_warnings(space, theta, std, chi2_red, reaches_noise)
+    return replace(result, warnings=tuple(warnings))
+
+
+def covariance(problem, data: FitData, best: LocalResult, compared, chi2_red, systematic, warnings):
+    """The estimate's covariance: the Fisher information's, widened by the rival minima
+    (:func:`~vibid.identify.fit.minima.rival_minima`) and the model's systematic error;
+    returns ``(covariance, rivals)`` and adds their notes to ``warnings``."""
+    space = problem.space
     unc = fisher_uncertainty(
-        problem.jacobian_theta(theta),
+        problem.jacobian_theta(best.theta),
         space.names,
         chi2_reduced=chi2_red,
         noise_known=data.noise_known,
@@ -55,11 +105,24 @@ def summarise(
         cov = cov + systematic.covariance
     if note:
         warnings.append(note)
+    return cov, rivals
+
+
+def std_and_correlation(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Standard deviations and correlation matrix of ``cov`` (nan where undefined, 1 on the
+    diagonal)."""
     std = np.sqrt(np.abs(np.diag(cov)))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
     corr[~np.isfinite(corr)] = np.nan
     np.fill_diagonal(corr, 1.0)
+    return std, corr
+
+
+def model_afc_on(problem, data: FitData, theta, dof: int):
+    """The model AFC at ``theta`` on every point (nan where unused, as the fit sees it),
+    its relative RMS residual and its reduced chi2 under the data's own std (nan when
+    unknown): ``(model_afc, rel_rms, chi2_red_data)``."""
     Hm_used = problem.model_afc(theta)
     if Hm_used.size != data.n_used:
         Hm_used = problem.on_points(Hm_used)
@@ -72,11 +135,14 @@ def summarise(
         chi2_red_data = float(np.sum(rd.real**2 + rd.imag**2)) / dof
     model_afc = np.full(data.H.shape, np.nan + 1j * np.nan)
     model_afc[data.used] = Hm_used
+    return model_afc, rel_rms, chi2_red_data
 
-    status, message = final_status(best, space, theta, chi2)
-    if not status.ok:
-        warnings.append(f"the local optimisation {message}")
-    reaches_noise = fits_noise(chi2, dof, data.noise_known) is not False
+
+def estimate_warnings(space, theta, std, chi2_red: float, reaches_noise: bool) -> list[str]:
+    """Warnings about the estimate: parameters on their prior bounds (whose advice depends
+    on whether the model reaches the data's noise), parameters poorly determined, and a
+    model that does not reach the noise."""
+    warnings = []
     for name in space.out_of_bounds(theta):
         t = space.transforms[space.names.index(name)]
         v = theta[space.names.index(name)]
@@ -101,39 +167,7 @@ def summarise(
             f"the model does not fit the data to their noise level (reduced chi2 = "
             f"{chi2_red:.3g}): the standard deviations understate the error"
         )
-    if throw and not status.ok:
-        raise VibidError(f"identification of model {model!r}: {message}")
-    return IdentificationResult(
-        model=model,
-        parameter_names=space.names,
-        values=np.asarray(theta, float),
-        std=std,
-        covariance=cov,
-        correlation=corr,
-        chi2=chi2,
-        chi2_reduced=chi2_red,
-        dof=dof,
-        rel_rms_residual=rel_rms,
-        status=status,
-        message=message,
-        noise_known=data.noise_known,
-        frequency_hz=data.frequency_hz,
-        H=data.H,
-        H_std=data.std,
-        used=data.used,
-        model_afc=model_afc,
-        global_result=global_result,
-        local_results=tuple(runs),
-        warnings=tuple(warnings),
-        model_error_bias=None if systematic is None else systematic.bias,
-        chi2_reduced_data_weights=chi2_red_data,
-        seconds=time.perf_counter() - t0,
-        weights=np.asarray(problem.sigma, float).copy(),
-        plate_model=(problem.model.param if isinstance(problem.model, PlateForwardModel) else None),
-        magnitude=data.magnitude,
-        magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta),
-        rivals=rivals,
-    )
+    return warnings
 
 
 def magnitude_only_std_ratio(problem, theta) -> dict[str, float] | None:
