@@ -1,13 +1,15 @@
-"""Open a stand by kind: ``ni`` (the real instruments) or ``simulated`` (the mocks behind the
-same drivers).
+"""Open a stand by kind: ``ni`` (the real instruments, built in) or a kind registered under
+the ``vibid.stands`` entry points, such as ``simulated`` (the mocks behind the same drivers).
 
-``simulated`` is looked up by name (``vibid.hardware_mocks.virtual_stand.
-open_simulated_stand``) when it is asked for, so acquisition/ never imports the mocks.
+The registry is pyproject.toml's ``[project.entry-points."vibid.stands"]``: each entry is a
+kind's name and its factory, ``factory(setup, config, *, realtime=False) -> Stand``;
+vibid's own is ``simulated = "vibid.hardware_mocks.virtual_stand:open_simulated_stand"``.
+A factory is loaded only when its kind is asked for, so acquisition/ never imports the mocks.
 """
 
 from __future__ import annotations
 
-import importlib
+from importlib.metadata import entry_points
 
 from vibid.acquisition.daq import NiDaq
 from vibid.acquisition.generator import open_generator
@@ -15,9 +17,15 @@ from vibid.acquisition.protocols import Stand, WallClock
 from vibid.acquisition.stand_config import StandConfig
 from vibid.errors import VibidError
 
-STAND_KINDS = ("simulated", "ni")
-#: where the simulated stand's factory lives: module, function
-SIMULATED_FACTORY = ("vibid.hardware_mocks.virtual_stand", "open_simulated_stand")
+#: the entry-point group the stand kinds other than ``ni`` are registered in
+STAND_GROUP = "vibid.stands"
+
+
+def stand_kinds() -> tuple[str, ...]:
+    """The kinds :func:`open_stand` knows: those registered in :data:`STAND_GROUP`, then
+    ``ni``."""
+    registered = sorted({ep.name for ep in entry_points(group=STAND_GROUP)} - {"ni"})
+    return (*registered, "ni")
 
 
 def open_stand(
@@ -28,23 +36,30 @@ def open_stand(
     Parameters
     ----------
     kind : ``"ni"``: the generator at ``config.generator.url`` and the NI-DAQmx device of
-        ``config.daq``, on the wall clock; ``"simulated"``: the virtual stand.
+        ``config.daq``, on the wall clock; ``"simulated"``: the virtual stand; any other kind
+        registered in the ``vibid.stands`` entry points: its factory's stand.
     setup : the declared setup (sample rate, sensor sensitivities; the specimen when simulated).
     config : the stand configuration.
     realtime : simulated only: pace it on the wall clock (the real stand always is).
 
     The generator's output is left as it is: the caller switches it off first thing.
-    Errors (a port that does not open, NI-DAQmx missing) are one :class:`VibidError` line;
-    whatever was opened is closed again.
+    Errors (a port that does not open, NI-DAQmx missing, an unknown kind) are one
+    :class:`VibidError` line; whatever was opened is closed again.
     """
-    if kind == "simulated":
-        module, name = SIMULATED_FACTORY
-        factory = getattr(importlib.import_module(module), name)
-        return factory(setup, config, realtime=realtime)
-    if kind != "ni":
-        raise VibidError(f"unknown stand {kind!r}, expected one of {', '.join(STAND_KINDS)}")
+    if kind == "ni":
+        return _open_ni_stand(setup, config)
+    registered = entry_points(group=STAND_GROUP).select(name=kind)
+    if not registered:
+        raise VibidError(f"unknown stand {kind!r}, expected one of {', '.join(stand_kinds())}")
+    factory = next(iter(registered)).load()
+    return factory(setup, config, realtime=realtime)
+
+
+def _open_ni_stand(setup, config: StandConfig) -> Stand:
+    """The real stand: the NI-DAQmx device first (without NI-DAQmx, say so first), then the
+    generator (the DAQ closed again if it does not open)."""
     g = config.generator
-    daq = NiDaq.from_setup(setup, config.daq)  # first: without NI-DAQmx, say so first
+    daq = NiDaq.from_setup(setup, config.daq)
     try:
         generator = open_generator(
             g.url, baudrate=g.baudrate, timeout_s=g.timeout_s, max_vpp=config.drive.max_vpp
