@@ -105,6 +105,46 @@ def greedy(
     lengths) of steps already measured (an adaptive campaign's: their information is in
     ``prior_information`` too), counted when the targets are checked; ``max_steps``: new
     steps at most (a batch)."""
+    k_of, T, cost = _candidate_costs(
+        info, candidates, shortest_record_s, floor_s, cap_s, settle_quantile
+    )
+    F_c = fisher(info, k_of, T)  # (m, C, p, p)
+    A = prior_information.copy()
+    chosen: dict[int, float] = {}
+    spent = 0.0
+    for c in np.unique(np.asarray(start, int)) * len(RECORD_MULTIPLES):  # the multiple 1 of each
+        A = A + F_c[:, c]
+        chosen[int(k_of[c])] = float(T[c])
+        spent += cost[c]
+    m_index, m_record = (np.asarray(a) for a in measured)
+    while len(chosen) < max_steps and spent < max_stand_time_s:
+        c = _best_candidate(A, F_c, cost, targets_std, targeted)
+        A = A + F_c[:, c]
+        k = int(k_of[c])
+        spent += T[c] + (0.0 if k in chosen else cost[c] - T[c])
+        chosen[k] = chosen.get(k, 0.0) + T[c]  # the record lengthens: its e² counts once
+        index = _in_play_order(info, chosen)
+        every = np.concatenate([m_index, index]).astype(int)
+        record = np.concatenate([m_record, [chosen[i] for i in index]])
+        if met(data_std(info, every, record), targets_std, targeted, quantile) <= 1.0:
+            break
+    index = _in_play_order(info, chosen)
+    record = np.array([chosen[i] for i in index])
+    return Steps(
+        index,
+        record,
+        sequence_settle(
+            info, index, record, floor_s=floor_s, cap_s=cap_s, quantile=settle_quantile
+        ),
+    )
+
+
+def _candidate_costs(
+    info: Information, candidates, shortest_record_s, floor_s, cap_s, settle_quantile
+):
+    """Every candidate at every record multiple, ``C`` of them: its index into ``info``,
+    its record length ``T`` (s) and its cost (s): the record plus the ``settle_quantile``
+    over draws of its settle from rest, within [``floor_s``, ``cap_s``]."""
     cand = np.asarray(candidates)
     mult = np.asarray(RECORD_MULTIPLES, float)
     T = (np.asarray(shortest_record_s)[:, None] * mult[None, :]).ravel()  # (C,)
@@ -128,41 +168,25 @@ def greedy(
         ]
     )
     cost = T + np.clip(np.quantile(rest, settle_quantile, axis=0), floor_s, cap_s)
-    F_c = fisher(info, k_of, T)  # (m, C, p, p)
-    A = prior_information.copy()
-    chosen: dict[int, float] = {}
-    spent = 0.0
-    for c in np.unique(np.asarray(start, int)) * mult.size:  # the multiple 1 of each
-        A = A + F_c[:, c]
-        chosen[int(k_of[c])] = float(T[c])
-        spent += cost[c]
+    return k_of, T, cost
 
-    def psi(inv):  # (..., p, p) → Σ_j inv_jj / t²
-        d = np.diagonal(inv, axis1=-2, axis2=-1)[..., targeted]
-        return np.sum(
-            d / targets_std.reshape(targets_std.shape[0], *([1] * (d.ndim - 2)), -1) ** 2, axis=-1
-        )
 
-    m_index, m_record = (np.asarray(a) for a in measured)
-    while len(chosen) < max_steps and spent < max_stand_time_s:
-        now = psi(np.linalg.inv(A)).sum()
-        after = psi(np.linalg.inv(A[:, None] + F_c)).sum(axis=0)  # (C,)
-        c = int(np.argmax((now - after) / cost))
-        A = A + F_c[:, c]
-        k = int(k_of[c])
-        spent += T[c] + (0.0 if k in chosen else cost[c] - T[c])
-        chosen[k] = chosen.get(k, 0.0) + T[c]  # the record lengthens: its e² counts once
-        index = np.array(sorted(chosen, key=lambda i: info.frequency_hz[i]))
-        every = np.concatenate([m_index, index]).astype(int)
-        record = np.concatenate([m_record, [chosen[i] for i in index]])
-        if met(data_std(info, every, record), targets_std, targeted, quantile) <= 1.0:
-            break
-    index = np.array(sorted(chosen, key=lambda i: info.frequency_hz[i]))
-    record = np.array([chosen[i] for i in index])
-    return Steps(
-        index,
-        record,
-        sequence_settle(
-            info, index, record, floor_s=floor_s, cap_s=cap_s, quantile=settle_quantile
-        ),
+def _psi(inv, targets_std: np.ndarray, targeted):
+    """The criterion of ``inv`` (..., p, p) (module doc): ``Σ_j inv_jj / t²`` per draw."""
+    d = np.diagonal(inv, axis1=-2, axis2=-1)[..., targeted]
+    return np.sum(
+        d / targets_std.reshape(targets_std.shape[0], *([1] * (d.ndim - 2)), -1) ** 2, axis=-1
     )
+
+
+def _best_candidate(A, F_c, cost, targets_std: np.ndarray, targeted) -> int:
+    """The candidate (column of ``F_c`` (m, C, p, p)) of the largest drop of the criterion
+    summed over the draws, per second of its ``cost``, added to the information ``A``."""
+    now = _psi(np.linalg.inv(A), targets_std, targeted).sum()
+    after = _psi(np.linalg.inv(A[:, None] + F_c), targets_std, targeted).sum(axis=0)  # (C,)
+    return int(np.argmax((now - after) / cost))
+
+
+def _in_play_order(info: Information, chosen) -> np.ndarray:
+    """The indices of ``chosen`` in the order played: ascending frequency."""
+    return np.array(sorted(chosen, key=lambda i: info.frequency_hz[i]))
