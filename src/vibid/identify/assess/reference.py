@@ -159,17 +159,55 @@ def calibrate_free_length(
     is the specimen's identification (the loop's final stage), ``setup`` its declared
     setup; ``box``: the prior boxes the loop used (:func:`vibid.identify.assess.budget.loop_box`:
     a material it switched to has none in the setup), default the setup's."""
-    from vibid.identify.assess.engineering import engineering_constants, sensitivities
     from vibid.identify.effects.free_length import EFFECT as FREE_LENGTH
-    from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.local import LOCAL_METHODS, HeldProblem
-    from vibid.identify.fit.problem import LeastSquaresProblem
-    from vibid.identify.fit.space import ParameterSpace
-    from vibid.identify.model.forward import build_forward_model
     from vibid.parameters import STIFFNESS
 
     current = result.plate_model
     name = current.model
+    key, identified = _identified_modulus(setup, result)
+    value = identified["value"]
+    model = current if "dL_m" in current.names else current.with_effect(FREE_LENGTH)
+    names = list(model.names)
+    scaled = [q.name for q in STIFFNESS[name] if q.name != "nu"]  # E is linear in them
+    held = {q.name for q in STIFFNESS[name]}  # the scaled ones and Poisson's ratio
+    ratio = reference.modulus_pa / value
+    start = dict(result.parameters) | {"dL_m": result.parameters.get("dL_m", 0.0)}
+    at_reference = start | {n: start[n] * ratio for n in scaled}
+    box = model.default_bounds(dict(setup.identification.bounds) if box is None else box)
+    for n in scaled:  # the reference's stiffnesses may lie beyond the declared box
+        lo, hi = box[n]
+        box[n] = (min(lo, at_reference[n] / 2), max(hi, at_reference[n] * 2))
+    problem = _refit_problem(setup, result, model, at_reference, box)
+    free = np.array([i for i, n in enumerate(names) if n not in held])
+    u0 = problem.space.to_u(np.array([at_reference[n] for n in names]))
+    fixed = HeldProblem(problem, free, u0)
+    run = LOCAL_METHODS[local](fixed, u0[free])
+    theta = fixed.space.theta(run.u)
+    i = names.index("dL_m")
+    std = _free_length_std(problem, result, names, start, theta, free, key, reference, setup)
+    L = setup.specimen.length_m
+    return ClampCalibration(
+        key,
+        L,
+        L + float(theta[i]),
+        std,
+        float(value),
+        identified["std"] if identified["std"] is not None else math.nan,
+        reference,
+        float(run.loss - result.chi2),
+        box["dL_m"],
+        bool(run.converged),
+    )
+
+
+def _identified_modulus(setup, result) -> tuple[str, dict]:
+    """The constant of the modulus along the length and its identified value and std
+    (:func:`~vibid.identify.assess.engineering.engineering_constants`); an error where
+    none was identified (a positive, finite number)."""
+    from vibid.identify.assess.engineering import engineering_constants
+
+    name = result.plate_model.model
     key = MODULUS_ALONG_LENGTH.get(name)
     h = setup.specimen.thickness_m
     identified = (
@@ -185,17 +223,18 @@ def calibrate_free_length(
             f"no modulus along the length was identified ({name} model): a "
             "reference specimen cannot calibrate the clamp"
         )
-    model = current if "dL_m" in current.names else current.with_effect(FREE_LENGTH)
+    return key, identified
+
+
+def _refit_problem(setup, result, model, at_reference: dict, box: dict):
+    """The least-squares problem of ``result``'s data under ``model`` (the free length
+    free), linearised about ``at_reference`` within ``box``, weighted as ``result`` was."""
+    from vibid.identify.fit.data import fit_data
+    from vibid.identify.fit.problem import LeastSquaresProblem
+    from vibid.identify.fit.space import ParameterSpace
+    from vibid.identify.model.forward import build_forward_model
+
     names = list(model.names)
-    scaled = [q.name for q in STIFFNESS[name] if q.name != "nu"]  # E is linear in them
-    held = {q.name for q in STIFFNESS[name]}  # the scaled ones and Poisson's ratio
-    ratio = reference.modulus_pa / value
-    start = dict(result.parameters) | {"dL_m": result.parameters.get("dL_m", 0.0)}
-    at_reference = start | {n: start[n] * ratio for n in scaled}
-    box = model.default_bounds(dict(setup.identification.bounds) if box is None else box)
-    for n in scaled:  # the reference's stiffnesses may lie beyond the declared box
-        lo, hi = box[n]
-        box[n] = (min(lo, at_reference[n] / 2), max(hi, at_reference[n] * 2))
     data = fit_data(
         result.frequency_hz, result.H, result.H_std, result.used, magnitude=result.magnitude
     )
@@ -203,12 +242,20 @@ def calibrate_free_length(
         setup, data.frequency_hz[data.used], model=model, theta0=at_reference, bounds=box
     )
     space = ParameterSpace.from_bounds(names, box, {q.name: q.kind for q in model.parameters})
-    problem = LeastSquaresProblem(fm, data, space, result.weights)
-    free = np.array([i for i, n in enumerate(names) if n not in held])
-    u0 = space.to_u(np.array([at_reference[n] for n in names]))
-    fixed = HeldProblem(problem, free, u0)
-    run = LOCAL_METHODS[local](fixed, u0[free])
-    theta = fixed.space.theta(run.u)
+    return LeastSquaresProblem(fm, data, space, result.weights)
+
+
+def _free_length_std(
+    problem, result, names, start, theta, free, key: str, reference: Reference, setup
+) -> float:
+    """The free length's standard uncertainty at the refit's ``theta`` (module doc): the
+    data's part and the reference modulus's, in quadrature. ``free``: the refit's free
+    parameters (positions in ``names``); ``key`` the modulus's constant."""
+    from vibid.identify.assess.engineering import sensitivities
+    from vibid.parameters import STIFFNESS
+
+    name = result.plate_model.model
+    h = setup.specimen.thickness_m
     i = names.index("dL_m")
     # the uncertainty in the coordinates where the modulus along the length is one: the
     # other material parameters free, the first stiffness (D, D11) following them so that
@@ -232,20 +279,7 @@ def calibrate_free_length(
     along = J[:, lead] * reference.modulus_pa / grad[material[0]]  # the refit's modulus
     slope = -(cov @ (A.T @ along))[k]
     ref_rel = reference.std_pa / reference.modulus_pa
-    std = math.sqrt(max(data_var, 0.0) + (slope * ref_rel) ** 2)
-    L = setup.specimen.length_m
-    return ClampCalibration(
-        key,
-        L,
-        L + float(theta[i]),
-        std,
-        float(value),
-        identified["std"] if identified["std"] is not None else math.nan,
-        reference,
-        float(run.loss - result.chi2),
-        box["dL_m"],
-        bool(run.converged),
-    )
+    return math.sqrt(max(data_var, 0.0) + (slope * ref_rel) ** 2)
 
 
 def _covariance_scale(problem, result, names, start) -> float:
