@@ -11,7 +11,7 @@ import numpy as np
 from vibid.errors import VibidError
 from vibid.identify.fit.data import FitData
 from vibid.identify.fit.minima import rival_minima
-from vibid.identify.fit.noise import fits_noise
+from vibid.identify.fit.noise import explains
 from vibid.identify.fit.problem import PlateForwardModel
 from vibid.identify.fit.result import IdentificationResult, LocalResult, final_status
 from vibid.identify.fit.uncertainty import fisher_uncertainty
@@ -81,7 +81,9 @@ def summarise(
         magnitude_only_std_ratio=magnitude_only_std_ratio(problem, theta),
         rivals=rivals,
     )
-    reaches_noise = fits_noise(chi2, dof, data.noise_known) is not False
+    # the one judge of "fits the noise" (chi2 and, where borderline, a white residual), as
+    # the report's unexplained_residual and the closed loop ask it
+    reaches_noise = explains(result) is not False
     warnings += estimate_warnings(space, theta, std, chi2_red, reaches_noise)
     return replace(result, warnings=tuple(warnings))
 
