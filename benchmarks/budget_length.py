@@ -28,7 +28,7 @@ def main() -> None:
     from vibid.identify.assess.budget import engineering_budget, with_declared
     from vibid.identify.assess.engineering import constants
     from vibid.identify.engine.threads import jax_turn
-    from vibid.identify.fit.strategy import identify
+    from vibid.identify.fit.strategy import Measurement, ModelChoice, SearchOptions, identify
     from vibid.identify.model.forward import build_forward_model
     from vibid.pipeline import afc_file, identify_afc
 
@@ -63,17 +63,9 @@ def main() -> None:
             ):
                 r = identify(
                     moved,
-                    f,
-                    final.H,
-                    final.H_std,
-                    used=used,
-                    model=model.model,
-                    forward_model=fm,
-                    method="local",
-                    start=final.parameters,
-                    bounds=box,
-                    weights=final.weights,
-                    kinds=kinds,
+                    Measurement(f, final.H, final.H_std, used=used, weights=final.weights),
+                    ModelChoice(name=model.model, forward_model=fm, bounds=box, kinds=kinds),
+                    SearchOptions(method="local", start=final.parameters),
                 )
                 c = constants("isotropic", r.parameters, h)
                 print(

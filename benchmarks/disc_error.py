@@ -113,7 +113,7 @@ def cost(setup, F, theta) -> dict:
 
 
 def fits(F, H, sd, setup, label) -> list:
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
     from vibid.identify.model import forward
 
     rows = []
@@ -126,7 +126,11 @@ def fits(F, H, sd, setup, label) -> list:
         forward.ForwardModel.model_error_parts = parts
         try:
             for mag in (False, True):
-                r = identify(setup, F, H, sd, method="local", start=TRUTH, magnitude=mag)
+                r = identify(
+                    setup,
+                    Measurement(F, H, sd, magnitude=mag),
+                    search=SearchOptions(method="local", start=TRUTH),
+                )
                 bias = dict(zip(r.parameter_names, r.model_error_bias))
                 for n, v, s in zip(r.parameter_names, r.values, r.std):
                     rows.append(

@@ -121,7 +121,7 @@ def analyse(case: Case, source: dict, seed: int) -> dict:
     """The timed stages of one case on its prepared data (:func:`loop_cases.prepare`): the
     signal stage, the declared fit, the loop; the row of the table and the JSON."""
     from vibid.identify.engine.profile import recording
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
     from vibid.identify.loop import close_loop
     from vibid.pipeline import fit_points
 
@@ -137,7 +137,10 @@ def analyse(case: Case, source: dict, seed: int) -> dict:
     used = fit_points(afc)[0]  # as `vibid identify`: a top that slips is left out
     with recording() as ident:
         declared = identify(
-            setup, afc.frequency_hz, afc.H, afc.std, used=used, seed=seed, forward_model=fm
+            setup,
+            Measurement(afc.frequency_hz, afc.H, afc.std, used=used),
+            ModelChoice(forward_model=fm),
+            SearchOptions(seed=seed),
         )
     with recording() as lp:
         loop = close_loop(

@@ -43,12 +43,16 @@ def main() -> int:
     configure()
     from loop_data import F, data, strip_on
     from test_identify_compress import titanium_problem
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     H, sd = data({"tau_s": 2e-5}, 7)
     _pair(
         "strip, 60 steps, undeclared delay (global search)",
-        lambda mag: identify(strip_on(), F, H, sd, restarts=1, seed=0, magnitude=mag),
+        lambda mag: identify(
+            strip_on(),
+            Measurement(F, H, sd, magnitude=mag),
+            search=SearchOptions(restarts=1, seed=0),
+        ),
     )
     problem, u0 = titanium_problem()
     d = problem.data
@@ -59,7 +63,9 @@ def main() -> int:
     _pair(
         f"titanium, {d.n_used} bins (local polish)",
         lambda mag: identify(
-            setup, d.frequency_hz, d.H, d.std, method="local", start=start, magnitude=mag
+            setup,
+            Measurement(d.frequency_hz, d.H, d.std, magnitude=mag),
+            search=SearchOptions(method="local", start=start),
         ),
     )
     return 0

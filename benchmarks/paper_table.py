@@ -153,7 +153,7 @@ def main(argv=None) -> int:
 
 
 def run(args) -> int:
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
     from vibid.identify.fit.trust_region import trust_region
 
     theta_true = np.array([TRUE[k] for k in ("D", "nu", "beta")])
@@ -200,7 +200,12 @@ def run(args) -> int:
             Hn, sd = noisy(H, level, seed=args.seed + int(fmax) + int(1000 * level))
             std = None if level == 0 else np.full(f.size, sd)
             t = time.perf_counter()
-            res = identify(setup, f, Hn, std, forward_model=fm, seed=args.seed)
+            res = identify(
+                setup,
+                Measurement(f, Hn, std),
+                ModelChoice(forward_model=fm),
+                SearchOptions(seed=args.seed),
+            )
             secs = time.perf_counter() - t
             g = rel(dict(zip(res.parameter_names, res.global_result.theta[0])))
             e = rel(res.parameters)

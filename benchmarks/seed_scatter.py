@@ -34,7 +34,7 @@ def main(argv=None) -> int:
     ap.add_argument("--restarts", type=int, default=5, help="global-search restarts")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args(argv)
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 
     names = ("D", "nu", "beta")
     theta_true = np.array([TRUE[k] for k in names])
@@ -56,12 +56,9 @@ def main(argv=None) -> int:
                 t = time.perf_counter()
                 res = identify(
                     setup,
-                    f,
-                    Hn,
-                    np.full(f.size, sd),
-                    forward_model=fm,
-                    seed=k,
-                    restarts=args.restarts,
+                    Measurement(f, Hn, np.full(f.size, sd)),
+                    ModelChoice(forward_model=fm),
+                    SearchOptions(restarts=args.restarts, seed=k),
                 )
                 secs.append(time.perf_counter() - t)
                 err.append([(res.parameters[n] - TRUE[n]) / TRUE[n] for n in names])

@@ -70,10 +70,12 @@ def data(effects: dict, seed: int):
 
 @functools.cache
 def _declared(key: tuple, seed: int, restarts: int):
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     H, sd = data(dict(key), seed)
-    return identify(strip_on(), F, H, sd, restarts=restarts, seed=0)
+    return identify(
+        strip_on(), Measurement(F, H, sd), search=SearchOptions(restarts=restarts, seed=0)
+    )
 
 
 def declared_fit(effects: dict, seed: int, restarts: int = RESTARTS):

@@ -39,14 +39,18 @@ def _setup(**response):
 def massless():
     """The strip with a (nearly) massless sensor, fitted to its own noise-free AFC."""
     from vibid.identify import build_forward_model, configure
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     configure()
     s = _setup(mass_kg=1e-7)
     f = np.linspace(20.0, 1500.0, 60)
     fm = build_forward_model(s, f, theta0=TRUE)
     H = np.asarray(fm.afc(np.array(list(TRUE.values()))))
-    result = identify(s, f, H, 0.003 * np.abs(H) + 1e-4, method="local", start=TRUE)
+    result = identify(
+        s,
+        Measurement(f, H, 0.003 * np.abs(H) + 1e-4),
+        search=SearchOptions(method="local", start=TRUE),
+    )
     return s, result
 
 
@@ -173,7 +177,7 @@ def test_the_clamp_line_part_is_the_refit_at_a_longer_span_times_the_box(massles
     or with the length's uncertainty declared, there is none."""
     from vibid.identify.assess.budget import clamp_line, with_declared
     from vibid.identify.assess.engineering import constants
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     declared, result = massless
     s = dataclasses.replace(
@@ -183,7 +187,9 @@ def test_the_clamp_line_part_is_the_refit_at_a_longer_span_times_the_box(massles
     d = 1e-4
     longer = with_declared(with_declared(s, "length_m", L + d), "sensor_x_m", x + d)
     refit = identify(
-        longer, result.frequency_hz, result.H, result.H_std, method="local", start=result.parameters
+        longer,
+        Measurement(result.frequency_hz, result.H, result.H_std),
+        search=SearchOptions(method="local", start=result.parameters),
     )
     dE = (
         constants("isotropic", refit.parameters, h)["E_Pa"]
@@ -352,7 +358,7 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     from vibid.identify.assess.budget import with_declared
     from vibid.identify.assess.engineering import constants
     from vibid.identify.assess.linearity import linear_part
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
     from vibid.setup_model import parse_setup
 
     configure()
@@ -363,16 +369,14 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     s = parse_setup((here / "setup.json").read_text())
     s = dataclasses.replace(s, specimen=dataclasses.replace(s.specimen, length_std_m=5e-4))
     start = {"D": 127.14, "nu": -0.326, "beta": 0.01073}  # the declared fit's estimate
-    fitted = identify(s, f, H, std, used=used, method="local", start=start)
+    fitted = identify(
+        s, Measurement(f, H, std, used=used), search=SearchOptions(method="local", start=start)
+    )
     part = engineering_budget(s, fitted)["budget"]["E_Pa"]["length_m"]
     longer = identify(
         with_declared(s, "length_m", s.specimen.length_m + 5e-4),
-        f,
-        H,
-        std,
-        used=used,
-        method="local",
-        start=fitted.parameters,
+        Measurement(f, H, std, used=used),
+        search=SearchOptions(method="local", start=fitted.parameters),
     )
     h = s.specimen.thickness_m
     moved = (
@@ -393,14 +397,12 @@ def test_a_declared_length_moves_E_as_the_refit_at_that_length_does_where_a_misf
     part_held = abs(g[keys.index("E_Pa")] @ shift)
     longer_held = identify(
         with_declared(s, "length_m", s.specimen.length_m + 5e-4),
-        f,
-        H,
-        std,
-        used=used,
-        method="local",
-        start=fitted.parameters,
-        bounds=dict(s.identification.bounds) | {"nu": (nu - 1e-6, nu + 1e-6)},
-        kinds={"nu": ("logit", nu - 1e-7, nu + 1e-7)},
+        Measurement(f, H, std, used=used),
+        ModelChoice(
+            bounds=dict(s.identification.bounds) | {"nu": (nu - 1e-6, nu + 1e-6)},
+            kinds={"nu": ("logit", nu - 1e-7, nu + 1e-7)},
+        ),
+        SearchOptions(method="local", start=fitted.parameters),
     )
     moved_held = (
         constants("isotropic", longer_held.parameters, h)["E_Pa"]

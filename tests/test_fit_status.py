@@ -88,7 +88,7 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     from ritz_toy import RitzPlateModel
     from vibid.errors import VibidError
     from vibid.identify import configure
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
     from vibid.pipeline import Identified, require_converged
     from vibid.report import build_report
 
@@ -99,12 +99,9 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     start = {"D": 17.97, "nu": 0.286, "beta": 0.003}
     flat = identify(
         setup,
-        f,
-        np.full(f.size, 1e-3 + 0j),
-        np.full(f.size, 1e-3),
-        forward_model=fm,
-        method="local",
-        start=start,
+        Measurement(f, np.full(f.size, 1e-3 + 0j), np.full(f.size, 1e-3)),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start=start),
     )
     assert flat.local_results[0].status is Status.CONVERGED  # the optimiser's own word
     assert flat.status is Status.AT_PHYSICAL_LIMIT and not flat.converged
@@ -116,12 +113,9 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     H = np.asarray(fm.afc(np.array(list(start.values()))))
     own = identify(
         setup,
-        f,
-        H,
-        0.003 * np.abs(H) + 1e-4,
-        forward_model=fm,
-        method="local",
-        start={"D": 20.0, "nu": 0.3, "beta": 0.004},
+        Measurement(f, H, 0.003 * np.abs(H) + 1e-4),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start={"D": 20.0, "nu": 0.3, "beta": 0.004}),
     )
     assert own.status is Status.CONVERGED
     assert own.parameters["nu"] == pytest.approx(0.286, rel=1e-6)

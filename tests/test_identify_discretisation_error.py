@@ -17,7 +17,7 @@ import pytest
 
 from loop_data import TRUTH, F, fine_afc, strip_on
 from vibid.identify import build_forward_model
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, SearchOptions, identify
 
 THETA = np.array([TRUTH[n] for n in ("D", "nu", "beta")])
 
@@ -63,7 +63,11 @@ def test_truth_within_two_std_on_data_from_a_converged_model(converged, magnitud
     6.7e-7 for 6.4e-7; |H|: D 1.4e-6 for 1.2e-6, nu 5.7e-7 for 5.4e-7; the finer step
     alone gave 5 to 9 % less than the extrapolation, nu 5 % below its offset)."""
     H, sd = converged
-    r = identify(strip_on(), F, H, sd, method="local", start=TRUTH, magnitude=magnitude)
+    r = identify(
+        strip_on(),
+        Measurement(F, H, sd, magnitude=magnitude),
+        search=SearchOptions(method="local", start=TRUTH),
+    )
     assert r.converged, r.message
     bias = np.abs(r.model_error_bias)
     noise_std = np.sqrt(np.diag(r.covariance) - bias**2)

@@ -7,7 +7,7 @@ import pytest
 
 from ritz_toy import RitzPlateModel
 from vibid.errors import VibidError
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 from vibid.report import build_report
 from vibid.setup_model import example_setup
 
@@ -25,12 +25,16 @@ def strip_1000():
 @pytest.mark.slow
 def test_global_search_from_the_box_finds_the_strip(strip_1000):
     setup, f, fm, H = strip_1000
-    res = identify(setup, f, H, forward_model=fm, seed=1, restarts=3)
+    res = identify(
+        setup, Measurement(f, H), ModelChoice(forward_model=fm), SearchOptions(restarts=3, seed=1)
+    )
     assert res.converged, res.message
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
     assert res.global_result is not None and res.global_result.theta.shape == (3, 3)
     # same seed, same answer
-    res2 = identify(setup, f, H, forward_model=fm, seed=1, restarts=3)
+    res2 = identify(
+        setup, Measurement(f, H), ModelChoice(forward_model=fm), SearchOptions(restarts=3, seed=1)
+    )
     np.testing.assert_array_equal(res.global_result.theta, res2.global_result.theta)
 
 
@@ -39,7 +43,10 @@ def test_nan_points_are_dropped_with_a_warning(strip_1000):
     Hb = H.copy()
     Hb[[5, 40, 77]] = np.nan
     res = identify(
-        setup, f, Hb, forward_model=fm, method="local", start={"D": 20.0, "nu": 0.3, "beta": 0.01}
+        setup,
+        Measurement(f, Hb),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start={"D": 20.0, "nu": 0.3, "beta": 0.01}),
     )
     assert any("3 of 101 AFC points are not finite" in w for w in res.warnings)
     assert np.all(np.isfinite(res.values)) and res.used.sum() == 98
@@ -54,13 +61,18 @@ def test_too_few_points_is_a_clear_error():
     f = np.array([100.0])
     fm = RitzPlateModel(setup, f)
     with pytest.raises(VibidError, match="too few AFC points"):
-        identify(setup, f, np.asarray(fm.afc(TRUE)), forward_model=fm, method="local")
+        identify(
+            setup,
+            Measurement(f, np.asarray(fm.afc(TRUE))),
+            ModelChoice(forward_model=fm),
+            SearchOptions(method="local"),
+        )
 
 
 def test_all_nan_is_a_clear_error(strip_1000):
     setup, f, fm, H = strip_1000
     with pytest.raises(VibidError, match="no usable AFC point"):
-        identify(setup, f, np.full_like(H, np.nan), forward_model=fm)
+        identify(setup, Measurement(f, np.full_like(H, np.nan)), ModelChoice(forward_model=fm))
 
 
 def test_bounds_that_exclude_the_truth_are_reported(strip_1000):
@@ -68,12 +80,9 @@ def test_bounds_that_exclude_the_truth_are_reported(strip_1000):
     bounds = {"D": (30.0, 100.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
     res = identify(
         setup,
-        f,
-        H,
-        forward_model=fm,
-        bounds=bounds,
-        method="local",
-        start={"D": 30.5, "nu": 0.29, "beta": 0.003},
+        Measurement(f, H),
+        ModelChoice(forward_model=fm, bounds=bounds),
+        SearchOptions(method="local", start={"D": 30.5, "nu": 0.29, "beta": 0.003}),
     )
     assert np.all(np.isfinite(res.values))
     assert any(
@@ -84,13 +93,9 @@ def test_bounds_that_exclude_the_truth_are_reported(strip_1000):
     # them is no advice
     res = identify(
         setup,
-        f,
-        1.05 * H,
-        1e-3 * np.abs(H),
-        forward_model=fm,
-        bounds=bounds,
-        method="local",
-        start={"D": 30.5, "nu": 0.29, "beta": 0.003},
+        Measurement(f, 1.05 * H, 1e-3 * np.abs(H)),
+        ModelChoice(forward_model=fm, bounds=bounds),
+        SearchOptions(method="local", start={"D": 30.5, "nu": 0.29, "beta": 0.003}),
     )
     (w,) = [w for w in res.warnings if w.startswith("D = ")]
     assert "may stand in for what the model lacks" in w and "widen them and" not in w
@@ -103,12 +108,9 @@ def test_noise_known_gives_chi2_near_one(strip_1000):
     Hn = H + sd * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
     res = identify(
         setup,
-        f,
-        Hn,
-        np.full(f.size, sd),
-        forward_model=fm,
-        method="local",
-        start=dict(zip(("D", "nu", "beta"), TRUE)),
+        Measurement(f, Hn, np.full(f.size, sd)),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start=dict(zip(("D", "nu", "beta"), TRUE))),
     )
     assert res.noise_known
     # chi2 of 2n - p degrees of freedom: mean 1, sd sqrt(2 / dof)
@@ -132,12 +134,9 @@ def test_wrong_model_leaves_unexplained_residual(strip_1000):
     Hd = H * np.exp(-2j * np.pi * f * 2e-4)
     res = identify(
         setup,
-        f,
-        Hd,
-        np.full(f.size, sd),
-        forward_model=fm,
-        method="local",
-        start=dict(zip(("D", "nu", "beta"), TRUE)),
+        Measurement(f, Hd, np.full(f.size, sd)),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start=dict(zip(("D", "nu", "beta"), TRUE))),
     )
     report = build_report(res)
     assert report["loop"]["unexplained_residual"] is True
@@ -229,7 +228,14 @@ def test_a_few_precise_points_at_the_resonances_do_not_trap_the_global_search(mo
     import vibid.identify.fit.strategy as strategy
 
     setup, afc = _adaptive_strip_afc()
-    fit = lambda: identify(setup, afc.frequency_hz, afc.H, afc.std, seed=0, restarts=5)  # noqa: E731
+
+    def fit():
+        return identify(
+            setup,
+            Measurement(afc.frequency_hz, afc.H, afc.std),
+            search=SearchOptions(restarts=5, seed=0),
+        )
+
     r = fit()
     assert r.converged and r.chi2_reduced < 2.0
     for name, value in ADAPTIVE_TRUTH.items():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ritz_toy import RitzPlateModel
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import Status
@@ -106,11 +106,9 @@ def test_identify_local_from_paper_start(toy_problem):
     _, setup, f, H, fm = toy_problem
     res = identify(
         setup,
-        f,
-        H,
-        forward_model=fm,
-        method="local",
-        start=dict(zip(("D", "nu", "beta"), PAPER_START)),
+        Measurement(f, H),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start=dict(zip(("D", "nu", "beta"), PAPER_START))),
     )
     assert res.converged
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
@@ -135,12 +133,11 @@ def test_paper_start_on_the_fe_strip(fe_strip_600):
     H = np.asarray(fm.afc_full(TRUE))
     res = identify(
         setup,
-        f,
-        H,
-        forward_model=fm,
-        method="local",
-        refresh=False,
-        start=dict(zip(("D", "nu", "beta"), PAPER_START)),
+        Measurement(f, H),
+        ModelChoice(forward_model=fm),
+        SearchOptions(
+            method="local", start=dict(zip(("D", "nu", "beta"), PAPER_START)), refresh=False
+        ),
     )
     assert res.converged, res.message
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)

@@ -232,7 +232,7 @@ def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(mo
 
     def identify(*a, **k):
         r = real(*a, **k)
-        if k.get("method") == "local":  # the local refit: a runaway with a tiny chi2
+        if a[3].method == "local":  # the local refit: a runaway with a tiny chi2
             return dataclasses.replace(
                 r, chi2=1e-3 * r.dof, chi2_reduced=1e-3, status=Status.MAX_ITERATIONS
             )
@@ -271,7 +271,7 @@ def test_the_loop_searches_no_effect_globally_and_keeps_no_runaway(monkeypatch):
 
     def identify(*a, **k):
         r = real(*a, **k)
-        if k.get("method") == "local":
+        if a[3].method == "local":
             return dataclasses.replace(r, status=Status.MAX_ITERATIONS)
         searched.append(k)
         return r

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ritz_toy import RitzPlateModel
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
@@ -45,14 +45,9 @@ def test_chi2_is_on_the_magnitudes_with_n_minus_p_degrees_of_freedom(toy):
     H = _noisy(H0, sd, np.random.default_rng(5)) * np.exp(-2j * np.pi * F_HZ * 3e-5)
     r = identify(
         setup,
-        F_HZ,
-        H,
-        sd,
-        forward_model=fm,
-        method="local",
-        start=TRUE,
-        magnitude=True,
-        refresh=False,
+        Measurement(F_HZ, H, sd, magnitude=True),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start=TRUE, refresh=False),
     )
     assert r.converged and r.magnitude
     assert r.dof == F_HZ.size - 3
@@ -71,14 +66,9 @@ def test_monte_carlo_spread_is_the_magnitude_fits_fisher_std(toy):
     setup, fm, H0, sd = toy
     reported = identify(
         setup,
-        F_HZ,
-        H0,
-        sd,
-        forward_model=fm,
-        method="local",
-        start=TRUE,
-        magnitude=True,
-        refresh=False,
+        Measurement(F_HZ, H0, sd, magnitude=True),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start=TRUE, refresh=False),
     )
     space = ParameterSpace.from_bounds(fm.parameter_names, setup.identification.bounds)
     problems = {

@@ -20,7 +20,7 @@ import beam_sessions as bs
 import modal_slip
 from loop_data import noisy
 from vibid.identify.assess.linearity import linear_part
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, SearchOptions, identify
 
 F = np.arange(40.0, 600.0, 0.05)  # two bending modes, 20 points per Hz
 
@@ -73,10 +73,14 @@ def test_the_slipping_top_is_found_and_only_it_is_left_out(afcs):
 def test_a_fit_of_the_linear_part_is_the_linear_structures_and_the_whole_band_is_not(afcs):
     (H_lin, sd_lin), (H, sd) = afcs
     setup = bs.setup()
-    reference = identify(setup, F, H_lin, sd_lin, restarts=1, seed=0)
+    reference = identify(
+        setup, Measurement(F, H_lin, sd_lin), search=SearchOptions(restarts=1, seed=0)
+    )
     used, _ = linear_part(F, H, sd)
-    part = identify(setup, F, H, sd, used=used, restarts=1, seed=0)
-    whole = identify(setup, F, H, sd, restarts=1, seed=0)
+    part = identify(
+        setup, Measurement(F, H, sd, used=used), search=SearchOptions(restarts=1, seed=0)
+    )
+    whole = identify(setup, Measurement(F, H, sd), search=SearchOptions(restarts=1, seed=0))
     assert reference.chi2_reduced < 1.1 and part.chi2_reduced < 1.1
     assert whole.chi2_reduced > 100
 

@@ -48,7 +48,7 @@ def plate_setup(freqs):
 @pytest.mark.slow
 def test_orthotropic_plate_from_a_box_prior():
     from vibid.identify import build_forward_model
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 
     f = np.linspace(5.0, 600.0, 150)
     setup = plate_setup(f)
@@ -59,7 +59,12 @@ def test_orthotropic_plate_from_a_box_prior():
     sd = 1e-3 * np.abs(H).max()
     rng = np.random.default_rng(0)
     Hn = H + sd * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
-    res = identify(setup, f, Hn, np.full(f.size, sd), forward_model=fm, seed=0, restarts=2)
+    res = identify(
+        setup,
+        Measurement(f, Hn, np.full(f.size, sd)),
+        ModelChoice(forward_model=fm),
+        SearchOptions(restarts=2, seed=0),
+    )
     assert res.converged, res.message
     assert res.chi2_reduced < 1.5  # the right basin: wrong ones give 2 to 13
     # within 5 reported standard deviations of the truth, and the large moduli to 2 %

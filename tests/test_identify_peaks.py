@@ -125,13 +125,15 @@ def test_a_search_on_the_peaks_alone_ends_in_chi2s_estimate_or_says_it_does_not_
     neighbouring basin: then its chi2 says so (the loop searches chi2 as well); otherwise it
     is chi2's search's estimate."""
     from loop_data import F, data, strip_on
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
     from vibid.identify.fit.noise import fits_noise
 
     H, sd = data({}, 1)
-    plain = identify(strip_on(), F, H, sd, restarts=1, seed=0)
+    plain = identify(strip_on(), Measurement(F, H, sd), search=SearchOptions(restarts=1, seed=0))
     first = identify(
-        strip_on(), F, H, sd, restarts=1, seed=0, peaks_only={"D": 10.0, "nu": 0.1, "beta": 0.02}
+        strip_on(),
+        Measurement(F, H, sd),
+        search=SearchOptions(restarts=1, seed=0, peaks_only={"D": 10.0, "nu": 0.1, "beta": 0.02}),
     )
     assert first.global_result.messages[0].startswith("peak matching")  # no chi2 search
     assert plain.global_result.messages[0].startswith("global search")

@@ -10,7 +10,7 @@ import pytest
 
 from plate_helpers import PAPER_THETA, strip_model, strip_setup
 from vibid.errors import VibidError
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 
 #: A script's lines that compile one function worth a cache entry and evaluate it (``value``).
 COMPILE_ONE = (
@@ -128,12 +128,9 @@ def test_the_forward_model_is_built_on_the_box_the_search_explores(monkeypatch):
     box = {"D": (5.0, 50.0), "nu": (0.1, 0.45), "beta": (1e-3, 1e-2)}
     identify(
         setup,
-        f,
-        H,
-        bounds=box,
-        method="local",
-        refresh=False,
-        start={"D": 17.0, "nu": 0.3, "beta": 0.003},
+        Measurement(f, H),
+        ModelChoice(bounds=box),
+        SearchOptions(method="local", start={"D": 17.0, "nu": 0.3, "beta": 0.003}, refresh=False),
     )
     assert built == [box]
 
@@ -144,16 +141,13 @@ def test_a_wide_model_built_for_a_smaller_box_is_refused():
     H = np.asarray(fm.afc(PAPER_THETA))
     box = {"D": (0.5, 200.0), "nu": (0.0, 0.5), "beta": (1e-4, 0.1)}
     with pytest.raises(VibidError, match="does not cover the searched box"):
-        identify(strip_setup(), f, H, forward_model=fm, bounds=box)
+        identify(strip_setup(), Measurement(f, H), ModelChoice(forward_model=fm, bounds=box))
     # the box it was built for is fine
     res = identify(
         strip_setup(),
-        f,
-        H,
-        forward_model=fm,
-        method="local",
-        refresh=False,
-        start={"D": 18.0, "nu": 0.29, "beta": 0.003},
+        Measurement(f, H),
+        ModelChoice(forward_model=fm),
+        SearchOptions(method="local", start={"D": 18.0, "nu": 0.29, "beta": 0.003}, refresh=False),
     )
     np.testing.assert_allclose(res.values, PAPER_THETA, rtol=1e-6)
 

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from vibid.identify.fit import identify
+from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 from vibid.identify.fit.minima import VALLEY_STEPS, best_inside_prior, valley_starts
 from vibid.identify.fit.result import LocalResult, Status
 from vibid.identify.fit.space import ParameterSpace
@@ -78,7 +78,12 @@ def test_the_walk_finds_a_lower_minimum_than_the_global_search():
     rng = np.random.default_rng(10_000 * 6 + 1500 + 10)
     sd = 0.01 * np.abs(H).max()
     Hn = H + sd * (rng.standard_normal(H.size) + 1j * rng.standard_normal(H.size))
-    res = identify(setup, f, Hn, np.full(f.size, sd), forward_model=fm, seed=5)
+    res = identify(
+        setup,
+        Measurement(f, Hn, np.full(f.size, sd)),
+        ModelChoice(forward_model=fm),
+        SearchOptions(seed=5),
+    )
     assert res.chi2 == pytest.approx(387.3, abs=0.1)
     assert abs(res.values[0] / truth[0] - 1) < 0.01
     # the other minima along the valley within chi2 + 11.3 widen the std

@@ -24,7 +24,7 @@ def _identified(effects):
     ``effects``): nu held near the beam's 0 (a beam has no plate action to tell it), as a
     lab holds a reference's known Poisson's ratio."""
     from vibid.identify import configure
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 
     configure()
     setup = bs.setup()
@@ -39,12 +39,9 @@ def _identified(effects):
     H, sd = bs.data(effects, seed=1)
     return setup, identify(
         setup,
-        bs.F,
-        H,
-        sd,
-        method="local",
-        start=dict(bs.TRUTH),
-        kinds={"nu": ("logit", -0.005, 0.005)},
+        Measurement(bs.F, H, sd),
+        ModelChoice(kinds={"nu": ("logit", -0.005, 0.005)}),
+        SearchOptions(method="local", start=dict(bs.TRUTH)),
     )
 
 
@@ -144,14 +141,18 @@ def test_the_reported_std_covers_the_monte_carlo_spread():
     length comes out 3.29 mm: the known E means another D at another ν, which is why ν's
     uncertainty is part of the std on real strips."""
     from vibid.identify import configure
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     configure()
     setup = bs.setup()
     found = []
     for seed in range(10):
         H, sd = bs.data({"dL_m": INSIDE_M}, seed=seed)
-        res = identify(setup, bs.F, H, sd, method="local", start=dict(bs.TRUTH))
+        res = identify(
+            setup,
+            Measurement(bs.F, H, sd),
+            search=SearchOptions(method="local", start=dict(bs.TRUTH)),
+        )
         found.append(calibrate_free_length(setup, res, Reference(E_BEAM)))
     spread = np.std([c.offset_m for c in found], ddof=1)
     reported = np.mean([c.free_length_std_m for c in found])

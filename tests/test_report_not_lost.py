@@ -85,14 +85,18 @@ def strip():
     """The steel strip fitted (local, from the truth) to its own AFC with a 1 % ripple
     that no model explains: (setup, result)."""
     from vibid.identify import build_forward_model, configure
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     configure()
     s = example_setup()
     f = np.linspace(20.0, 1500.0, 60)
     fm = build_forward_model(s, f, theta0=TRUE)
     H = np.asarray(fm.afc(np.array(list(TRUE.values())))) * (1 + 0.01 * np.sin(f / 50))
-    return s, identify(s, f, H, 0.003 * np.abs(H) + 1e-4, method="local", start=TRUE)
+    return s, identify(
+        s,
+        Measurement(f, H, 0.003 * np.abs(H) + 1e-4),
+        search=SearchOptions(method="local", start=TRUE),
+    )
 
 
 def _orthotropic_copy(result):

@@ -180,7 +180,7 @@ def identify_afc(
     at small motion.
     """
     from vibid.identify import configure
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
 
     if restarts < 1:
         raise VibidError("--restarts must be at least 1")
@@ -192,16 +192,10 @@ def identify_afc(
     with jax_turn():
         result = identify(
             setup,
-            afc.frequency_hz,
-            afc.H,
-            afc.std,
-            used=used,
-            method=method,
-            local=local,
-            restarts=restarts,
-            seed=seed,
-            progress=progress,
-            magnitude=magnitude_only,
+            Measurement(afc.frequency_hz, afc.H, afc.std, used=used, magnitude=magnitude_only),
+            search=SearchOptions(
+                method=method, local=local, restarts=restarts, seed=seed, progress=progress
+            ),
         )
         if loop and result.converged and afc.std is None:
             return Identified(

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,12 +47,12 @@ from vibid.identify.engine.profile import timed
 from vibid.identify.engine.threads import in_order
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.global_search import differential_evolution, robust_score
+from vibid.identify.fit.inputs import Measurement, ModelChoice, Progress, SearchOptions
 from vibid.identify.fit.local import LOCAL_METHODS, SMOOTHING_PARAMETER, polish_by_continuation
 from vibid.identify.fit.minima import best_inside_prior, distinct, valley_starts
 from vibid.identify.fit.noise import fits
 from vibid.identify.fit.peaks import grid_heights, measured_peaks, peak_score, peaks_matched
 from vibid.identify.fit.problem import (
-    ForwardModel,
     GivesModes,
     LeastSquaresProblem,
     PlateForwardModel,
@@ -76,9 +75,6 @@ log = logging.getLogger(__name__)
 PEAK_CHI2_WEIGHT = 1e-5
 #: A change of the weights by more than this (relative) calls for one more polish.
 REWEIGH_TOL = 1e-3
-
-#: ``progress(label, done, total, best)``: how far a search is (generations), and its best.
-Progress = Callable[[str, int, int, float], None]
 
 
 @dataclass(frozen=True)
@@ -531,93 +527,83 @@ def on_final_weights(found: list[Fit]) -> list[LocalResult]:
 # -- the entry point ----------------------------------------------------------------------
 def identify(
     setup,
-    frequency_hz,
-    H,
-    std=None,
-    *,
-    model: str | None = None,
-    forward_model: ForwardModel | None = None,
-    bounds: dict | None = None,
-    method: str = "global",
-    local: str = "newton",
-    start: dict | np.ndarray | None = None,
-    restarts: int = 5,
-    seed: int | np.random.Generator | None = None,
-    used=None,
-    progress: Progress | None = None,
-    refresh: bool = True,
-    throw: bool = False,
-    peaks_only: dict | None = None,
-    magnitude: bool = False,
-    kinds: dict | None = None,
-    weights: np.ndarray | None = None,
+    measured: Measurement,
+    model: ModelChoice = ModelChoice(),
+    search: SearchOptions = SearchOptions(),
 ) -> IdentificationResult:
     """Identify the parameters of a material model from a measured AFC.
 
-    Parameters
-    ----------
-    setup: the declared :class:`~vibid.setup_model.Setup` (specimen, sensor, bounds).
-    frequency_hz: (n,) frequencies of the AFC points, Hz.
-    H: (n,) complex AFC (response over base acceleration).
-    std: (n,) standard uncertainty of Re H and Im H per point, or None if unknown (then
-        the fit is the paper's plain mean square error and the noise is estimated from
-        the residual).
-    model: material model (default ``setup.identification.model``).
-    forward_model: a ready ForwardModel for exactly these frequencies (or the used ones);
-        by default one is built with ``vibid.identify.build_forward_model`` on the searched
-        box. A wide model must have been built on a box that covers the searched one.
-    bounds: prior box per parameter (default ``setup.identification.bounds``).
-    method: ``"global"`` (differential evolution over the box, then polish by
-        continuation) or ``"local"`` (one run of the local method from ``start``).
-    local: the local method: ``"newton"`` (trust region, exact Hessian), ``"bfgs"``
-        (trust region, BFGS) or ``"lm"`` (Levenberg-Marquardt).
-    start: start values for ``method="local"`` (dict by name or array in model order;
-        default the centre of the prior box).
-    restarts: restarts of the global search.
-    seed: seed (or Generator) of the global search: same seed, same result.
-    used: (n,) bool mask of the points to fit (default all finite points).
-    progress: ``progress(label, done, total, best)`` called after every generation of a
-        global search (a progress bar's update; the core prints nothing).
-    refresh: rebuild the forward model around the estimate (``ForwardModel.refresh``) and
-        polish once more on it; off, the model that searched also polishes.
-    throw: raise VibidError if the final local run did not converge (else it is reported
-        in ``status``/``message``/``warnings``).
-    peaks_only: with ``method="global"``, search the resonance peaks alone instead of chi2
-        (:func:`search_peaks_only`), with the parameters that move no stiffness or inertia
-        held at these values (by name; every parameter): the closed loop's cheap search of
-        an orthotropic plate from an isotropic fit. The peaks may not tell neighbouring
-        basins apart on a coarse grid: judge the result, and search chi2 (the default)
-        when it does not fit. Falls back on chi2's search when the model gives no modes
-        or the AFC no peak.
-    magnitude: fit |H| alone (the phase is not trusted): chi2 on the magnitudes, n - p
-        degrees of freedom (:class:`~vibid.identify.fit.data.FitData`); the result carries
-        ``magnitude_only_std_ratio``, how much each standard deviation grows against the
-        complex fit of the same points.
-    kinds: transforms by parameter name that replace the catalogue's
-        (:func:`~vibid.identify.fit.space.make_transform`'s ``kind``): the closed loop holds
-        a resonance it placed at a diagnosed pole inside the pole's span with a logit.
-    weights: (n_used,) standard uncertainties of Re and Im per used point to weigh chi2
-        with, in place of the data's std and the model's own error (which is then not
-        estimated): where the model's error barely changes chi2, the closed loop polishes
-        each refit under the current fit's weights and weighs only the refit it adds with
-        its own model error (:attr:`vibid.identify.loop.policy.Policy.model_error_share`).
+    ``setup`` is the declared :class:`~vibid.setup_model.Setup` (specimen, sensor, bounds);
+    ``measured`` the AFC and its weighing (:class:`~vibid.identify.fit.inputs.Measurement`),
+    ``model`` the model fitted and its prior box
+    (:class:`~vibid.identify.fit.inputs.ModelChoice`: by default the setup's), ``search``
+    how the minimum is searched (:class:`~vibid.identify.fit.inputs.SearchOptions`: by
+    default the global search, five restarts). The steps are the module's: the problem
+    (:func:`problem_of`), the minima (:func:`minima`), their polish on a model around the
+    best and under its own error (:func:`polished`), the answer
+    (:func:`~vibid.identify.fit.summary.summarise`).
     """
     t0 = time.perf_counter()
-    model = model or setup.identification.model
-    if method not in ("global", "local"):
-        raise VibidError(f"unknown identification method {method!r}: use 'global' or 'local'")
-    if local not in LOCAL_METHODS:
-        raise VibidError(f"unknown local method {local!r}: use one of {', '.join(LOCAL_METHODS)}")
-    data = fit_data(frequency_hz, H, std, used, magnitude=magnitude)
-    box = dict(setup.identification.bounds if bounds is None else bounds)
+    name = model.name or setup.identification.model
+    _check_methods(search)
+    problem, warnings = problem_of(setup, measured, model, name)
+    opts = Options(
+        search.local,
+        search.restarts,
+        search.refresh,
+        np.random.default_rng(search.seed),
+        search.progress,
+        None if search.peaks_only is None else dict(search.peaks_only),
+    )
+    global_result, found = minima(problem, opts, asked=search)
+    weighed = problem.data.noise_known and measured.weights is None
+    found, split, disc = polished(found, opts, weighed=weighed)
+    best = found[0]
+    result = summarise(
+        best.problem,
+        problem.data,
+        name,
+        best.run,
+        tuple(f.run for f in found),
+        global_result,
+        warnings,
+        t0,
+        search.throw,
+        split,
+        on_final_weights(found),
+    )
+    return result if disc is None else replace(result, discretisation=disc)
+
+
+def _check_methods(search: SearchOptions) -> None:
+    if search.method not in ("global", "local"):
+        raise VibidError(
+            f"unknown identification method {search.method!r}: use 'global' or 'local'"
+        )
+    if search.local not in LOCAL_METHODS:
+        raise VibidError(
+            f"unknown local method {search.local!r}: use one of {', '.join(LOCAL_METHODS)}"
+        )
+
+
+def problem_of(
+    setup, measured: Measurement, model: ModelChoice, name: str
+) -> tuple[LeastSquaresProblem, list[str]]:
+    """The weighted least-squares problem of ``measured`` on the chosen model (built on the
+    searched box unless given) over its prior box, and the warnings about the data."""
+    data = fit_data(
+        measured.frequency_hz, measured.H, measured.std, measured.used, magnitude=measured.magnitude
+    )
+    box = dict(setup.identification.bounds if model.bounds is None else model.bounds)
+    forward_model = model.forward_model
     if forward_model is None:
         from vibid.identify.model.forward import build_forward_model
 
         forward_model = build_forward_model(
-            setup, data.frequency_hz[data.used], model=model, bounds=box
+            setup, data.frequency_hz[data.used], model=name, bounds=box
         )
     names = tuple(forward_model.parameter_names)
-    _check_point_count(data, len(names), model)
+    _check_point_count(data, len(names), name)
     warnings = list(data.warnings)
     if data.n_used < 3 * len(names):
         warnings.append(
@@ -627,49 +613,39 @@ def identify(
     if isinstance(forward_model, PlateForwardModel):  # a PlateModel fills derived boxes
         box = forward_model.param.default_bounds(box)
     _check_basis_covers(forward_model, box, names)
-    space = ParameterSpace.from_bounds(names, box, kinds)
-    problem = LeastSquaresProblem(forward_model, data, space, weights)
-    opts = Options(
-        local,
-        restarts,
-        refresh,
-        np.random.default_rng(seed),
-        progress,
-        None if peaks_only is None else dict(peaks_only),
-    )
+    space = ParameterSpace.from_bounds(names, box, model.kinds)
+    return LeastSquaresProblem(forward_model, data, space, measured.weights), warnings
 
-    if method == "global":
-        global_result, found = None, []
-        if opts.peaks_only is not None:
-            global_result, found = search_peaks_only(problem, opts)
-        if not found:
-            global_result, found = search(problem, opts)
-        found = prefer_inside_prior(walk_valley(problem, found, opts))
-    else:
-        global_result = None
-        found = [Fit(LOCAL_METHODS[local](problem, _start_u(space, start)), problem)]
+
+def minima(
+    problem: LeastSquaresProblem, opts: Options, asked: SearchOptions
+) -> tuple[GlobalResult | None, list[Fit]]:
+    """The minima found, best first, with the global search that found them (None for
+    ``method="local"``: one run from ``asked.start``)."""
+    if asked.method != "global":
+        run = LOCAL_METHODS[asked.local](problem, _start_u(problem.space, asked.start))
+        return None, [Fit(run, problem)]
+    global_result, found = None, []
+    if opts.peaks_only is not None:
+        global_result, found = search_peaks_only(problem, opts)
+    if not found:
+        global_result, found = search(problem, opts)
+    return global_result, prefer_inside_prior(walk_valley(problem, found, opts))
+
+
+def polished(found: list[Fit], opts: Options, *, weighed: bool):
+    """The best polished on a model rebuilt around it and, where ``weighed`` (a known noise,
+    no weights given), under the model's own error (:func:`weigh_model_error`). Returns
+    (fits, model-error split, discretisation), the last two None where the model's error
+    was not weighed."""
     found = polish_on_local_model(found, opts)
     split = disc = None
-    if data.noise_known and weights is None:
+    if weighed:
         at = found[0]
         found, split = weigh_model_error(found, opts)
         if split is not None:
             disc = discretisation_of(at.problem.model, at.run.theta)
-    best = found[0]
-    result = summarise(
-        best.problem,
-        data,
-        model,
-        best.run,
-        tuple(f.run for f in found),
-        global_result,
-        warnings,
-        t0,
-        throw,
-        split,
-        on_final_weights(found),
-    )
-    return result if disc is None else replace(result, discretisation=disc)
+    return found, split, disc
 
 
 def discretisation_of(model, theta) -> DiscretisationInfo | None:

@@ -41,7 +41,13 @@ from vibid.identify.fit.local import run_local
 from vibid.identify.fit.minima import best_inside_prior
 from vibid.identify.fit.noise import fits_noise
 from vibid.identify.fit.result import IdentificationResult
-from vibid.identify.fit.strategy import gives_modes, identify
+from vibid.identify.fit.strategy import (
+    Measurement,
+    ModelChoice,
+    SearchOptions,
+    gives_modes,
+    identify,
+)
 from vibid.identify.loop.held import Held, held_inside
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem
@@ -82,19 +88,9 @@ def _polish(setup, data, fm, start: dict, box, kinds, local: str, weights=None):
     run, the covariance), under ``weights`` or, None, the data's and the model's error."""
     return identify(
         setup,
-        data.frequency_hz,
-        data.H,
-        data.std,
-        used=data.used,
-        model=fm.param.model,
-        forward_model=fm,
-        method="local",
-        start=start,
-        bounds=box,
-        local=local,
-        magnitude=data.magnitude,
-        kinds=kinds,
-        weights=weights,
+        Measurement.of(data, weights=weights),
+        ModelChoice(name=fm.param.model, forward_model=fm, bounds=box, kinds=kinds),
+        SearchOptions(method="local", local=local, start=start),
     )
 
 
@@ -334,18 +330,9 @@ def _search(setup, data, cand, problem, start, ext_box, local) -> Searched | Non
     for peaks_only in ([start] if peaks else []) + [None]:
         found = identify(
             setup,
-            data.frequency_hz,
-            data.H,
-            data.std,
-            used=data.used,
-            model=param.model,
-            forward_model=wide,
-            bounds=ext_box,
-            restarts=3,
-            seed=0,
-            local=local,
-            peaks_only=peaks_only,
-            magnitude=data.magnitude,
+            Measurement.of(data),
+            ModelChoice(name=param.model, forward_model=wide, bounds=ext_box),
+            SearchOptions(local=local, restarts=3, seed=0, peaks_only=peaks_only),
         )
         at = problem.with_model(problem.model.refresh(found.values))
         loss = at.chi2(space.to_u(found.values))

@@ -18,7 +18,7 @@ from vibid.identify.engine.threads import in_order, numpy_only
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.result import IdentificationResult
-from vibid.identify.fit.strategy import identify
+from vibid.identify.fit.strategy import Measurement, ModelChoice, SearchOptions, identify
 from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import Place, all_candidates, distance_from_null
 from vibid.identify.loop.evidence import (
@@ -104,15 +104,8 @@ def close_loop(
     if declared is None:
         declared = identify(
             setup,
-            frequency_hz,
-            H,
-            std,
-            used=used,
-            restarts=restarts,
-            seed=seed,
-            progress=progress,
-            local=local,
-            magnitude=magnitude,
+            Measurement(frequency_hz, H, std, used=used, magnitude=magnitude),
+            search=SearchOptions(local=local, restarts=restarts, seed=seed, progress=progress),
         )
     if not declared.noise_known:
         return LoopResult(
@@ -654,17 +647,9 @@ def withdraw(
         try:
             smaller = identify(
                 inputs.setup,
-                d.frequency_hz,
-                d.H,
-                d.std,
-                used=d.used,
-                model=model.model,
-                forward_model=fm,
-                method="local",
-                start=start,
-                bounds=bounds,
-                local=inputs.local,
-                magnitude=d.magnitude,
+                Measurement.of(d),
+                ModelChoice(name=model.model, forward_model=fm, bounds=bounds),
+                SearchOptions(method="local", local=inputs.local, start=start),
             )
         except Exception as exc:  # noqa: BLE001 - the larger model stays
             log.info("loop: %s could not be refitted without %s: %s", stage.added, term.name, exc)

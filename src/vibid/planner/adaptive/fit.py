@@ -85,7 +85,7 @@ def fit_steps(
     """Fit the AFC of the steps so far (sorted by frequency), as the module doc says.
     Without ``previous``, the report's own identification (``restarts``, ``seed``)."""
     from vibid.identify.engine.threads import jax_turn
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, SearchOptions, identify
     from vibid.identify.fit.noise import explains
 
     t0 = time.perf_counter()
@@ -106,7 +106,9 @@ def fit_steps(
             declared = _local(setup, afc, previous.declared)
         if declared is None or not declared.converged:
             declared = identify(
-                setup, afc.frequency_hz, afc.H, afc.std, used=afc.used, restarts=restarts, seed=seed
+                setup,
+                Measurement(afc.frequency_hz, afc.H, afc.std, used=afc.used),
+                search=SearchOptions(restarts=restarts, seed=seed),
             )
         result, closed = declared, None
         if loop and declared.converged and not explains(declared):
@@ -137,7 +139,7 @@ def fit_steps(
 def _local(setup, afc, start_result):
     """``start_result``'s model (its effects included) refitted locally from its estimate,
     or None where it cannot be."""
-    from vibid.identify.fit import identify
+    from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
     from vibid.identify.model.forward import build_forward_model
 
     plate = start_result.plate_model
@@ -151,15 +153,9 @@ def _local(setup, afc, start_result):
         )
         return identify(
             setup,
-            afc.frequency_hz,
-            afc.H,
-            afc.std,
-            used=afc.used,
-            model=plate.model,
-            forward_model=fm,
-            method="local",
-            start=start,
-            bounds=box,
+            Measurement(afc.frequency_hz, afc.H, afc.std, used=afc.used),
+            ModelChoice(name=plate.model, forward_model=fm, bounds=box),
+            SearchOptions(method="local", start=start),
         )
     except VibidError as exc:
         log.info("adaptive: the local refit failed (%s); searching again", exc)
