@@ -190,26 +190,7 @@ class AdaptiveCampaign:
     def _decide(self, measured: _Measured, batch_no: int):
         """Fit what is measured; the stop line, or the next :class:`Batch`."""
         o = self.options
-        afc = measured.afc()
-
-        def fit(previous):
-            return fit_steps(
-                self.setup,
-                afc,
-                previous,
-                loop=self.loop,
-                candidates=self.candidates,
-                restarts=self.restarts,
-                seed=self.seed,
-            )
-
-        self.fit = fit(self.fit)
-        ok, where = reached(self.fit, o.targets)
-        if ok and self.fit.warm:
-            # the stop is the report's to decide: its own identification (a global search
-            # may find rival minima that widen the std a local refit does not see)
-            self.fit = fit(None)
-            ok, where = reached(self.fit, o.targets)
+        ok, where = self._fit(measured)
         n = len(measured.records)
         self.on_fit(self.fit, n, measured.stand_s)
         self.progress.append(worst_ratio(self.fit, o.targets))
@@ -226,17 +207,9 @@ class AdaptiveCampaign:
             f" after {n} steps, stand time {measured.stand_s:.1f} s "
             f"(computing {self.compute_s + self.fit.seconds:.0f} s beside it)"
         )
-        if ok:
-            return f"target reached: {where}{tail}"
-        if measured.stand_s >= o.max_stand_time_s:
-            return f"stand-time cap {o.max_stand_time_s:g} s reached: {where}{tail}"
-        if stalled(self.progress, [d["predicted_gain"] for d in self.history]):
-            return (
-                f"the standard uncertainty no longer falls as the steps' information "
-                f"says it should (the last {STALL_BATCHES} batches brought under "
-                f"{100 * STALL_SHARE:g} % of the predicted gain: the model's own error or "
-                f"a residual limits it, not the steps): {where}{tail}"
-            )
+        stop = self._stop(ok, measured.stand_s)
+        if stop is not None:
+            return f"{stop}: {where}{tail}"
         measured_hz = [r.frequency_hz for r in measured.records]
         batch = next_batch(
             self.setup,
@@ -251,10 +224,60 @@ class AdaptiveCampaign:
         )
         if not len(batch):
             return f"no step left under the stand-time cap {o.max_stand_time_s:g} s: {where}{tail}"
+        self._announce(batch, batch_no, n, measured.stand_s, effects)
+        return batch
+
+    def _fit(self, measured: _Measured) -> tuple[bool, str]:
+        """Fit every step so far, from the last fit (:func:`fit_steps`), into ``self.fit``;
+        whether the targets are reached there, and where the fit stands
+        (:func:`reached`)."""
+        afc = measured.afc()
+
+        def fit(previous):
+            return fit_steps(
+                self.setup,
+                afc,
+                previous,
+                loop=self.loop,
+                candidates=self.candidates,
+                restarts=self.restarts,
+                seed=self.seed,
+            )
+
+        self.fit = fit(self.fit)
+        ok, where = reached(self.fit, self.options.targets)
+        if ok and self.fit.warm:
+            # the stop is the report's to decide: its own identification (a global search
+            # may find rival minima that widen the std a local refit does not see)
+            self.fit = fit(None)
+            ok, where = reached(self.fit, self.options.targets)
+        return ok, where
+
+    def _stop(self, ok: bool, stand_s: float) -> str | None:
+        """Why the campaign stops after this fit (``ok``: the targets reached; ``stand_s``
+        spent), None to go on: the targets, the stand-time cap, or a stall
+        (:func:`stalled`)."""
+        o = self.options
+        if ok:
+            return "target reached"
+        if stand_s >= o.max_stand_time_s:
+            return f"stand-time cap {o.max_stand_time_s:g} s reached"
+        if stalled(self.progress, [d["predicted_gain"] for d in self.history]):
+            return (
+                f"the standard uncertainty no longer falls as the steps' information "
+                f"says it should (the last {STALL_BATCHES} batches brought under "
+                f"{100 * STALL_SHARE:g} % of the predicted gain: the model's own error or "
+                f"a residual limits it, not the steps)"
+            )
+        return None
+
+    def _announce(self, batch: Batch, batch_no: int, n: int, stand_s: float, effects) -> None:
+        """Keep the decision in :attr:`history` and say it: the resonances the residual
+        showed where the model has none, and the next batch."""
         self.history.append(
             {
                 "steps": n,
-                "stand_time_s": measured.stand_s,
+                "stand_time_s": stand_s,
                 "effects": tuple(effects),
                 "unexpected": self.fit.unexpected,
                 "batch_hz": tuple(float(f) for f in batch.frequency_hz),
@@ -271,7 +294,6 @@ class AdaptiveCampaign:
             f"{', '.join(f'{f:.2f}' for f in batch.frequency_hz)} Hz, "
             f"{batch.stand_time_s:.1f} s of stand time predicted"
         )
-        return batch
 
     def _beta(self) -> float:
         """The loss factor the re-record waits use: the current fit's, else the stand's."""
