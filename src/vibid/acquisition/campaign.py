@@ -206,11 +206,7 @@ def run_campaign(
     """
     stand.generator.shutdown()  # a crash may have left the output on
     path = os.fspath(out_path)
-    if setup.excitation is None:
-        raise CampaignError("the setup has no excitation: nothing to play")
-    n_steps = len(setup.excitation.frequencies_hz)
-    _check_drive(config)
-    stepped_sine(setup, config)  # checks the timing before any file is touched
+    n_steps = _check_playable(setup, config)
     if resume:
         start, drive, near = resume_point(
             path, setup, None if chooser is None else chooser.attribute
@@ -222,106 +218,152 @@ def run_campaign(
             writer.close("complete")
             return CampaignResult(path, "complete", "", writer.n_steps)
     else:
-        if os.path.exists(path):
-            raise CampaignError(
-                f"{path}: already exists; a session file is never overwritten "
-                "(use --resume to continue an interrupted one)"
-            )
         start, drive, near = 0, config.drive.initial_vpp, False
-        writer = SessionWriter(
-            path,
-            setup,
-            operator=operator,
-            notes=notes,
-            adaptive=None if chooser is None else chooser.attribute,
-        )
-    if chooser is None:
-        plan = stepped_sine(setup, config, start=start, near_resonance=near)
-        nominal = {
-            c.index: c.settle_s + c.record_s
-            for c in plan_summary(setup, config, start=start).commands
-        }
-    else:
-        plan = chooser.plan(path if resume else None, start)
-        nominal = {}  # the steps to come are not known: no time left to show
+        writer = _new_session(path, setup, operator, notes, chooser)
+    plan, nominal = _plan(setup, config, chooser, path if resume else None, start, near)
     if not (math.isfinite(drive) and drive > 0):
         drive = config.drive.initial_vpp
     runner = _Runner(stand, config, _State(drive_vpp=min(drive, config.drive.max_vpp)))
     stop_requested = _stop_test(stop)
-    t_start = time.monotonic()
-    pending: list[tuple[StepCommand, _Measured, bool]] = []  # measured, not yet in the file
-
-    def flush() -> None:
-        """Write the measured step and report it (while the next one settles)."""
-        while pending:
-            c, m, unsettled = pending[0]
-            _write(writer, c, m, temperature_c, unsettled)
-            pending.pop(0)
-            if progress is not None:
-                progress(_progress(c, m, nominal, time.monotonic() - t_start))
-
-    runner.during_settle = flush
-    first_unsettled = False
-    run_status, reason, stopped_because = "interrupted", "stopped on request", ""
-    try:
-        with _sigterm_raises():
-            cmd = next(plan, None)
-            while cmd is not None and not stop_requested():
-                if isinstance(cmd, Pause):
-                    # the plan thinks: every measured step written, the specimen at rest
-                    flush()
-                    stand.generator.shutdown()
-                    runner.state.output_on = False
-                    try:
-                        cmd = plan.send(None)
-                    except StopIteration as end:
-                        cmd, stopped_because = None, str(end.value or "")
-                    continue
-                m = runner.execute(cmd)
-                if cmd.attempt == 0:
-                    first_unsettled = not m.settled
-                if m.abort_reason:
-                    stand.generator.shutdown()
-                    pending.append((cmd, m, first_unsettled))
-                    run_status, reason = "aborted", m.abort_reason
-                    break
-                try:
-                    nxt = plan.send(
-                        StepOutcome(settled=m.settled, reading=m.reading, settle_s=m.settle_s)
-                    )
-                except StopIteration as end:
-                    nxt, stopped_because = None, str(end.value or "")
-                if nxt is None or getattr(nxt, "index", None) != cmd.index:
-                    pending.append((cmd, m, first_unsettled))
-                cmd = nxt
-            else:
-                if cmd is None:
-                    run_status, reason = "complete", ""
-            flush()
-    except _Stop:
-        run_status, reason = "interrupted", "stopped by SIGTERM"
-    except KeyboardInterrupt:
-        run_status, reason = "interrupted", "interrupted by the operator (Ctrl-C)"
-    except _WriteError as exc:
-        pending.clear()
-        run_status, reason = "aborted", str(exc)
-    except PlanError as exc:
-        run_status, reason = "aborted", f"the plan could not go on: {exc}"
-    except VibidError as exc:
-        run_status, reason = "aborted", f"stand fault: {exc}"
-    except BaseException as exc:
-        run_status, reason = "interrupted", f"crashed: {type(exc).__name__}: {exc}"
-        _finish(stand, writer, run_status, reason, flush)
-        raise
-    _finish(stand, writer, run_status, reason, flush)
+    play = _Play(stand, runner, writer, plan, progress, nominal, temperature_c)
+    play.run(stop_requested)
     return CampaignResult(
         path,
-        run_status,
-        reason,
+        play.run_status,
+        play.reason,
         writer.n_steps,
         getattr(writer, "stand_time_s", None),
-        stopped_because,
+        play.stopped_because,
     )
+
+
+# -- opening the session, planning -----------------------------------------------------------
+def _check_playable(setup: Setup, config: StandConfig) -> int:
+    """The setup's step count, once its excitation, the drive and the timing are checked
+    (before any file is touched)."""
+    if setup.excitation is None:
+        raise CampaignError("the setup has no excitation: nothing to play")
+    n_steps = len(setup.excitation.frequencies_hz)
+    _check_drive(config)
+    stepped_sine(setup, config)  # checks the timing before any file is touched
+    return n_steps
+
+
+def _new_session(path: str, setup: Setup, operator, notes, chooser) -> SessionWriter:
+    """A new session file at ``path`` (never over an existing one), with the chooser's
+    ``adaptive`` attribute where there is one."""
+    if os.path.exists(path):
+        raise CampaignError(
+            f"{path}: already exists; a session file is never overwritten "
+            "(use --resume to continue an interrupted one)"
+        )
+    return SessionWriter(
+        path,
+        setup,
+        operator=operator,
+        notes=notes,
+        adaptive=None if chooser is None else chooser.attribute,
+    )
+
+
+def _plan(setup, config, chooser, resumed: str | None, start: int, near: bool):
+    """``(the commands from step start on, each step's nominal settle + record time, s)``:
+    the setup's stepped sine, or the chooser's plan (the steps to come are not known then:
+    no time left to show)."""
+    if chooser is not None:
+        return chooser.plan(resumed, start), {}
+    plan = stepped_sine(setup, config, start=start, near_resonance=near)
+    nominal = {
+        c.index: c.settle_s + c.record_s for c in plan_summary(setup, config, start=start).commands
+    }
+    return plan, nominal
+
+
+# -- playing the plan ----------------------------------------------------------------------------
+class _Play:
+    """One run of a plan on a stand: each command played, each measured step written to the
+    file while the next one settles (and reported), and the session closed with how the run
+    ended (``run_status``, ``reason``; ``stopped_because``: why a plan that chooses its steps
+    stopped)."""
+
+    def __init__(self, stand, runner, writer, plan, progress, nominal, temperature_c):
+        self.stand, self.runner, self.writer, self.plan = stand, runner, writer, plan
+        self.progress, self.nominal, self.temperature_c = progress, nominal, temperature_c
+        self.t_start = time.monotonic()
+        #: measured, not yet in the file: (command, what was measured, first record unsettled)
+        self.pending: list[tuple[StepCommand, _Measured, bool]] = []
+        self.run_status, self.reason, self.stopped_because = "interrupted", "stopped on request", ""
+        runner.during_settle = self.flush
+
+    def run(self, stop_requested: Callable[[], bool]) -> None:
+        """Play, then close the session however the run ends: the output off on every path,
+        a completely measured step still written (:func:`_finish`)."""
+        try:
+            with _sigterm_raises():
+                self.play(stop_requested)
+                self.flush()
+        except _Stop:
+            self.run_status, self.reason = "interrupted", "stopped by SIGTERM"
+        except KeyboardInterrupt:
+            self.run_status, self.reason = "interrupted", "interrupted by the operator (Ctrl-C)"
+        except _WriteError as exc:
+            self.pending.clear()
+            self.run_status, self.reason = "aborted", str(exc)
+        except PlanError as exc:
+            self.run_status, self.reason = "aborted", f"the plan could not go on: {exc}"
+        except VibidError as exc:
+            self.run_status, self.reason = "aborted", f"stand fault: {exc}"
+        except BaseException as exc:
+            self.run_status, self.reason = "interrupted", f"crashed: {type(exc).__name__}: {exc}"
+            _finish(self.stand, self.writer, self.run_status, self.reason, self.flush)
+            raise
+        _finish(self.stand, self.writer, self.run_status, self.reason, self.flush)
+
+    def play(self, stop_requested: Callable[[], bool]) -> None:
+        """The plan's commands, one after the other, until it ends (``complete``), a stop is
+        requested, or a record is above the abort limit (``aborted``)."""
+        first_unsettled = False
+        cmd = next(self.plan, None)
+        while cmd is not None and not stop_requested():
+            if isinstance(cmd, Pause):
+                # the plan thinks: every measured step written, the specimen at rest
+                self.flush()
+                self.stand.generator.shutdown()
+                self.runner.state.output_on = False
+                cmd = self._next(None)
+                continue
+            m = self.runner.execute(cmd)
+            if cmd.attempt == 0:
+                first_unsettled = not m.settled
+            if m.abort_reason:
+                self.stand.generator.shutdown()
+                self.pending.append((cmd, m, first_unsettled))
+                self.run_status, self.reason = "aborted", m.abort_reason
+                return
+            nxt = self._next(StepOutcome(settled=m.settled, reading=m.reading, settle_s=m.settle_s))
+            if nxt is None or getattr(nxt, "index", None) != cmd.index:
+                self.pending.append((cmd, m, first_unsettled))
+            cmd = nxt
+        if cmd is None:
+            self.run_status, self.reason = "complete", ""
+
+    def _next(self, outcome: StepOutcome | None):
+        """The plan's next command after ``outcome``, or None when it ends (and why)."""
+        try:
+            return self.plan.send(outcome)
+        except StopIteration as end:
+            self.stopped_because = str(end.value or "")
+            return None
+
+    def flush(self) -> None:
+        """Write the measured step and report it (while the next one settles)."""
+        while self.pending:
+            c, m, unsettled = self.pending[0]
+            _write(self.writer, c, m, self.temperature_c, unsettled)
+            self.pending.pop(0)
+            if self.progress is not None:
+                elapsed = time.monotonic() - self.t_start
+                self.progress(_progress(c, m, self.nominal, elapsed))
 
 
 def _finish(stand: Stand, writer: SessionWriter, run_status: str, reason: str, flush) -> None:

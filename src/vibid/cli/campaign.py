@@ -38,11 +38,26 @@ from vibid.errors import VibidError
 
 
 def add_parser(sub):
+    """``vibid campaign``'s parser, its options in groups: the setup and the stand, the
+    files, the identification, how the run goes, the session's attributes, what is done,
+    and the adaptive campaign."""
     p = sub.add_parser(
         "campaign",
         help="run the stepped-sine campaign on the stand",
         description=__doc__.split("\n\n")[1],
     )
+    _add_setup_and_stand(p)
+    _add_files(p)
+    add_identification_options(p, methods=False)
+    _add_run_options(p)
+    _add_session_attributes(p)
+    _add_what_is_done(p)
+    _add_adaptive_options(p)
+    p.set_defaults(run=run)
+
+
+def _add_setup_and_stand(p) -> None:
+    """The declared setup, the stand and its configuration."""
     p.add_argument("setup", metavar="SETUP.json", help="the declared setup (with excitation)")
     p.add_argument(
         "--stand",
@@ -55,6 +70,10 @@ def add_parser(sub):
         metavar="STAND.json",
         help="the stand configuration (default: every setting at its default)",
     )
+
+
+def _add_files(p) -> None:
+    """The session file and the report folder."""
     p.add_argument(
         "--out",
         metavar="S.h5",
@@ -66,7 +85,10 @@ def add_parser(sub):
         help="the report folder: report.md, report.json, PNG figures "
         "(default: <session name>-report beside the session file)",
     )
-    add_identification_options(p, methods=False)
+
+
+def _add_run_options(p) -> None:
+    """How the run goes: a resume, wall-clock time on the simulated stand."""
     p.add_argument(
         "--resume",
         action="store_true",
@@ -77,6 +99,10 @@ def add_parser(sub):
         action="store_true",
         help="simulated stand: settle and record in wall-clock time",
     )
+
+
+def _add_session_attributes(p) -> None:
+    """What the session file says of the test: who, notes, temperature."""
     p.add_argument("--operator", metavar="NAME", help="who runs the test (session attribute)")
     p.add_argument("--notes", metavar="TEXT", help="free-text notes (session attribute)")
     p.add_argument(
@@ -85,6 +111,10 @@ def add_parser(sub):
         metavar="T",
         help="specimen or room temperature, °C, written on every step",
     )
+
+
+def _add_what_is_done(p) -> None:
+    """Less than the whole job: the plan only, or the recording only."""
     p.add_argument(
         "--dry-run",
         action="store_true",
@@ -96,6 +126,10 @@ def add_parser(sub):
         action="store_true",
         help="record the session only: no Prefect flow, no identification or report",
     )
+
+
+def _add_adaptive_options(p) -> None:
+    """The adaptive campaign's option group."""
     a = p.add_argument_group(
         "adaptive campaign",
         "choose the steps as the test goes: a coarse "
@@ -123,7 +157,6 @@ def add_parser(sub):
         "--max-stand-time", type=float, metavar="S", help="stop at this stand time, s (default 600)"
     )
     a.add_argument("--batch", type=int, metavar="N", help="steps per batch (default 4)")
-    p.set_defaults(run=run)
 
 
 def adaptive_options(args, setup):

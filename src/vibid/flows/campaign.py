@@ -287,28 +287,22 @@ def _campaign(
     adaptive,
     logger,
 ):
-    """The body of :func:`campaign_flow` (its docstring), in the flow run."""
-    from prefect.states import Failed
-
+    """The body of :func:`campaign_flow` (its docstring), in the flow run: the live view,
+    the acquisition, then the identification and the report of a complete session."""
     from vibid.acquisition.stand_config import load_stand_config
-    from vibid.flows.live import LiveAfc
 
     setup = read_setup(setup_path)
     config = load_stand_config(stand_config)
-    chooser = None
-    if adaptive is None:
-        live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
-    else:
-        live, chooser = adaptive_campaign(
-            setup,
-            config,
-            adaptive,
-            loop=loop,
-            candidates=candidates,
-            logger=logger,
-            restarts=restarts,
-            seed=seed,
-        )
+    live, chooser = _live_view(
+        setup,
+        config,
+        adaptive,
+        loop=loop,
+        candidates=candidates,
+        logger=logger,
+        restarts=restarts,
+        seed=seed,
+    )
     if resume and os.path.exists(out):
         show_recorded(live, out)
     result = acquire(
@@ -327,14 +321,60 @@ def _campaign(
         temperature_c=temperature_c,
     )
     if result.run_status != "complete":
-        message = (
-            f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
-            f"{result.n_steps} steps (resume to continue)"
-        )
-        logger.error("%s", message)
-        live.close(note=f"campaign {result.run_status}: {result.reason}")
-        return Failed(message=message)
-    report_dir = default_report_dir(out) if report_dir is None else report_dir
+        return _not_complete(result, live, logger)
+    return _identify_and_report(
+        out,
+        default_report_dir(out) if report_dir is None else report_dir,
+        result,
+        live,
+        loop=loop,
+        candidates=candidates,
+        restarts=restarts,
+        seed=seed,
+        magnitude_only=magnitude_only,
+    )
+
+
+def _live_view(setup, config, adaptive, *, loop, candidates, logger, restarts, seed):
+    """The live AFC of the campaign, and an adaptive campaign's chooser (None for the
+    setup's own steps)."""
+    from vibid.flows.live import LiveAfc
+
+    if adaptive is None:
+        live = LiveAfc(setup.specimen.name, len(setup.excitation.frequencies_hz), logger=logger)
+        return live, None
+    return adaptive_campaign(
+        setup,
+        config,
+        adaptive,
+        loop=loop,
+        candidates=candidates,
+        logger=logger,
+        restarts=restarts,
+        seed=seed,
+    )
+
+
+def _not_complete(result, live, logger):
+    """A campaign that did not complete: its reason logged and on the live AFC's last
+    version, and the flow run's ``Failed`` state (the file keeps its steps)."""
+    from prefect.states import Failed
+
+    message = (
+        f"campaign {result.run_status}: {result.reason}; {result.path} keeps its "
+        f"{result.n_steps} steps (resume to continue)"
+    )
+    logger.error("%s", message)
+    live.close(note=f"campaign {result.run_status}: {result.reason}")
+    return Failed(message=message)
+
+
+def _identify_and_report(
+    out, report_dir, result, live, *, loop, candidates, restarts, seed, magnitude_only
+):
+    """The stages of a replay on the complete session ``out``: AFC, identification (drawn
+    over the live AFC's last version), report into ``report_dir``, artifacts; the report,
+    once the identification is known to have converged."""
     data = afc_task(os.fspath(out))
     identified = identify_task(
         data,
