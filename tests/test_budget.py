@@ -264,10 +264,11 @@ def test_the_clamp_line_part_covers_a_free_span_the_data_cannot_name():
 
 
 def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_value(massless):
+    from vibid.identify.assess import assess
     from vibid.report import build_report, console_summary, summary_markdown
 
     s, result = massless
-    report = build_report(result, setup=s)
+    report = build_report(result, assess(result, setup=s))
     eng = report["engineering"]
     assert set(eng["budget"]["E_Pa"]) == {
         "fit",
@@ -295,7 +296,7 @@ def test_the_report_carries_the_budget_and_is_never_silent_on_a_non_physical_val
     )
     # the same fit with nu pushed past 0.5: a warning in the report, report.md and console
     bent = dataclasses.replace(result, values=np.array([17.97, 0.55, 0.003]))
-    report = build_report(bent, setup=s)
+    report = build_report(bent, assess(bent, setup=s))
     said = report["plausibility"]["violations"]
     assert len(said) == 1 and "0.5" in said[0] and "the closed loop did not run" in said[0]
     assert said[0] in report["identification"]["warnings"]

@@ -88,6 +88,7 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     from ritz_toy import RitzPlateModel
     from vibid.errors import VibidError
     from vibid.identify import configure
+    from vibid.identify.assess import assess
     from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
     from vibid.pipeline import Identified, require_converged
     from vibid.report import build_report
@@ -106,7 +107,7 @@ def test_an_afc_without_the_plates_response_is_not_converged():
     assert flat.local_results[0].status is Status.CONVERGED  # the optimiser's own word
     assert flat.status is Status.AT_PHYSICAL_LIMIT and not flat.converged
     assert flat.parameters["D"] < 1e-3 * BOUNDS["D"][0]
-    ident = build_report(flat, session_id="flat")["identification"]
+    ident = build_report(flat, assess(flat), session_id="flat")["identification"]
     assert ident["status"] == "at_physical_limit" and ident["converged"] is False
     with pytest.raises(VibidError, match="did not converge.*physical range"):
         require_converged(Identified(flat, None, ""))

@@ -7,6 +7,7 @@ import pytest
 
 from ritz_toy import RitzPlateModel
 from vibid.errors import VibidError
+from vibid.identify.assess import assess
 from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
 from vibid.report import build_report
 from vibid.setup_model import example_setup
@@ -51,7 +52,7 @@ def test_nan_points_are_dropped_with_a_warning(strip_1000):
     assert any("3 of 101 AFC points are not finite" in w for w in res.warnings)
     assert np.all(np.isfinite(res.values)) and res.used.sum() == 98
     np.testing.assert_allclose(res.values, TRUE, rtol=1e-6)
-    report = build_report(res, session_id="x")
+    report = build_report(res, assess(res), session_id="x")
     json.dumps(report, allow_nan=False)  # strict JSON: no NaN anywhere
     assert len(report["afc"]["frequency_hz"]) == 98
 
@@ -116,7 +117,7 @@ def test_noise_known_gives_chi2_near_one(strip_1000):
     # chi2 of 2n - p degrees of freedom: mean 1, sd sqrt(2 / dof)
     assert abs(res.chi2_reduced - 1) < 4 * np.sqrt(2 / res.dof)
     assert np.all(np.abs(res.values - TRUE) < 5 * res.std)
-    report = build_report(res, session_id="abc", declared_model="isotropic")
+    report = build_report(res, assess(res), session_id="abc", declared_model="isotropic")
     assert report["format"] == "vibid.report" and report["format_version"] == 1
     assert set(report["parameters"]) == {"D", "nu", "beta"}
     assert report["parameters"]["D"]["std"] == pytest.approx(res.std[0])
@@ -138,7 +139,7 @@ def test_wrong_model_leaves_unexplained_residual(strip_1000):
         ModelChoice(forward_model=fm),
         SearchOptions(method="local", start=dict(zip(("D", "nu", "beta"), TRUE))),
     )
-    report = build_report(res)
+    report = build_report(res, assess(res))
     assert report["loop"]["unexplained_residual"] is True
     assert any("does not fit the data to their noise level" in w for w in res.warnings)
 

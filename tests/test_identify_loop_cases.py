@@ -171,6 +171,7 @@ def test_too_few_points_for_every_candidate_is_reported_not_fitted():
     """Two frequencies (four real residuals) and a delay in the data: the declared model (3
     parameters) leaves one degree of freedom, every candidate would leave none. Each says so
     in its round, the loop ends with unexplained_residual, and the report has no NaN."""
+    from vibid.identify.assess import assess
     from vibid.report import build_report
 
     f = np.array([70.0, 500.0])
@@ -186,7 +187,11 @@ def test_too_few_points_for_every_candidate_is_reported_not_fitted():
     notes = {s.name: s.note for s in loop.rounds[0]}
     assert "too few points" in notes["anisotropy"] and "too few points" in notes["channel_delay"]
     assert loop.effects == () and loop.unexplained_residual
-    _no_nan(build_report(loop.final, session_id="two-points", loop=loop, setup=setup))
+    _no_nan(
+        build_report(
+            loop.final, assess(loop.final, loop, setup), session_id="two-points", loop=loop
+        )
+    )
 
 
 @pytest.mark.slow
@@ -194,6 +199,7 @@ def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
     """The delay's refit raises (a solver failure): its round says so, the loop goes on with
     the other candidates, and the report has no NaN."""
     import vibid.identify.loop.refit as refit_module
+    from vibid.identify.assess import assess
     from vibid.report import build_report
 
     H, sd = data({"tau_s": 2e-5}, 7)  # test_identify_loop's undeclared delay
@@ -212,7 +218,14 @@ def test_a_refit_that_fails_is_reported_and_the_loop_goes_on(monkeypatch):
     first = {s.name: s for s in loop.rounds[0]}
     assert "simulated solver failure" in first["channel_delay"].note
     assert not first["channel_delay"].kept and "channel_delay" not in loop.effects
-    _no_nan(build_report(loop.final, session_id="failing-refit", loop=loop, setup=_setup()))
+    _no_nan(
+        build_report(
+            loop.final,
+            assess(loop.final, loop, _setup()),
+            session_id="failing-refit",
+            loop=loop,
+        )
+    )
 
 
 def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(monkeypatch):

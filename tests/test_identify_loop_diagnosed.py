@@ -10,6 +10,7 @@ import dataclasses
 import pytest
 
 import beam_sessions as bs
+from vibid.identify.assess import assess
 from vibid.identify.loop import close_loop
 from vibid.report import build_report
 
@@ -44,7 +45,9 @@ def test_a_stand_resonance_is_named_at_its_frequency_among_every_candidate():
     assert loop.effects == ("stand_resonance",)
     assert not loop.unexplained_residual
     bs.named_with_truth(loop, RESONANCE)
-    doc = build_report(loop.final, session_id="beam-stand", loop=loop, setup=bs.setup())
+    doc = build_report(
+        loop.final, assess(loop.final, loop, bs.setup()), session_id="beam-stand", loop=loop
+    )
     first = doc["loop"]["diagnosis"][0]
     assert any(f["kind"] == "extra_pole" and abs(f["f_hz"] - 660) < 25 for f in first)
 

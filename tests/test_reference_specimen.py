@@ -111,21 +111,17 @@ def test_the_report_and_the_console_carry_the_calibration(long_beam):
     its console line; a model without a modulus along the length says why, one line."""
     from types import SimpleNamespace
 
-    from vibid.pipeline import reference_block
+    from vibid.identify.assess import reference_block
     from vibid.report import plausibility_lines
 
     setup, res = long_beam
-    block = reference_block(
-        SimpleNamespace(setup=setup), SimpleNamespace(result=res), Reference(E_BEAM)
-    )
+    block = reference_block(setup, res, Reference(E_BEAM))
     assert block["free_length_m"] - block["declared_length_m"] == pytest.approx(INSIDE_M, abs=2e-5)
     assert block["modulus_Pa"] == E_BEAM and block["converged"] is True
     assert plausibility_lines({"reference": block}) == [block["note"]]
-    assert reference_block(SimpleNamespace(setup=setup), SimpleNamespace(result=res), None) is None
+    assert reference_block(setup, res, None) is None
     odd = SimpleNamespace(plate_model=SimpleNamespace(model="membrane"), parameters={})
-    said = reference_block(
-        SimpleNamespace(setup=setup), SimpleNamespace(result=odd), Reference(E_BEAM)
-    )
+    said = reference_block(setup, odd, Reference(E_BEAM))
     assert said == {
         "note": "reference specimen: no modulus along the length was identified "
         "(membrane model): a reference specimen cannot calibrate the "

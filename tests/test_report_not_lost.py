@@ -124,13 +124,14 @@ def test_an_orthotropic_end_of_an_isotropic_setup_has_its_report_and_budget(stri
     """The field case: the loop ended in the orthotropic material, a residual remaining
     (so the budget weighs the models it compared, in their prior boxes). The report has
     its engineering constants with their whole budget, and nothing is left out."""
+    from vibid.identify.assess import assess
     from vibid.identify.loop.verdicts import LoopResult, Stage
     from vibid.report import build_report
 
     s, iso = strip
     ortho = _orthotropic_copy(iso)
     loop = LoopResult((Stage.of(None, iso), Stage.of("anisotropy", ortho)), (), True)
-    report = build_report(ortho, loop=loop, setup=s)
+    report = build_report(ortho, assess(ortho, loop, s), loop=loop)
     assert report["not_done"] == []
     eng = report["engineering"]
     E = 12 * iso.parameters["D"] * (1 - iso.parameters["nu"] ** 2) / s.specimen.thickness_m**3
@@ -240,6 +241,7 @@ def test_the_report_says_how_sure_the_loop_is(strip):
     ``loop.stages[].alternatives``) and in report.md."""
     from dataclasses import replace
 
+    from vibid.identify.assess import assess
     from vibid.identify.loop.verdicts import LoopResult, Stage
     from vibid.report import build_report
     from vibid.report.markdown import summary_markdown
@@ -262,7 +264,7 @@ def test_the_report_says_how_sure_the_loop_is(strip):
         (),
         True,
     )
-    report = build_report(iso, loop=loop, setup=s)
+    report = build_report(iso, assess(iso, loop, s), loop=loop)
     assert report["loop"]["criterion"]["name"] == "log_evidence"
     first, last = (st["alternatives"] for st in report["loop"]["stages"])
     assert [a["added"] for a in first] == ["stand_resonance", "clamp_loss", None]

@@ -1,5 +1,7 @@
 """The stages of one identification job, as plain functions: session → AFC → identified
-model (with the closed loop) → the JSON report of shared/spec/report-format.md.
+model (with the closed loop) → assessed (:func:`assess_session`: the engineering
+constants, their budget, the plausibility, the reference specimen) → the JSON report of
+shared/spec/report-format.md (:func:`build_session_report`, which only formats).
 
 ``vibid identify`` (:mod:`vibid.cli.identify`) and the Prefect flows (:mod:`vibid.flows`)
 both call these, so a replay of a session gives the same report as ``vibid identify`` on
@@ -224,24 +226,41 @@ def identify_afc(
     return Identified(result, None, said + result.summary(), tests)
 
 
+def assess_session(data: SessionAfc, identified: Identified, reference=None, not_done=()) -> Any:
+    """The assess stage of one identified session (:func:`vibid.identify.assess.assess`):
+    the engineering constants with their budget, the plausibility, the linearity tests
+    and, with ``reference`` (the specimen's known modulus), the clamp's calibration;
+    ``not_done``: the stages that could not be done before it (:mod:`vibid.report.not_done`).
+    The budget differentiates with JAX: hold the JAX turn."""
+    from vibid.identify.assess import assess
+
+    return assess(
+        identified.result,
+        identified.loop,
+        data.setup,
+        linearity=identified.linearity,
+        reference=reference,
+        not_done=not_done,
+    )
+
+
 def build_session_report(
-    data: SessionAfc, identified: Identified, reference=None, not_done=()
+    data: SessionAfc, identified: Identified, assessment=None
 ) -> dict[str, Any]:
-    """The JSON report (:func:`vibid.report.build_report`) of one identified session;
-    ``reference``: its ``reference`` block (:func:`reference_block`); ``not_done``: the
-    stages that could not be done before it (:mod:`vibid.report.not_done`)."""
+    """The JSON report (:func:`vibid.report.build_report`) of one identified session and
+    its ``assessment`` (:func:`assess_session`; assessed here where None)."""
     from vibid.report import build_report
 
+    if assessment is None:
+        with jax_turn():
+            assessment = assess_session(data, identified)
     return build_report(
         identified.result,
+        assessment,
         session_id=data.session_id,
         declared_model=data.setup.identification.model,
         afc=data.afc.to_report_block(),
         loop=identified.loop,
-        setup=data.setup,
-        linearity=identified.linearity,
-        reference=reference,
-        not_done=not_done,
     )
 
 
@@ -260,7 +279,8 @@ def write_outputs(
     session_path=None,
     reference=None,
 ) -> tuple[dict[str, Any], dict[str, str]]:
-    """The report stage: build the JSON report, write the readable report folder
+    """The assess and report stages: assess the result (:func:`assess_session`), build
+    the JSON report, write the readable report folder
     (``report.md``, ``report.json``, PNG figures: :func:`vibid.report.write_lab_report`) to
     ``report_dir`` (if given) and the JSON report to ``json_path`` (if given). Returns the
     report and the paths written, by file name (``"json"`` for ``json_path``).
@@ -272,12 +292,10 @@ def write_outputs(
     (:mod:`vibid.report.not_done`), and the rest is written. Only writing the files
     themselves may fail the job (a :class:`~vibid.errors.VibidError` naming the path)."""
     from vibid.report import write_report
-    from vibid.report.not_done import attempt
 
-    not_done: list = []
-    with jax_turn():  # engineering constants differentiate with JAX
-        block = attempt("reference", not_done, reference_block, data, identified, reference)
-        report = build_session_report(data, identified, block, not_done)
+    with jax_turn():  # the assess stage: the engineering constants differentiate with JAX
+        assessment = assess_session(data, identified, reference)
+    report = build_session_report(data, identified, assessment)
     paths: dict[str, str] = {}
     if report_dir is not None:  # first: what its figures could not do is in both files
         from vibid.report import write_lab_report
@@ -294,22 +312,6 @@ def write_outputs(
         write_report(report, json_path)
         paths["json"] = os.fspath(json_path)
     return report, paths
-
-
-def reference_block(data: SessionAfc, identified: Identified, reference) -> dict | None:
-    """The report's ``reference`` block: the clamp's effective free length that the
-    specimen's known modulus gives (:mod:`vibid.identify.assess.reference`), or why there is none;
-    None without a reference."""
-    if reference is None:
-        return None
-    from vibid.identify.assess.budget import loop_box
-    from vibid.identify.assess.reference import calibrate_free_length
-
-    box = loop_box(data.setup, getattr(identified, "loop", None))
-    try:
-        return calibrate_free_length(data.setup, identified.result, reference, box=box).as_report()
-    except VibidError as exc:  # the report stays: it says why there is no calibration
-        return {"note": f"reference specimen: {exc}"}
 
 
 def read_setup(path: str | os.PathLike):

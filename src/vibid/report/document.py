@@ -1,14 +1,15 @@
 """The identification report (shared/spec/report-format.md, version 1), as a JSON document.
 
 :func:`build_report` turns an :class:`~vibid.identify.fit.result.IdentificationResult` (one
-loop stage: the declared model alone) into the report's dict; :func:`write_report` writes
-it. Extra keys the format allows: ``plausibility`` (constants no material allows, and the
-comparison with the specimen's material class), ``linearity`` (whether each resolved
-measured resonance is a linear one), ``identification`` (status sentence, warnings,
-covariance, correlation, timings, ``data``: ``"complex"`` or ``"magnitude"`` and, for a
-magnitude-only fit, ``magnitude_only_std_ratio``; ``discretisation``: the model's meshes,
-measured order and bias, :func:`discretisation_block`), the signal stage's
-``afc.diagnostics`` when given,
+loop stage: the declared model alone) and what the assess stage judged of it (an
+:class:`~vibid.identify.assess.Assessment`) into the report's dict; it computes nothing of
+its own. :func:`write_report` writes it. Extra keys the format allows: ``plausibility``
+(constants no material allows, and the comparison with the specimen's material class),
+``linearity`` (whether each resolved measured resonance is a linear one),
+``identification`` (status sentence, warnings, covariance, correlation, timings,
+``data``: ``"complex"`` or ``"magnitude"`` and, for a magnitude-only fit,
+``magnitude_only_std_ratio``; ``discretisation``: the model's meshes, measured order and
+bias, :func:`discretisation_block`), the signal stage's ``afc.diagnostics`` when given,
 and ``not_done``: the stages after the fit that could not be done, each
 ``{"stage": .., "reason": ..}`` in one line, the rest of the report written
 (:mod:`vibid.report.not_done`; empty when every stage was done).
@@ -19,12 +20,17 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from vibid.report.not_done import NOT_DONE, attempt
+from vibid.report.not_done import NOT_DONE
+from vibid.report.wording import (
+    NOISE_UNKNOWN,
+    free_length_sentence,
+    loop_tried,
+    verdict_sentence,
+)
 
 FORMAT = "vibid.report"
 FORMAT_VERSION = 1
@@ -37,15 +43,6 @@ def _num(x) -> float | None:
 
 def _nums(a) -> list:
     return [_num(v) for v in np.asarray(a, dtype=float).ravel()]
-
-
-def unexplained(result) -> bool:
-    """Whether the fit leaves a residual above the noise (the one judge,
-    :func:`vibid.identify.fit.noise.explains`, as the loop's). Without a known noise level
-    nothing can be said, and the answer is False (with a warning in the result)."""
-    from vibid.identify.fit.noise import explains
-
-    return explains(result) is False
 
 
 def afc_block(result) -> dict[str, Any]:
@@ -61,78 +58,52 @@ def afc_block(result) -> dict[str, Any]:
     }
 
 
-def free_length_share(result) -> str | None:
-    """How much of the bending stiffness's (and so E's) uncertainty a fitted free length
-    carries: a longer span is a softer plate, and the two are nearly collinear. None when
-    the model has no ``dL_m``."""
-    names = list(result.parameter_names)
-    stiff = "D" if "D" in names else "D11" if "D11" in names else None
-    if "dL_m" not in names or stiff is None:
-        return None
-    C = np.asarray(result.covariance, float)
-    i, j = names.index(stiff), names.index("dL_m")
-    if not (np.isfinite(C[i, i]) and np.isfinite(C[j, j]) and C[i, i] > 0 and C[j, j] > 0):
-        return None
-    share = C[i, j] ** 2 / (C[i, i] * C[j, j])
-    known = math.sqrt(max(C[i, i] * (1.0 - share), 0.0))
-    return (
-        f"free_length: dL carries {100 * share:.0f} % of the variance of {stiff} (and so "
-        f"of E): with dL known, {stiff}'s std would be {known:.3g} instead of "
-        f"{math.sqrt(C[i, i]):.3g} N m"
-    )
-
-
-def plausibility_block(model: str, result, constants: dict, setup, loop) -> tuple[dict, list]:
-    """(the report's ``plausibility`` block, its warnings): constants no material allows,
-    with what the loop tried, and the comparison with the handbook range of the specimen's
-    material class (:mod:`vibid.identify.assess.plausibility`)."""
-    from vibid.identify.assess.plausibility import plausibility
-
-    sp = setup.specimen
-    found = plausibility(
-        model,
-        result.parameters,
-        result.parameter_std,
-        constants,
-        specimen_name=sp.name,
-        material=sp.material,
-        specimen=sp,
-        sensor=setup.sensors.response,
-    )
-    if loop is None:
-        tried = " (the closed loop did not run)"
-    else:
-        names = sorted({s.name for rnd in loop.rounds for s in rnd})
-        tried = (
-            f" (the closed loop tried {', '.join(names) or 'no candidate'}"
-            f" and added {', '.join(loop.effects) or 'none'})"
-        )
-    block = {
+def plausibility_block(found, loop) -> dict:
+    """The report's ``plausibility`` block of a
+    :class:`~vibid.identify.assess.plausibility.Plausibility`: constants no material
+    allows, with what the loop tried, and the comparison with the handbook range of the
+    specimen's material class."""
+    tried = loop_tried(loop)
+    return {
         "material_class": found.material_class,
         "violations": [v + tried for v in found.violations],
         "outside_handbook": list(found.outside_handbook),
         "inside_handbook": list(found.inside_handbook),
     }
-    return block, block["violations"] + block["outside_handbook"]
 
 
-def linearity_block(result, tests=None) -> list[dict]:
-    """The ``linearity`` block: whether each measured resonance the grid resolves is the
-    response of a linear structure, and which tops were left out of the fit
-    (:mod:`vibid.identify.assess.linearity`; the measured AFC alone, complex data only); empty
-    where no resonance is resolved. ``tests``: the tests made before the fit
-    (:func:`vibid.pipeline.identify_afc`), whose points the fit's own no longer hold."""
-    from vibid.identify.assess.linearity import linear_part
+def engineering_block(constants: dict, budget: dict | None) -> dict:
+    """The report's ``engineering`` block: each constant's value and std, and its
+    uncertainty budget by part where one was made."""
+    block = {
+        k: {"value": _num(v["value"]), "std": None if v["std"] is None else _num(v["std"])}
+        for k, v in constants.items()
+    }
+    if budget is not None:
+        block["budget"] = {
+            k: {part: _num(u) for part, u in parts.items()} for k, parts in budget.items()
+        }
+    return block
 
-    if tests is None:  # tested here, after a fit that left nothing out
-        if result.magnitude:
-            return []
-        std = None if result.H_std is None else np.asarray(result.H_std)
-        tests = [
-            replace(t, left_out_hz=None)
-            for t in linear_part(result.frequency_hz, result.H, std, result.used)[1]
-        ]
-    return [t.as_report() for t in tests]
+
+def assessed_blocks(assessment, loop) -> tuple[dict, list]:
+    """(the report's blocks of the assess stage, in the report's order, with its
+    ``not_done``; the warnings they add)."""
+    extra, warnings = {}, []
+    if tested := [t.as_report() for t in assessment.linearity]:
+        extra["linearity"] = tested
+        warnings.extend(t["note"] for t in tested if not t["linear"])
+        warnings.extend(t.left_out_note for t in assessment.linearity if t.left_out_hz is not None)
+    if assessment.constants is not None:
+        extra["engineering"] = engineering_block(assessment.constants, assessment.budget)
+    if assessment.plausibility is not None:
+        extra["plausibility"] = plausibility_block(assessment.plausibility, loop)
+        warnings.extend(extra["plausibility"]["violations"])
+        warnings.extend(extra["plausibility"]["outside_handbook"])
+    if assessment.reference is not None:
+        extra["reference"] = assessment.reference
+    extra[NOT_DONE] = list(assessment.not_done)
+    return extra, warnings
 
 
 def _stage_block(added, result) -> dict[str, Any]:
@@ -153,10 +124,10 @@ def _effect_terms(loop) -> tuple:
     return tuple(model.effects) if model is not None else ()
 
 
-def _loop_block(loop) -> tuple[list, dict]:
-    """(effects, loop block) of a :class:`vibid.identify.loop.LoopResult`. An effect that
-    occurs more than once has one entry per instance, ``"instance": k``, its parameters
-    unsuffixed (report format, "Effect names")."""
+def effects_block(loop) -> list[dict]:
+    """The report's ``effects`` of a :class:`vibid.identify.loop.LoopResult`. An effect
+    that occurs more than once has one entry per instance, ``"instance": k``, its
+    parameters unsuffixed (report format, "Effect names")."""
     from vibid.parameters import split_instance
 
     final = loop.final
@@ -176,6 +147,29 @@ def _loop_block(loop) -> tuple[list, dict]:
             for q in t.parameters
         }
         effects.append(entry)
+    return effects
+
+
+def _score_entry(sc) -> dict[str, Any]:
+    """One candidate of a round of the loop, in the report's ``loop.rounds``."""
+    return {
+        "candidate": sc.name,
+        "score": _num(sc.score),
+        "dof": sc.dof,
+        "p_value": _num(sc.p_value),
+        "collinearity": _num(sc.collinearity),
+        "delta_chi2": _num(sc.delta_chi2),
+        "kept": sc.kept,
+        "log_evidence": _num(sc.log_evidence),
+        "probability": _num(sc.probability),
+        "estimated": sc.estimated,
+        "verdict": sc.verdict.value,
+        "note": verdict_sentence(sc.verdict, sc.detail),
+    }
+
+
+def _loop_block(loop) -> dict[str, Any]:
+    """The report's ``loop`` block of a :class:`vibid.identify.loop.LoopResult`."""
     stages = []
     for st in loop.stages:
         block = _stage_block(st.added, st.result)
@@ -186,38 +180,18 @@ def _loop_block(loop) -> tuple[list, dict]:
                 for a in st.alternatives
             ]
         stages.append(block)
-    rounds = [
-        [
-            {
-                "candidate": sc.name,
-                "score": _num(sc.score),
-                "dof": sc.dof,
-                "p_value": _num(sc.p_value),
-                "collinearity": _num(sc.collinearity),
-                "delta_chi2": _num(sc.delta_chi2),
-                "kept": sc.kept,
-                "log_evidence": _num(sc.log_evidence),
-                "probability": _num(sc.probability),
-                "estimated": sc.estimated,
-                "verdict": sc.verdict.value,
-                "note": sc.note,
-            }
-            for sc in rnd
-        ]
-        for rnd in loop.rounds
-    ]
     block = {
         "stages": stages,
         "unexplained_residual": bool(loop.unexplained_residual),
         "criterion": loop.criterion,
-        "rounds": rounds,
+        "rounds": [[_score_entry(sc) for sc in rnd] for rnd in loop.rounds],
         "seconds": _num(loop.seconds),
     }
     if any(st.diagnosis is not None for st in loop.stages):
         block["diagnosis"] = [
             [] if st.diagnosis is None else st.diagnosis.as_report() for st in loop.stages
         ]
-    return effects, block
+    return block
 
 
 def discretisation_block(result) -> dict[str, Any] | None:
@@ -238,35 +212,81 @@ def discretisation_block(result) -> dict[str, Any] | None:
     }
 
 
-def fit_constants(setup, result) -> dict:
-    """The engineering constants with the fit's covariance and the declared thickness's
-    uncertainty through the conversion alone (:func:`vibid.identify.assess.engineering.
-    engineering_constants`): the report's block where the budget could not be made."""
-    from vibid.identify.assess.engineering import engineering_constants
+def _fit_warnings(result, loop, assessment) -> list[str]:
+    """The fit's and the loop's warnings, then what the assessment says of the fit."""
+    warnings = list(result.warnings) + (list(loop.warnings) if loop is not None else [])
+    if assessment.free_length is not None:
+        warnings.append(free_length_sentence(assessment.free_length))
+    if not result.noise_known:
+        warnings.append(NOISE_UNKNOWN)
+    return warnings
 
-    model = getattr(result.plate_model, "model", None) or result.model
-    sp = setup.specimen
-    return engineering_constants(
-        model,
-        result.parameter_names,
-        result.values,
-        result.covariance,
-        sp.thickness_m,
-        getattr(sp, "thickness_std_m", None) or 0.0,
-    )
+
+def _search_blocks(result) -> dict[str, Any]:
+    """The report's ``identification.global_search`` and ``local_runs``."""
+    g = result.global_result
+    return {
+        "global_search": None
+        if g is None
+        else {
+            "restart_best": [dict(zip(result.parameter_names, _nums(t))) for t in g.theta],
+            "restart_loss": _nums(g.loss),
+            "evaluations": int(g.n_evaluations),
+        },
+        "local_runs": [
+            {
+                "method": r.method,
+                "status": r.status.value,
+                "message": r.message,
+                "chi2": _num(r.loss),
+                "iterations": r.n_iterations,
+            }
+            for r in result.local_results[:10]
+        ],
+    }
+
+
+def identification_block(result, warnings: list, notes) -> dict[str, Any]:
+    """The report's ``identification`` block; ``notes``: the engineering constants' budget
+    in words (each one's largest part)."""
+    names = result.parameter_names
+    bias = result.model_error_bias
+    block = {
+        "status": result.status.value,
+        "converged": result.converged,
+        "message": result.message,
+        "warnings": warnings,
+        "noise_known": result.noise_known,
+        # what the fit saw: the complex AFC, or |H| alone (--magnitude-only)
+        "data": "magnitude" if result.magnitude else "complex",
+        "chi2": _num(result.chi2),
+        "chi2_reduced_data_weights": _num(result.chi2_reduced_data_weights),
+        "model_error_std": None if bias is None else {n: _num(abs(b)) for n, b in zip(names, bias)},
+        "discretisation": discretisation_block(result),
+        "dof": int(result.dof),
+        "parameter_names": list(names),
+        "covariance": [_nums(row) for row in result.covariance],
+        "correlation": [_nums(row) for row in result.correlation],
+        **_search_blocks(result),
+        "seconds": _num(result.seconds),
+        "uncertainty_notes": list(notes),
+    }
+    if result.magnitude_only_std_ratio is not None:
+        # each std over the complex fit's of the same points (both Fisher informations)
+        block["magnitude_only_std_ratio"] = {
+            n: _num(v) for n, v in result.magnitude_only_std_ratio.items()
+        }
+    return block
 
 
 def build_report(
     result,
+    assessment,
     *,
     session_id: str = "",
     declared_model: str | None = None,
     afc: dict | None = None,
     loop=None,
-    setup=None,
-    linearity=None,
-    reference=None,
-    not_done=(),
 ) -> dict[str, Any]:
     """The report of one identification: with ``loop`` (a
     :class:`~vibid.identify.loop.LoopResult`) every stage of the closed loop and the
@@ -276,19 +296,13 @@ def build_report(
     Parameters
     ----------
     result: the IdentificationResult of the declared model.
+    assessment: what the assess stage judged of it (:func:`vibid.identify.assess.assess`):
+        the ``linearity``, ``engineering`` (E, nu, G with their uncertainty budget),
+        ``plausibility`` and ``reference`` blocks, and the ``not_done`` stages.
     session_id: the session's id.
     declared_model: ``setup.identification.model`` (default ``result.model``).
     afc: the signal stage's report block (``AfcTable.to_report_block()``); default built
         from the points in ``result``.
-    setup: the declared setup; with it the report gains the ``engineering`` block (E, nu,
-        G from the stiffnesses and the declared thickness) with its uncertainty budget
-        (:mod:`vibid.identify.assess.budget`).
-    linearity: the linearity tests made before the fit (:func:`linearity_block`).
-    reference: with ``setup``, the ``reference`` block: what the specimen's known modulus
-        says of the clamp's free length (:func:`vibid.pipeline.reference_block`).
-    not_done: the stages an earlier step could not do (:mod:`vibid.report.not_done`); the
-        report's ``not_done`` adds those of its own that fail (the linearity tests, the
-        budget, the constants, the plausibility), each leaving the rest of the report.
     """
     if loop is not None:
         result = loop.final
@@ -300,116 +314,28 @@ def build_report(
         for n, v, s in zip(result.parameter_names, result.values, result.std)
         if n not in effect_params
     }
-    warnings = list(result.warnings) + (list(loop.warnings) if loop is not None else [])
-    shared = free_length_share(result)
-    if shared:
-        warnings.append(shared)
-    if not result.noise_known:
-        warnings.append(
-            "the AFC's uncertainty is unknown: the fit cannot be tested against "
-            "the noise (unexplained_residual is false by default)"
-        )
+    warnings = _fit_warnings(result, loop, assessment)
     if loop is None:
         effects = []
         loop_block = {
             "stages": [_stage_block(None, result)],
-            "unexplained_residual": unexplained(result),
+            "unexplained_residual": assessment.unexplained_residual,
         }
     else:
-        effects, loop_block = _loop_block(loop)
-    model = getattr(getattr(result, "plate_model", None), "model", None) or result.model
-    g = result.global_result
-    extra, notes, not_done = {}, [], list(not_done)
-    if tested := attempt("linearity", not_done, linearity_block, result, linearity, default=[]):
-        extra["linearity"] = tested
-        warnings.extend(t["note"] for t in tested if not t["linear"])
-        warnings.extend(t.left_out_note for t in linearity or () if t.left_out_hz is not None)
-    if setup is not None:
-        from vibid.identify.assess.budget import engineering_budget
-
-        block = attempt("uncertainty budget", not_done, engineering_budget, setup, result, loop)
-        if block is None:  # the constants with the fit's std alone
-            block = attempt(
-                "engineering constants", not_done, fit_constants, setup, result, default={}
-            )
-        if block:
-            budget, notes = block.pop("budget", None), block.pop("notes", [])
-            extra["engineering"] = {
-                k: {"value": _num(v["value"]), "std": None if v["std"] is None else _num(v["std"])}
-                for k, v in block.items()
-            }
-            if budget is not None:
-                extra["engineering"]["budget"] = {
-                    k: {part: _num(u) for part, u in parts.items()} for k, parts in budget.items()
-                }
-        found = attempt(
-            "plausibility", not_done, plausibility_block, model, result, block, setup, loop
-        )
-        if found is not None:
-            extra["plausibility"], said = found
-            warnings.extend(said)
-        if reference is not None:
-            extra["reference"] = reference
-    extra[NOT_DONE] = not_done
+        effects, loop_block = effects_block(loop), _loop_block(loop)
+    extra, said = assessed_blocks(assessment, loop)
+    warnings.extend(said)
     return extra | {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "session_id": session_id,
         "declared_model": declared_model or result.model,
-        "model": model,
+        "model": getattr(getattr(result, "plate_model", None), "model", None) or result.model,
         "afc": afc if afc is not None else afc_block(result),
         "parameters": params,
         "effects": effects,
         "loop": loop_block,
-        "identification": {
-            "status": result.status.value,
-            "converged": result.converged,
-            "message": result.message,
-            "warnings": warnings,
-            "noise_known": result.noise_known,
-            # what the fit saw: the complex AFC, or |H| alone (--magnitude-only)
-            "data": "magnitude" if result.magnitude else "complex",
-            "chi2": _num(result.chi2),
-            "chi2_reduced_data_weights": _num(result.chi2_reduced_data_weights),
-            "model_error_std": None
-            if result.model_error_bias is None
-            else {n: _num(abs(b)) for n, b in zip(result.parameter_names, result.model_error_bias)},
-            "discretisation": discretisation_block(result),
-            "dof": int(result.dof),
-            "parameter_names": list(result.parameter_names),
-            "covariance": [_nums(row) for row in result.covariance],
-            "correlation": [_nums(row) for row in result.correlation],
-            "global_search": None
-            if g is None
-            else {
-                "restart_best": [dict(zip(result.parameter_names, _nums(t))) for t in g.theta],
-                "restart_loss": _nums(g.loss),
-                "evaluations": int(g.n_evaluations),
-            },
-            "local_runs": [
-                {
-                    "method": r.method,
-                    "status": r.status.value,
-                    "message": r.message,
-                    "chi2": _num(r.loss),
-                    "iterations": r.n_iterations,
-                }
-                for r in result.local_results[:10]
-            ],
-            "seconds": _num(result.seconds),
-            # the engineering constants' budget in words: each one's largest part
-            "uncertainty_notes": list(notes),
-        }
-        | (
-            {}
-            if result.magnitude_only_std_ratio is None
-            else {
-                # each std over the complex fit's of the same points (both Fisher informations)
-                "magnitude_only_std_ratio": {
-                    n: _num(v) for n, v in result.magnitude_only_std_ratio.items()
-                }
-            }
-        ),
+        "identification": identification_block(result, warnings, assessment.notes),
     }
 
 

@@ -234,6 +234,17 @@ def summary_markdown(
     """``report.md``: the result in a lab's language, the figures (file names relative to
     the report folder; those of :data:`vibid.report.figures.FIGURES` among them are shown,
     in its order), and a Details section with the optimiser's internals."""
+    lines = _header_lines(report, title=title, session_path=session_path)
+    lines += _values_lines(report)
+    lines += _loop_lines(report)
+    lines += _figure_lines(figures)
+    lines += _details_lines(report)
+    return "\n".join(lines) + "\n"
+
+
+def _header_lines(report: dict, *, title: str, session_path: str | None) -> list[str]:
+    """The title and what was identified from what: the session, the points or steps
+    used, the model, the data, whether it converged and the stages left out."""
     ident = report.get("identification", {})
     afc = report["afc"]
     diag = afc.get("diagnostics")
@@ -275,6 +286,14 @@ def summary_markdown(
     if ident and not ident.get("converged", True):
         lines.append(f"- **the identification did not converge**: {ident.get('message', '')}")
     lines += [f"- **{line}**" for line in not_done_lines(report)]  # stages left out, and why
+    return lines
+
+
+def _values_lines(report: dict) -> list[str]:
+    """The identified values, the engineering constants with their budget, the
+    plausibility and the reference specimen."""
+    ident = report.get("identification", {})
+    lines: list[str] = []
     lines += [
         "",
         "## Identified values (value ± standard deviation)",
@@ -317,6 +336,13 @@ def summary_markdown(
             "",
             f"- {report['reference']['note']}",
         ]
+    return lines
+
+
+def _loop_lines(report: dict) -> list[str]:
+    """The effects the loop found, the odds, the fit quality stage by stage, the
+    residual's diagnosis and the linearity of the measured resonances."""
+    lines: list[str] = []
     lines += (
         ["", "## Effects the loop found", ""]
         + _effect_text(report)
@@ -351,6 +377,13 @@ def summary_markdown(
                     else f" (its top, {lo_hi[0]:.4g}-{lo_hi[1]:.4g} Hz, is left out of the fit)"
                 )
             )
+    return lines
+
+
+def _figure_lines(figures: Sequence[str]) -> list[str]:
+    """The figures shown, in :data:`vibid.report.figures.FIGURES`' order, and what each
+    absent one leaves out."""
+    lines: list[str] = []
     if figures:
         lines += ["", "## Figures", ""]
         lines += [
@@ -362,6 +395,14 @@ def summary_markdown(
         lines += [
             fig.absent for fig in report_figures.FIGURES if fig.file not in figures and fig.absent
         ]
+    return lines
+
+
+def _details_lines(report: dict) -> list[str]:
+    """The optimiser's internals: its message, χ², the searches, the bias, the warnings,
+    the times and each round of the loop."""
+    ident = report.get("identification", {})
+    lines: list[str] = []
     lines += ["", "## Details", ""]
     if ident:
         lines.append(f"- optimiser: {ident.get('message', '')}")
@@ -406,4 +447,4 @@ def summary_markdown(
                 f" (p {chi2_text(sc['p_value'])}), Δχ² {chi2_text(sc['delta_chi2'])}"
                 f"{', kept' if sc['kept'] else ''}{'; ' + sc['note'] if sc['note'] else ''}"
             )
-    return "\n".join(lines) + "\n"
+    return lines

@@ -90,7 +90,20 @@ def afc_figure(
     ph_model = np.unwrap(np.angle(Hm))
     fig = _figure((12.5, 7.5) if values_text else (10, 7.5))
     ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
+    _draw_measured(ax_mag, ax_ph, (f, H, s), (fm, Hm, ph_model))
+    _draw_flagged(ax_mag, ax_ph, flagged, fm, ph_model)
+    _draw_left_out(ax_mag, ax_ph, left_out_hz)
+    _draw_natural(ax_mag, ax_ph, natural_hz)
+    _finish_afc(fig, ax_mag, ax_ph, title=title, values_text=values_text)
+    return fig
 
+
+def _draw_measured(ax_mag, ax_ph, measured, model) -> None:
+    """The model's |H| and phase as lines, the ``measured`` (f, H, std) points with ±2
+    std error bars, each phase within half a turn of the ``model`` (f, H, unwrapped
+    phase)'s at its frequency."""
+    f, H, s = measured
+    fm, Hm, ph_model = model
     ax_mag.semilogy(fm, np.abs(Hm), "-", color="C1", lw=1.2, label="identified model")
     ax_mag.errorbar(
         f,
@@ -116,6 +129,10 @@ def afc_figure(
         elinewidth=0.9,
         capsize=2,
     )
+
+
+def _draw_flagged(ax_mag, ax_ph, flagged: Sequence[Flagged], fm, ph_model) -> None:
+    """The flagged steps as labelled crosses."""
     for i, fx in enumerate(flagged):
         p = phase_near(np.angle(fx.H), np.interp(fx.frequency_hz, fm, ph_model))
         kw = {"label": "flagged, not used"} if i == 0 else {}
@@ -129,6 +146,10 @@ def afc_figure(
             textcoords="offset points",
         )
         ax_ph.plot(fx.frequency_hz, np.degrees(p), "x", color="C3", ms=7, mew=1.5)
+
+
+def _draw_left_out(ax_mag, ax_ph, left_out_hz: Sequence[tuple[float, float]]) -> None:
+    """The bands (Hz) the fit left out, shaded."""
     for i, (lo, hi) in enumerate(left_out_hz):
         for ax in (ax_mag, ax_ph):
             kw = (
@@ -137,6 +158,10 @@ def afc_figure(
                 else {}
             )
             ax.axvspan(lo, hi, color="0.85", zorder=0, **kw)
+
+
+def _draw_natural(ax_mag, ax_ph, natural_hz: Sequence[float]) -> None:
+    """The model's natural frequencies as dotted lines, named on the |H| axis."""
     for k, fn in enumerate(natural_hz, start=1):
         for ax in (ax_mag, ax_ph):
             ax.axvline(fn, color="0.5", ls=":", lw=0.9)
@@ -152,6 +177,11 @@ def afc_figure(
             xytext=(-2, -3),
             textcoords="offset points",
         )
+
+
+def _finish_afc(fig, ax_mag, ax_ph, *, title: str, values_text: str) -> None:
+    """The AFC figure's labels, grids, legend and title, and the identified values in a
+    box beside the axes, never over the data."""
     ax_mag.set_ylabel(f"|H| ({H_UNIT})")
     ax_mag.grid(True, which="both", alpha=0.3)
     ax_mag.legend(loc="lower left", fontsize=8)
@@ -161,7 +191,6 @@ def afc_figure(
     if title:
         fig.suptitle(title)
     if values_text:
-        # beside the axes, never over the data
         fig.tight_layout(rect=(0, 0, 0.74, 1))
         fig.text(
             0.75,
@@ -175,7 +204,6 @@ def afc_figure(
         )
     else:
         fig.tight_layout()
-    return fig
 
 
 def residual_figure(stages: Sequence[StageResidual], *, title: str = ""):
