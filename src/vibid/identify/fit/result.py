@@ -1,8 +1,9 @@
 """Typed results of the identification: why each optimiser stopped, its history, the answer.
 
 Every status maps to a sentence that tells the person at the stand what happened and what
-to do (the shape of optimistix's ``RESULTS``); nothing is returned without one, and a run
-that did not converge says so.
+to do (the shape of optimistix's ``RESULTS``; the words are the report's,
+:mod:`vibid.report.wording`); nothing is returned without one, and a run that did not
+converge says so.
 
 A run the optimiser calls converged is no converged estimate where it stopped at the end of
 a parameter's physical range (:func:`physical_ends`: a positive stiffness at ~0, Poisson's
@@ -36,27 +37,10 @@ class Status(enum.Enum):
         return self is Status.CONVERGED
 
     def sentence(self, detail: str = "") -> str:
-        base = {
-            Status.CONVERGED: "converged",
-            Status.MAX_ITERATIONS: (
-                "did not converge within the iteration limit: the estimate is not a minimum; "
-                "allow more iterations or start closer (a global search)"
-            ),
-            Status.STALLED: (
-                "stalled: the trust region shrank to nothing before the gradient vanished; "
-                "the loss is not smooth there (check the model's accuracy and the data)"
-            ),
-            Status.NOT_FINITE: (
-                "the loss or the estimate is not finite: check the data and the start values"
-            ),
-            Status.AT_PHYSICAL_LIMIT: (
-                "stopped at the end of a parameter's physical range, where no plate is: "
-                "not a converged estimate; check that the data hold the plate's response "
-                "and that the setup declares this specimen"
-            ),
-            Status.FAILED: "failed",
-        }[self]
-        return f"{base} ({detail})" if detail else base
+        """What this status says (:func:`vibid.report.wording.status_sentence`)."""
+        from vibid.report.wording import status_sentence
+
+        return status_sentence(self, detail)
 
 
 #: A parameter in an interval (Poisson's ratio in (−1, 0.5)) within this fraction of the

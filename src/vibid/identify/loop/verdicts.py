@@ -1,7 +1,9 @@
 """What the loop reports: each candidate's verdict, each stage, the whole loop.
 
-Every outcome of a candidate is a :class:`Verdict` that maps to the sentence the report
-prints (the shape of :class:`vibid.identify.fit.result.Status`).
+Every outcome of a candidate is a :class:`Verdict` (its kind) with the numbers its sentence
+quotes (``detail``); the sentence the report prints is the report's
+(:func:`vibid.report.wording.verdict_sentence`, the shape of
+:class:`vibid.identify.fit.result.Status`).
 """
 
 from __future__ import annotations
@@ -35,47 +37,6 @@ class Verdict(enum.Enum):
         weighed), chosen or not: the budget's spread is over these
         (:func:`vibid.identify.assess.budget.model_spread`)."""
         return self in (Verdict.CHOSEN, Verdict.LESS_PROBABLE, Verdict.COMPARED)
-
-    def sentence(self, **d) -> str:
-        """The report's note; ``d`` holds the numbers it quotes."""
-        p = d.get("probability", math.nan)
-        by, p_by = d.get("by", "another"), d.get("by_probability", math.nan)
-        return (
-            {
-                Verdict.CHOSEN: f"added: the most probable explanation (probability {p:.2g})",
-                Verdict.LESS_PROBABLE: (
-                    f"compared: probability {p:.2g}, against {p_by:.2g} for {by}"
-                ),
-                Verdict.COMPARED: "refitted and weighed",
-                Verdict.NOT_SCORED: f"could not be scored: {d.get('error', '')}",
-                Verdict.TOO_FEW_POINTS: (
-                    f"not refitted: too few points for its {d.get('n', '?')} parameters "
-                    f"({d.get('residuals', '?')} real residuals)"
-                ),
-                Verdict.NO_MODE_PATTERN: (
-                    f"not refitted: the band holds {d.get('modes', '?')} of the plate's modes, "
-                    f"which the current material places; a new material needs "
-                    f"{d.get('needed', '?')} for their pattern to ask for it"
-                ),
-                Verdict.NOT_REFITTED: (
-                    f"not refitted: {d['fitted_by']}'s refit already fits the residual to the "
-                    "noise level"
-                    if d.get("fitted_by")
-                    else "not refitted: its evidence estimated from the score test (log evidence "
-                    f"{d.get('log_evidence', math.nan):.4g}) ranks below the refits the round "
-                    "could afford"
-                ),
-                Verdict.REFIT_FAILED: f"refit failed: {d.get('error', '')}",
-                Verdict.NOT_CONVERGED: f"the refit did not converge ({d.get('message', '')})",
-                Verdict.WITHDRAWN: (
-                    f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
-                    f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
-                    f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"
-                ),
-            }[self]
-            + (" (global search)" if d.get("searched") else "")
-            + (f"; {d['held']}" if d.get("held") else "")
-        )
 
 
 #: The verdicts of a refit the round compared and did not choose: what may have come
@@ -126,7 +87,10 @@ class Score:
 
     @property
     def note(self) -> str:
-        return self.verdict.sentence(**dict(self.detail))
+        """Its verdict in the report's words (:func:`vibid.report.wording.verdict_sentence`)."""
+        from vibid.report.wording import verdict_sentence
+
+        return verdict_sentence(self.verdict, self.detail)
 
 
 @dataclass(frozen=True)
