@@ -20,7 +20,7 @@ from vibid.errors import VibidError
 from vibid.identify.assess.budget import loop_box, model_spread
 from vibid.identify.model.materials import Material
 from vibid.identify.model.terms import PlateModel
-from vibid.report.not_done import attempt, not_done_lines, reason
+from vibid.not_done import attempt, not_done_lines, reason
 from vibid.setup_model import example_setup
 
 TRUE = {"D": 17.97, "nu": 0.286, "beta": 0.003}
@@ -166,9 +166,12 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
     from vibid.report import figures
 
     real = fit.identify
-    monkeypatch.setattr(
-        fit, "identify", lambda *a, **k: real(*a, **{**k, "method": "local", "start": TRUE})
-    )  # the global search's minutes saved
+
+    def local_from_truth(setup, measured, model=fit.ModelChoice(), search=fit.SearchOptions()):
+        search = dataclasses.replace(search, method="local", start=TRUE)
+        return real(setup, measured, model, search)
+
+    monkeypatch.setattr(fit, "identify", local_from_truth)  # the global search's minutes saved
 
     def no_bounds(*a, **k):
         raise VibidError("no bounds given for D11, D12, D22, D66")

@@ -230,7 +230,7 @@ def assess_session(data: SessionAfc, identified: Identified, reference=None, not
     """The assess stage of one identified session (:func:`vibid.identify.assess.assess`):
     the engineering constants with their budget, the plausibility, the linearity tests
     and, with ``reference`` (the specimen's known modulus), the clamp's calibration;
-    ``not_done``: the stages that could not be done before it (:mod:`vibid.report.not_done`).
+    ``not_done``: the stages that could not be done before it (:mod:`vibid.not_done`).
     The budget differentiates with JAX: hold the JAX turn."""
     from vibid.identify.assess import assess
 
@@ -289,7 +289,7 @@ def write_outputs(
 
     The fit's result is never lost here: a stage after it that fails (the reference, the
     budget, the figures, ...) is left out, in one line of the report's ``not_done``
-    (:mod:`vibid.report.not_done`), and the rest is written. Only writing the files
+    (:mod:`vibid.not_done`), and the rest is written. Only writing the files
     themselves may fail the job (a :class:`~vibid.errors.VibidError` naming the path)."""
     from vibid.report import write_report
 

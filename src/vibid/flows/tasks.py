@@ -214,7 +214,7 @@ def publish_artifacts(report: dict, *, specimen: str, report_dir=None) -> None:
     a history in the Prefect UI. Call inside a flow run, once the report is written: artifacts
     that cannot be made are one warning line of the run's log, and the flow goes on (the
     report's files hold everything they would show)."""
-    from vibid.report.not_done import reason
+    from vibid.not_done import reason
 
     try:
         _publish(report, specimen, report_dir)

@@ -17,7 +17,7 @@ source; every other form reads its values from it through one list of quantities
 * :func:`summary_row`, :func:`summary_csv`, :func:`summary_table_markdown`: the summary of
   many sessions (:mod:`~vibid.report.batch`);
 * the report's ``not_done``: each stage after the fit that failed, in one line, the rest of
-  the report written (:mod:`~vibid.report.not_done`).
+  the report written (:mod:`~vibid.not_done`).
 
 Importing it loads neither matplotlib nor JAX: the figures and the fine model import them
 when drawn.

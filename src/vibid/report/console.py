@@ -4,7 +4,7 @@ never silence about a constant no material allows."""
 
 from __future__ import annotations
 
-from vibid.report.not_done import not_done_lines
+from vibid.not_done import not_done_lines
 from vibid.report.values import chi2_text, quantities
 
 
@@ -42,7 +42,7 @@ def plausibility_lines(report: dict) -> list[str]:
     """The report's plausibility findings for the console: never silent about a constant
     no material allows or one outside its material's handbook range; then what a
     reference specimen says of the clamp (:mod:`vibid.identify.assess.reference`); then, one line
-    each, the stages the report could not do (:func:`vibid.report.not_done.not_done_lines`)."""
+    each, the stages the report could not do (:func:`vibid.not_done.not_done_lines`)."""
     pl = report.get("plausibility") or {}
     return (
         [f"NOT PHYSICAL: {v}" for v in pl.get("violations", [])]

@@ -12,7 +12,7 @@ its own. :func:`write_report` writes it. Extra keys the format allows: ``plausib
 bias, :func:`discretisation_block`), the signal stage's ``afc.diagnostics`` when given,
 and ``not_done``: the stages after the fit that could not be done, each
 ``{"stage": .., "reason": ..}`` in one line, the rest of the report written
-(:mod:`vibid.report.not_done`; empty when every stage was done).
+(:mod:`vibid.not_done`; empty when every stage was done).
 Non-finite numbers are written as null (JSON has no NaN).
 """
 
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from vibid.report.not_done import NOT_DONE
+from vibid.not_done import NOT_DONE
 from vibid.report.wording import (
     NOISE_UNKNOWN,
     free_length_sentence,

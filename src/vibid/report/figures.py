@@ -218,9 +218,9 @@ FIGURES: tuple[ReportFigure, ...] = (
 
 def draw_figures(data, identified, report: dict, not_done: list | None = None) -> dict[str, Any]:
     """Every figure of :data:`FIGURES` that has something to draw, by file name. With
-    ``not_done`` (the report's, :mod:`vibid.report.not_done`), a figure that cannot be
+    ``not_done`` (the report's, :mod:`vibid.not_done`), a figure that cannot be
     drawn is left out with one line there, and the others are drawn."""
-    from vibid.report.not_done import attempt
+    from vibid.not_done import attempt
 
     source = Source(data, identified, report)
     if not_done is None:

@@ -7,10 +7,10 @@ from __future__ import annotations
 import os
 import re
 
+from vibid.not_done import NOT_DONE, attempt
 from vibid.report.document import write_report
 from vibid.report.figures import draw_figures
 from vibid.report.markdown import summary_markdown
-from vibid.report.not_done import NOT_DONE, attempt
 from vibid.report.plots import save_png
 
 #: File names in the report folder (besides the figures').
@@ -29,7 +29,7 @@ def write_lab_report(
     """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``
     (created); return their paths by file name. Figures that cannot be drawn, or a
     report.md that cannot be made, are left out in one line of ``report``'s ``not_done``
-    (which it appends to, before report.json is written: :mod:`vibid.report.not_done`)."""
+    (which it appends to, before report.json is written: :mod:`vibid.not_done`)."""
     os.makedirs(report_dir, exist_ok=True)
     paths = {}
     not_done = report.setdefault(NOT_DONE, [])

@@ -11,9 +11,9 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 
+from vibid.not_done import not_done_lines
 from vibid.report import figures as report_figures
 from vibid.report.figures import figure_markdown
-from vibid.report.not_done import not_done_lines
 from vibid.report.values import (
     Quantity,
     chi2_text,

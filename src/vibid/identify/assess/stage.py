@@ -14,7 +14,7 @@ report (pipeline: identify → closed loop → assess → report).
   calibration (:mod:`~vibid.identify.assess.reference`).
 
 Each part that fails is one entry of :attr:`Assessment.not_done`
-(:mod:`vibid.report.not_done`), the rest assessed: the report
+(:mod:`vibid.not_done`), the rest assessed: the report
 (:func:`vibid.report.build_report`) only turns the :class:`Assessment` into its blocks.
 """
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.report.not_done import attempt
+from vibid.not_done import attempt
 
 
 @dataclass(frozen=True)
