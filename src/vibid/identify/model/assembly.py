@@ -38,8 +38,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from vibid.errors import VibidError
-from vibid.identify.engine.profile import timed
-from vibid.identify.engine.threads import numpy_only
 from vibid.identify.model.disc import assemble_disc, shifted_disc
 from vibid.identify.model.elements import ElementTriArgyrisLocal
 from vibid.identify.model.forms import (
@@ -49,6 +47,7 @@ from vibid.identify.model.forms import (
     rotary_inertia,
     translational_inertia,
 )
+from vibid.identify.model.machinery import numpy_only, timed
 from vibid.identify.model.mesh import Discretisation, plate_mesh
 from vibid.identify.model.terms import clash
 

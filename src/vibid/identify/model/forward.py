@@ -75,11 +75,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vibid.errors import VibidError
-from vibid.identify.engine.compiled import kernel_functions
-from vibid.identify.engine.profile import timed
-from vibid.identify.engine.runtime import require_x64
 from vibid.identify.model.assembly import Geometry, PlateMatrices, model_matrices
 from vibid.identify.model.full import make_full_afc_jax, model_afc_full
+from vibid.identify.model.machinery import handed, timed
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
 from vibid.identify.model.modal import frequencies_and_decays, mode_heights, model_eigenvalues
@@ -249,7 +247,7 @@ class ForwardModel:
     embedding: tuple = field(init=False, repr=False)
 
     def __post_init__(self):
-        require_x64()
+        handed().require_x64()
         set_ = functools.partial(object.__setattr__, self)
         set_("frequencies_hz", np.asarray(self.frequencies_hz, float))
         set_("theta0", np.asarray(self.theta0, float))
@@ -305,28 +303,34 @@ class ForwardModel:
 
     def afc(self, theta):
         """(nf,) complex128 AFC of the reduced model at ``theta`` (``parameter_names``)."""
-        return kernel_functions(self.kernel).afc(self.arrays, embed(self.embedding, _f64(theta)))
+        return handed().compile(self.kernel).afc(self.arrays, embed(self.embedding, _f64(theta)))
 
     def afc_batch(self, thetas):
         """(npop, nf) AFCs of a population of parameter vectors."""
-        return kernel_functions(self.kernel).afc_batch(
-            self.arrays, embed(self.embedding, _f64(thetas))
+        return (
+            handed()
+            .compile(self.kernel)
+            .afc_batch(self.arrays, embed(self.embedding, _f64(thetas)))
         )
 
     def modes_batch(self, thetas):
         """(npop, n) natural frequencies (Hz) and (npop, n) resonance peak heights in |H| of
         the reduced model for a population of parameter vectors (proportional loss), as
         numpy arrays."""
-        f_hz, height = kernel_functions(self.kernel).modes_batch(
-            self.arrays, embed(self.embedding, _f64(thetas))
+        f_hz, height = (
+            handed()
+            .compile(self.kernel)
+            .modes_batch(self.arrays, embed(self.embedding, _f64(thetas)))
         )
         return np.asarray(f_hz), np.asarray(height)
 
     def modes_afc_batch(self, thetas):
         """:meth:`modes_batch` and :meth:`afc_batch` from one evaluation of each member:
         ``(f_hz, height, H)``, numpy arrays."""
-        f_hz, height, H = kernel_functions(self.kernel).modes_afc_batch(
-            self.arrays, embed(self.embedding, _f64(thetas))
+        f_hz, height, H = (
+            handed()
+            .compile(self.kernel)
+            .modes_afc_batch(self.arrays, embed(self.embedding, _f64(thetas)))
         )
         return np.asarray(f_hz), np.asarray(height), np.asarray(H)
 

@@ -28,8 +28,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from vibid.identify.engine.profile import timed
-from vibid.identify.engine.threads import numpy_only
+from vibid.identify.model.machinery import numpy_only, timed
 
 
 def _solve_all(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from vibid.identify.engine.threads import numpy_only
+from vibid.identify.model.machinery import numpy_only
 
 
 def arpack_start(n: int) -> np.ndarray:

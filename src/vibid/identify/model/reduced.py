@@ -47,8 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from vibid.errors import VibidError
-from vibid.identify.engine.profile import timed
-from vibid.identify.engine.threads import numpy_only
+from vibid.identify.model.machinery import numpy_only, timed
 from vibid.identify.model.modal import arpack_start
 
 log = logging.getLogger(__name__)
