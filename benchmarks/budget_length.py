@@ -29,7 +29,7 @@ def main() -> None:
     from vibid.identify.assess.engineering import constants
     from vibid.identify.engine.threads import jax_turn
     from vibid.identify.fit.strategy import Measurement, ModelChoice, SearchOptions, identify
-    from vibid.identify.model.forward import build_forward_model
+    from vibid.identify.model.plate import build_forward_model
     from vibid.pipeline import afc_file, identify_afc
 
     data = afc_file(AFC, SETUP)

@@ -48,7 +48,7 @@ def doubling_from_16(K, M, lu, n_min, n_max, f_top):
 
 def pencil(setup, frequencies_hz, theta0=None):
     from vibid.identify.model import reduced
-    from vibid.identify.model.forward import build_forward_model
+    from vibid.identify.model.plate import build_forward_model
 
     model = build_forward_model(setup, frequencies_hz, theta0=theta0)
     s, m = reduced._coefficients(model.param, model.theta0)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from vibid.errors import VibidError
-from vibid.identify.model.forward import build_forward_model
+from vibid.identify.model.plate import build_forward_model
 from vibid.setup_model import example_setup
 
 THETA0 = {"D": 17.97, "nu": 0.286, "beta": 0.003}

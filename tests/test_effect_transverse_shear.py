@@ -9,8 +9,8 @@ import pytest
 
 import huang_cantilever as huang
 from plate_helpers import plate_setup
-from vibid.identify.model.forward import natural_frequencies
 from vibid.identify.model.materials import flexural_rigidity
+from vibid.identify.model.plate import natural_frequencies
 
 # the real titanium strip of shared/data/real-titanium (h/L = 0.03), no sensor mass
 L, B, H, RHO, E, KAPPA = 0.0996, 0.020, 0.003, 4550.0, 110e9, 5 / 6

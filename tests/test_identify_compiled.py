@@ -12,7 +12,7 @@ from vibid.identify.engine.profile import recording
 from vibid.identify.fit.data import fit_data
 from vibid.identify.fit.problem import LeastSquaresProblem, padded_count
 from vibid.identify.fit.space import ParameterSpace, from_u_coefficients
-from vibid.identify.model.forward import build_forward_model
+from vibid.identify.model.plate import build_forward_model
 from vibid.identify.model.structure import embed, embedding, structure_of
 from vibid.setup_model import example_setup
 

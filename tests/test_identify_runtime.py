@@ -112,16 +112,16 @@ def test_the_compilation_cache_is_read_and_written_under_a_lock(tmp_path):
 def test_the_forward_model_is_built_on_the_box_the_search_explores(monkeypatch):
     """identify(..., bounds=...) built its wide basis on the setup's box and searched the
     caller's, so the basis need not cover what was searched."""
-    import vibid.identify.model.forward as forward
+    import vibid.identify.model.plate as plate
 
     built = []
-    real = forward.build_forward_model
+    real = plate.build_forward_model
 
     def spy(*args, **kwargs):
         built.append(kwargs.get("bounds"))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(forward, "build_forward_model", spy)
+    monkeypatch.setattr(plate, "build_forward_model", spy)
     setup = strip_setup()
     f = np.linspace(10.0, 600.0, 40)
     H = np.ones(f.size, complex)  # what is fitted does not matter here

@@ -188,7 +188,7 @@ def _round(monkeypatch, gains, fits_noise=()):
     calls = []
 
     def refit(
-        setup, data, res, cand, box, diagnosis, local, search=False, extended=None, policy=None
+        plate, data, res, cand, box, diagnosis, local, search=False, extended=None, policy=None
     ):
         calls.append((cand.name, search))
         return SimpleNamespace(gain=gains[cand.name], result=cand.name, searched=search)
@@ -221,7 +221,7 @@ def _round(monkeypatch, gains, fits_noise=()):
     res = SimpleNamespace(chi2=CHI2, dof=DOF, plate_model=None, parameter_names=("D", "nu"))
     state = SimpleNamespace(current=SimpleNamespace(result=res, diagnosis=None), box={}, prior={})
     inputs = SimpleNamespace(
-        setup=None,
+        plate=None,
         data=SimpleNamespace(n_residuals=2 * DOF),
         local="newton",
         left_out_hz=(),

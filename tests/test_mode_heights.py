@@ -8,8 +8,8 @@ import numpy as np
 
 import beam_reference as beam
 import beam_sessions as bs
-from vibid.identify.model.forward import natural_mode_heights
 from vibid.identify.model.modal import seen
+from vibid.identify.model.plate import natural_mode_heights
 
 
 def test_bending_heights_are_the_exact_beams_peaks_and_torsion_is_hidden():

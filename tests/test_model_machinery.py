@@ -14,7 +14,7 @@ import pytest
 import vibid.identify  # noqa: F401  (hands the engine's machinery to the model)
 from vibid.errors import VibidError
 from vibid.identify.model import assembly, machinery
-from vibid.identify.model.forward import build_forward_model
+from vibid.identify.model.plate import build_forward_model
 from vibid.setup_model import example_setup
 
 TRUTH = {"D": 17.97, "nu": 0.286, "beta": 0.003}

@@ -90,9 +90,9 @@ def test_modes_refuses_params_as_simulate_does(
     twice is refused (never the last one silently), and so is a value its parameter's rule
     or the declared specimen rules out, in the same one line, before any model is built."""
     from vibid.hardware_mocks import simulated_session as simulated
-    from vibid.identify.model import forward
+    from vibid.identify.model import plate
 
-    monkeypatch.setattr(forward, "natural_frequencies", lambda *a, **k: pytest.fail("computed"))
+    monkeypatch.setattr(plate, "natural_frequencies", lambda *a, **k: pytest.fail("computed"))
     monkeypatch.setattr(simulated, "simulate_session", lambda *a, **k: pytest.fail("simulated"))
     assert main(["modes", str(setup_file), "--params", *params]) == 1
     err = capsys.readouterr().err

@@ -33,7 +33,7 @@ def test_the_titanium_strip_gets_an_honest_report(tmp_path):
 
     out = tmp_path / "ti.json"
     # two candidates (of the eight) keep it to a few minutes: the gain the declared model
-    # lacks, and the mass that brings nu back into its box (BENCHMARKS.md: every candidate)
+    # lacks, and the mass that brings nu back into its box (benchmarks/loop.py runs every candidate)
     rc = main(
         [
             "identify",

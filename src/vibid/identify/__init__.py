@@ -39,8 +39,8 @@ machinery.hand(
 
 _EXPORTS = {
     "ForwardModel": "vibid.identify.model.forward",
-    "build_forward_model": "vibid.identify.model.forward",
-    "natural_frequencies": "vibid.identify.model.forward",
+    "build_forward_model": "vibid.identify.model.plate",
+    "natural_frequencies": "vibid.identify.model.plate",
     "plate_model": "vibid.identify.model.forward",
     "PlateModel": "vibid.identify.model.terms",
     "identify": "vibid.identify.fit.strategy",

@@ -110,7 +110,7 @@ def information(
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
-    from vibid.identify.model.forward import build_forward_model
+    from vibid.identify.model.plate import build_forward_model
 
     extra = np.asarray(extra_hz, float)
     f_top = max(band_hz[1], float(extra.max()) if extra.size else 0.0)

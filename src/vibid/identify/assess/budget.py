@@ -201,7 +201,7 @@ class Linearised:
 
     def problem(self, setup):
         from vibid.identify.fit.problem import LeastSquaresProblem
-        from vibid.identify.model.forward import build_forward_model
+        from vibid.identify.model.plate import build_forward_model
 
         f_used = self.data.frequency_hz[self.data.used]
         fm = build_forward_model(
@@ -286,7 +286,7 @@ def model_spread(
     (the setup's bounds) outside which a model is not defensible (None: every model; every
     model too where the final one lies outside it: where every model the loop compared
     keeps a parameter outside the box, as a real strip's nu below it, weighing the final
-    alone would make the choice of model cost nothing; BENCHMARKS.md)."""
+    alone would make the choice of model cost nothing: commit 8453de7)."""
     if loop is None or not loop.unexplained_residual:
         return {}
     from vibid.identify.loop.rounds import outside_prior

@@ -24,7 +24,8 @@ ratios; the first stiffness follows them so that the modulus stays), from the re
 Fisher information scaled as the identification's own covariance is (by the misfit and its
 correlation along frequency where a residual remains). A strip's two bending modes barely
 determine ν, and ν sets which D the known E means: on a real strip (ν 0.41 ± 0.19) this
-part was 1.24 mm, where with ν held it would be 0.11 mm (BENCHMARKS.md). And the reference's: its modulus's
+part was 1.24 mm, where with ν held it would be 0.11 mm (commit 1248a66). And the reference's:
+its modulus's
 relative uncertainty times how far the best free length moves per relative change of it.
 Declared (``length_m`` and ``length_std_m``, the sensor's ``x_m`` moved alike) for the
 specimens measured in that clamp, it enters their fits and their uncertainty budgets.
@@ -232,7 +233,7 @@ def _refit_problem(setup, result, model, at_reference: dict, box: dict):
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
-    from vibid.identify.model.forward import build_forward_model
+    from vibid.identify.model.plate import build_forward_model
 
     names = list(model.names)
     data = fit_data(

@@ -597,7 +597,7 @@ def problem_of(
     box = dict(setup.identification.bounds if model.bounds is None else model.bounds)
     forward_model = model.forward_model
     if forward_model is None:
-        from vibid.identify.model.forward import build_forward_model
+        from vibid.identify.model.plate import build_forward_model
 
         forward_model = build_forward_model(
             setup, data.frequency_hz[data.used], model=name, bounds=box

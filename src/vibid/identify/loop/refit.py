@@ -69,7 +69,7 @@ class Refit:
     held: Held | None = None  # parameters held inside their prior box (held_inside)
 
 
-def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
+def weighed(plate, data, fit: Refit, local: str) -> IdentificationResult:
     """``fit``'s result weighed with its own model's error and polished once more (the
     full identification), for the refit the loop adds; ``fit.result`` itself where it
     already weighed its own (:attr:`Policy.model_error_share`). Its rivals were judged under the
@@ -78,16 +78,16 @@ def weighed(setup, data, fit: Refit, local: str) -> IdentificationResult:
     if fit.polish is None:
         return fit.result
     fm, box, kinds = fit.polish
-    return _polish(
-        setup, data, fm.refresh(fit.result.values), fit.result.parameters, box, kinds, local
+    return polish(
+        plate, data, fm.refresh(fit.result.values), fit.result.parameters, box, kinds, local
     )
 
 
-def _polish(setup, data, fm, start: dict, box, kinds, local: str, weights=None):
+def polish(plate, data, fm, start: dict, box, kinds, local: str, weights=None):
     """The full identification from ``start`` on the forward model ``fm`` (one local
     run, the covariance), under ``weights`` or, None, the data's and the model's error."""
     return identify(
-        setup,
+        plate.setup,
         Measurement.of(data, weights=weights),
         ModelChoice(name=fm.param.model, forward_model=fm, bounds=box, kinds=kinds),
         SearchOptions(method="local", local=local, start=start),
@@ -129,7 +129,7 @@ def starts(
 
 @timed("loop refits")
 def refit(
-    setup,
+    plate,
     data,
     res,
     cand,
@@ -140,16 +140,17 @@ def refit(
     extended=None,
     policy: Policy = DEFAULT,
 ) -> Refit:
-    """Refit ``cand``'s extended model from ``res`` (module doc); ``extended``:
+    """Refit ``cand``'s extended model from ``res`` (module doc) on the declared ``plate``
+    (:class:`~vibid.identify.model.plate.Plate`); ``extended``:
     :func:`~vibid.identify.loop.scoring.extended_problem`'s, where the scoring built it."""
-    problem, start, ext_box = extended or extended_problem(setup, data, res, cand, box, diagnosis)
-    searched = _search(setup, data, cand, problem, start, ext_box, local) if search else None
+    problem, start, ext_box = extended or extended_problem(plate, data, res, cand, box, diagnosis)
+    searched = _search(plate, data, cand, problem, start, ext_box, local) if search else None
     polish = held = None
     if searched is not None and searched.settled:
         result, loss = searched.result, searched.loss
     else:
         result, loss, polish, held = _local(
-            setup, data, res, cand, problem, start, ext_box, diagnosis, local, policy
+            plate, data, res, cand, problem, start, ext_box, diagnosis, local, policy
         )
         if searched is not None and searched.result.converged and searched.loss < loss:
             result, loss, polish, held = searched.result, searched.loss, None, None
@@ -158,7 +159,7 @@ def refit(
 
 
 def _local(
-    setup, data, res, cand, problem, start, ext_box, diagnosis, local: str, policy: Policy = DEFAULT
+    plate, data, res, cand, problem, start, ext_box, diagnosis, local: str, policy: Policy = DEFAULT
 ):
     """``(result, chi2 under the current weights, polish, held)``: local fits from the
     current estimate (:func:`starts`), the best polished by the full identification, under
@@ -175,7 +176,7 @@ def _local(
     new = [i for i, n in enumerate(names) if n not in res.parameter_names and n not in placed]
     u0 = np.clip(u0, -5, 5)
     around = _on_own_basis(problem, space.theta(u0))
-    placed = on_hidden_mode(setup, res, cand, diagnosis, space, u0, data)
+    placed = on_hidden_mode(plate, res, cand, diagnosis, space, u0, data)
     # each start on the last one's nodes, stopped where its remaining Newton step is under
     # TOL_STD of a standard deviation scaled by the misfit: the best is polished below
     scale = max(1.0, float(res.chi2_reduced))
@@ -194,8 +195,8 @@ def _local(
         # strip one costs four complex sparse LUs, 0.14 s, a basis 0.08 s, and the
         # polish's own end is checked all the same)
         fm = problem.model.rebuilt(run.theta)
-        return fm, _polish(
-            setup, data, fm, dict(zip(names, run.theta)), ext_box, kinds, local, weights
+        return fm, polish(
+            plate, data, fm, dict(zip(names, run.theta)), ext_box, kinds, local, weights
         )
 
     fm, result = polished(best, kinds)
@@ -206,7 +207,7 @@ def _local(
     return result, best.loss, (None if weights is None else (fm, ext_box, kinds)), held
 
 
-def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
+def on_hidden_mode(plate, res, cand, diagnosis, space, u0, data):
     """``u0`` with the current material moved so that the mode of the model its sensor
     does not see lies on the diagnosed pole beside it, the modes it sees (in the data's
     band) where they are, for a candidate that shows hidden modes (a sensor off its
@@ -219,7 +220,6 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
     the estimate lies inside its prior box, so no centred start is made either."""
     from scipy.optimize import least_squares
 
-    from vibid.identify.model.forward import natural_mode_heights
     from vibid.identify.model.modal import seen
 
     poles = [f for f in getattr(diagnosis, "features", ()) if "hidden_mode" in f.kinds]
@@ -227,7 +227,7 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
         return None
     pole = max(poles, key=lambda f: f.significance)
     params, n = dict(res.parameters), 12
-    f0, height = natural_mode_heights(setup, params, n)
+    f0, height = plate.mode_heights(params, n)
     k = int(np.argmin(np.abs(np.log(f0 / pole.hidden_mode_hz))))
     f_used = np.asarray(data.frequency_hz)[np.asarray(data.used)]
     shown = np.flatnonzero(seen(height) & (f0 >= f_used.min()) & (f0 <= f_used.max()))
@@ -240,7 +240,7 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
         return u, dict(zip(space.names, space.theta(u)))
 
     def misfit(x):
-        f, _ = natural_mode_heights(setup, {**params, **theta_at(x)[1]}, n)
+        f, _ = plate.mode_heights({**params, **theta_at(x)[1]}, n)
         return np.log(np.append(f[shown], f[k])) - target
 
     try:
@@ -255,7 +255,7 @@ def on_hidden_mode(setup, res, cand, diagnosis, space, u0, data):
         log.info("loop: %s: the hidden mode could not be placed: %s", cand.name, exc)
         return None
     u, theta = theta_at(fit.x)
-    f, height = natural_mode_heights(setup, {**params, **theta}, n)
+    f, height = plate.mode_heights({**params, **theta}, n)
     if seen(height)[k] or abs(np.log(f[k] / pole.f_hz)) > 0.02:
         return None  # the modes crossed, or the material cannot place it
     log.info(
@@ -315,21 +315,19 @@ class Searched:
     settled: bool
 
 
-def _search(setup, data, cand, problem, start, ext_box, local) -> Searched | None:
+def _search(plate, data, cand, problem, start, ext_box, local) -> Searched | None:
     """The extended model searched over its whole box: on the resonance peaks first for a
     candidate that moves every resonance its own way, then on chi2 unless the best's modes
     already lie on the measured peaks (its misfit is not a wrong basin) or it fits the
     noise. None when no search converged."""
-    from vibid.identify.model.forward import build_forward_model
-
     space, param = problem.space, problem.model.param
     log.info("loop: %s searched over its box", cand.name)
-    wide = build_forward_model(setup, data.frequency_hz[data.used], model=param, bounds=ext_box)
+    wide = plate.forward_model(data.frequency_hz[data.used], model=param, bounds=ext_box)
     peaks = cand.peaks_first and gives_modes(wide)
     best = None
     for peaks_only in ([start] if peaks else []) + [None]:
         found = identify(
-            setup,
+            plate.setup,
             Measurement.of(data),
             ModelChoice(name=param.model, forward_model=wide, bounds=ext_box),
             SearchOptions(local=local, restarts=3, seed=0, peaks_only=peaks_only),

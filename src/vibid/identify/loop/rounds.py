@@ -18,7 +18,7 @@ from vibid.identify.engine.threads import in_order, numpy_only
 from vibid.identify.fit.data import FitData, fit_data
 from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.result import IdentificationResult
-from vibid.identify.fit.strategy import Measurement, ModelChoice, SearchOptions, identify
+from vibid.identify.fit.strategy import Measurement, SearchOptions, identify
 from vibid.identify.loop import refit as refits
 from vibid.identify.loop.candidates import Place, all_candidates, distance_from_null
 from vibid.identify.loop.evidence import (
@@ -31,6 +31,7 @@ from vibid.identify.loop.evidence import (
 from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.scoring import extended_problem, score
 from vibid.identify.loop.verdicts import Judgement, LoopResult, Score, Stage, Verdict
+from vibid.identify.model.plate import Modes, Plate
 
 log = logging.getLogger(__name__)
 
@@ -39,9 +40,10 @@ STOP = None  # the explanation "the current model, nothing added"
 
 @dataclass(frozen=True)
 class Inputs:
-    """What stays the same across the rounds."""
+    """What stays the same across the rounds: the declared plate (the model every
+    question of the loop is asked of), the data, the candidates, the local method."""
 
-    setup: object
+    plate: Plate
     data: FitData
     pool: tuple
     local: str
@@ -119,7 +121,7 @@ def close_loop(
             time.perf_counter() - t0,
         )
     inputs = Inputs(
-        setup,
+        Plate(setup),
         fit_data(frequency_hz, H, std, used, magnitude=magnitude),
         pool,
         local,
@@ -173,7 +175,7 @@ def play_round(inputs: Inputs, state: State, proposals) -> tuple[State, bool]:
     box = state.box | cand.bounds(state.box, values, current.diagnosis)
     prior = with_prior(state.prior, cand, values)
     fit = judged[chosen].fit
-    own = refits.weighed(inputs.setup, inputs.data, fit, inputs.local)  # its own weights
+    own = refits.weighed(inputs.plate, inputs.data, fit, inputs.local)  # its own weights
     stage, gone = withdraw(
         inputs, Stage.of(chosen, own), box, prior, [s.added for s in state.stages[1:]]
     )
@@ -248,20 +250,37 @@ def residual_peaks(result, policy: Policy) -> tuple[Place, ...]:
 
 # -- diagnose -------------------------------------------------------------------------------
 def diagnosed(inputs: Inputs, stage: Stage) -> Stage:
-    """``stage`` with its residual's diagnosis (None where it cannot be made)."""
-    return replace(stage, diagnosis=diagnosis_of(inputs.setup, stage.result, inputs.left_out_hz))
+    """``stage`` with its fitted plate's modes (:meth:`Plate.modes`, asked once per stage)
+    and its residual's diagnosis (either None where it cannot be made)."""
+    modes = modes_of(inputs.plate, stage.result)
+    return replace(
+        stage, modes=modes, diagnosis=diagnosis_of(modes, stage.result, inputs.left_out_hz)
+    )
+
+
+def modes_of(plate: Plate, result: IdentificationResult, n: int = 12) -> Modes | None:
+    """The first ``n`` modes of the plate at ``result``'s estimate, or None (logged) where
+    its modal problem cannot be solved: then no diagnosis is made, and no candidate that
+    needs the modes in the band is tried."""
+    try:
+        return plate.modes(result.parameters, n)
+    except Exception as exc:  # noqa: BLE001 - the modes inform, they never stop a fit
+        log.warning("loop: the fitted plate's modes could not be computed: %s", exc)
+        return None
 
 
 @numpy_only
-def diagnosis_of(setup, r: IdentificationResult, left_out_hz=()):
-    """The diagnosis of a fit's residual (:mod:`vibid.identify.loop.diagnosis`), or None;
-    ``left_out_hz``: bands the fit leaves out, where no pole is a feature (:class:`Inputs`;
-    not every unused stretch: an adaptive campaign's planner wants the pole its residual
-    shows between two steps, to measure there)."""
+def diagnosis_of(modes: Modes | None, r: IdentificationResult, left_out_hz=()):
+    """The diagnosis of a fit's residual (:mod:`vibid.identify.loop.diagnosis`) given its
+    plate's ``modes``, or None; ``left_out_hz``: bands the fit leaves out, where no pole is
+    a feature (:class:`Inputs`; not every unused stretch: an adaptive campaign's planner
+    wants the pole its residual shows between two steps, to measure there)."""
     from vibid.identify.loop.diagnosis import diagnose
 
+    if modes is None:
+        return None
     try:
-        modes_hz, q, hidden_hz = model_resonances(setup, r)
+        modes_hz, q, hidden_hz = model_resonances(modes, r)
         u = np.asarray(r.used)
         return diagnose(
             r.frequency_hz[u],
@@ -278,19 +297,14 @@ def diagnosis_of(setup, r: IdentificationResult, left_out_hz=()):
         return None
 
 
-def model_resonances(setup, result, n: int = 12):
-    """``(frequency_hz, Q, hidden_hz)`` of the fitted model's resonances: the plate's modes
-    its sensor sees and its stand resonances; and the plate's modes its sensor does not see
-    (:func:`vibid.identify.model.modal.seen`)."""
-    from vibid.identify.model.forward import natural_frequencies, natural_mode_heights
-    from vibid.identify.model.modal import seen
-
+def model_resonances(modes: Modes, result):
+    """``(frequency_hz, Q, hidden_hz)`` of the fitted model's resonances: the plate's
+    ``modes`` its sensor sees and its stand resonances; and the plate's modes its sensor
+    does not see (:attr:`Modes.seen`)."""
     params = result.parameters
-    f_hz, decay = natural_frequencies(setup, params, n)
-    q = np.pi * np.asarray(f_hz) / np.maximum(np.asarray(decay), 1e-30)
-    shown = seen(natural_mode_heights(setup, params, n)[1])  # the same modes, in order
-    hidden_hz = np.asarray(f_hz, float)[~shown]
-    f_hz, q = np.asarray(f_hz)[shown], q[shown]
+    shown = modes.seen
+    hidden_hz = modes.frequency_hz[~shown]
+    f_hz, q = modes.frequency_hz[shown], modes.q[shown]
     stand = [
         (params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
         for t in result.plate_model.effects
@@ -302,13 +316,11 @@ def model_resonances(setup, result, n: int = 12):
     return np.asarray(f_hz, float), np.asarray(q, float), hidden_hz
 
 
-def plate_modes_in_band(setup, result, n: int = 12) -> int:
-    """How many of the fitted plate's modes lie within the band its data cover."""
-    from vibid.identify.model.forward import natural_frequencies
-
+def plate_modes_in_band(modes: Modes | None, result) -> int:
+    """How many of the fitted plate's ``modes`` (:attr:`Stage.modes`) lie within the band
+    ``result``'s data cover (0 where its modes are unknown)."""
     f = np.asarray(result.frequency_hz)[np.asarray(result.used)]
-    f_hz, _ = natural_frequencies(setup, result.parameters, n)
-    return int(np.count_nonzero((np.asarray(f_hz) >= f.min()) & (np.asarray(f_hz) <= f.max())))
+    return 0 if modes is None else modes.in_band(f.min(), f.max())
 
 
 # -- score -----------------------------------------------------------------------------------
@@ -364,7 +376,7 @@ def scored(
     its verdict, not fatal), and the problem of the model extended by it
     (:func:`~vibid.identify.loop.scoring.extended_problem`; None where it failed), which
     its refit starts from: built once, not again for the refit."""
-    args = (inputs.setup, inputs.data, current.result, cand, state.box, current.diagnosis, like)
+    args = (inputs.plate, inputs.data, current.result, cand, state.box, current.diagnosis, like)
     extended = None
     at = {} if cand.at is None else {"at_hz": cand.at.f_hz}
     try:
@@ -412,7 +424,7 @@ def fit_and_weigh(
     noise (a search costs what the whole round does)."""
     res = state.current.result
     policy = inputs.policy
-    judged = guarded(inputs, res, cands, scores)
+    judged = guarded(inputs, state.current, cands, scores)
     outside = outside_prior(res, state.prior)
     if outside:
         log.info(
@@ -445,7 +457,7 @@ def fit_and_weigh(
         )
         try:
             fit = refits.refit(
-                inputs.setup,
+                inputs.plate,
                 inputs.data,
                 res,
                 cand,
@@ -485,9 +497,10 @@ def fit_and_weigh(
     return judged
 
 
-def guarded(inputs: Inputs, res, cands: dict, scores) -> dict:
+def guarded(inputs: Inputs, current: Stage, cands: dict, scores) -> dict:
     """name -> the :class:`Judgement` of a candidate a physical fact rules out this round
     (module doc of :func:`fit_and_weigh`)."""
+    res = current.result
     judged = {}
     n_residuals = inputs.data.n_residuals
     for s in scores:
@@ -503,7 +516,7 @@ def guarded(inputs: Inputs, res, cands: dict, scores) -> dict:
             continue
         needed = cand.modes_needed(res.plate_model)
         if needed:
-            modes = plate_modes_in_band(inputs.setup, res)
+            modes = plate_modes_in_band(current.modes, res)
             if modes < needed:
                 judged[s.name] = Judgement(
                     Verdict.NO_MODE_PATTERN, (("modes", modes), ("needed", needed))
@@ -630,8 +643,6 @@ def withdraw(
     next round adds): each one is refitted without, and withdrawn where the model without
     it is the more probable (its evidence, under the new fit's noise model). Returns the
     stage and a :class:`Score` per withdrawn effect."""
-    from vibid.identify.model.forward import build_forward_model
-
     gone = []
     for term in reversed(stage.result.plate_model.effects):
         res = stage.result
@@ -641,16 +652,11 @@ def withdraw(
         model = res.plate_model.without_effect(term)
         start = {n: v for n, v in res.parameters.items() if n in model.names}
         d, bounds = inputs.data, model.default_bounds(box)
-        fm = build_forward_model(
-            inputs.setup, d.frequency_hz[d.used], model=model, theta0=start, bounds=bounds
+        fm = inputs.plate.forward_model(
+            d.frequency_hz[d.used], model=model, theta0=start, bounds=bounds
         )
         try:
-            smaller = identify(
-                inputs.setup,
-                Measurement.of(d),
-                ModelChoice(name=model.model, forward_model=fm, bounds=bounds),
-                SearchOptions(method="local", local=inputs.local, start=start),
-            )
+            smaller = refits.polish(inputs.plate, d, fm, start, bounds, None, inputs.local)
         except Exception as exc:  # noqa: BLE001 - the larger model stays
             log.info("loop: %s could not be refitted without %s: %s", stage.added, term.name, exc)
             continue

@@ -18,23 +18,22 @@ from vibid.identify.fit.space import ParameterSpace
 from vibid.identify.loop.evidence import du_dtheta
 
 
-def extended_problem(setup, data, res, cand, box, diagnosis, like=None):
-    """(the least-squares problem of the model extended by ``cand`` under ``res``'s weights,
+def extended_problem(plate, data, res, cand, box, diagnosis, like=None):
+    """(the least-squares problem of the model extended by ``cand`` on the declared
+    ``plate`` (:class:`~vibid.identify.model.plate.Plate`) under ``res``'s weights,
     its start at the null, its prior box). ``like``: the extended problem of the same
     candidate at another place (a resonance tried elsewhere), whose forward model it
     shares: the places differ in a resonance's frequency and Q, which move no stiffness
     or inertia, so the basis is the same."""
-    from vibid.identify.model.forward import build_forward_model
-
     values = res.parameters
     model = cand.extend(res.plate_model)
-    start = cand.at_null(values, box, setup.specimen.thickness_m, diagnosis)
+    start = cand.at_null(values, box, plate.setup.specimen.thickness_m, diagnosis)
     ext_box = model.default_bounds(box | cand.bounds(box, values, diagnosis))
     if like is not None:
         fm = like[0].model
     else:
-        fm = build_forward_model(
-            setup, data.frequency_hz[data.used], model=model, theta0=start, bounds=ext_box
+        fm = plate.forward_model(
+            data.frequency_hz[data.used], model=model, theta0=start, bounds=ext_box
         )
     space = ParameterSpace.from_bounds(
         fm.parameter_names,

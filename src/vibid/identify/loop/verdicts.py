@@ -122,6 +122,9 @@ class Stage:
     result: IdentificationResult
     ljung_box_p: float = math.nan
     diagnosis: object = None
+    #: the fitted plate's first modes (:class:`~vibid.identify.model.plate.Modes`, None
+    #: where they could not be computed): asked of the plate once per stage
+    modes: object = None
     #: parameters its refit held at the previous stage's values (:mod:`~vibid.identify.
     #: loop.held`): its estimate is no minimum of chi2 along them
     held: tuple[str, ...] = ()

@@ -1,12 +1,7 @@
 """The forward model of identification: declared setup + material parameters → AFC ``H(f)``.
 
-Interface (what :mod:`vibid.identify` re-exports)::
-
-    build_forward_model(setup, frequencies_hz, *, model=None, effects=(), theta0=None,
-                        bounds=None, accuracy="default", per_modulus_loss=False,
-                        basis=None) -> ForwardModel
-    natural_frequencies(setup, params: dict, n=6, *, accuracy="default")
-        -> (frequency_hz (n,), decay_1_per_s (n,))
+Interface (a setup's forward model is built by :class:`vibid.identify.model.plate.Plate`,
+``Plate(setup).forward_model(frequencies_hz, ...)`` or ``build_forward_model(setup, ...)``)::
 
     class ForwardModel:
         parameter_names: tuple[str, ...]   # physical names, in theta order
@@ -80,7 +75,7 @@ from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.machinery import handed, timed
 from vibid.identify.model.materials import Material, infer_material
 from vibid.identify.model.mesh import Discretisation
-from vibid.identify.model.modal import frequencies_and_decays, mode_heights, model_eigenvalues
+from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
 from vibid.identify.model.model_error import Extrapolation, richardson
 from vibid.identify.model.reduced import (
     ReducedAFC,
@@ -90,7 +85,7 @@ from vibid.identify.model.reduced import (
     same_coefficients,
 )
 from vibid.identify.model.structure import embed, embedding
-from vibid.identify.model.terms import PlateModel, theta_from_dict
+from vibid.identify.model.terms import PlateModel
 
 log = logging.getLogger(__name__)
 
@@ -189,14 +184,6 @@ class DiscretisationError:
     finer: np.ndarray
     meshes: tuple[str, str, str]
     extrapolation: Extrapolation
-
-
-def _box_centre(bounds: dict, names) -> np.ndarray:
-    out = []
-    for n in names:
-        lo, hi = bounds[n]
-        out.append(math.sqrt(lo * hi) if lo > 0 and hi > 0 else 0.5 * (lo + hi))
-    return np.array(out)
 
 
 def _f64(x):
@@ -564,97 +551,3 @@ def plate_model_for(names, effects=()) -> PlateModel:
         if needs and needs not in model.effect_names:
             raise VibidError(f"{t.name} goes with {needs}: give its parameters too")
     return model
-
-
-def build_forward_model(
-    setup,
-    frequencies_hz=None,
-    *,
-    model=None,
-    effects=(),
-    theta0=None,
-    bounds: dict | None = None,
-    accuracy: str = "default",
-    per_modulus_loss: bool = False,
-    basis: str | None = None,
-) -> ForwardModel:
-    """Build the forward model of a declared setup.
-
-    Parameters
-    ----------
-    setup : :class:`vibid.setup_model.Setup`.
-    frequencies_hz : (nf,) frequencies in Hz (default: the setup's excitation frequencies).
-    model : ``"isotropic"``, ``"orthotropic"`` or ``"monoclinic"`` (default: the setup's),
-        or a ready :class:`~vibid.identify.model.terms.PlateModel` (then ``effects`` and
-        ``per_modulus_loss`` are its own).
-    effects : effect terms or their report names (:data:`vibid.identify.effects.EFFECTS`),
-        added to the material.
-    theta0 : dict name -> value where the basis is built (default: the centre of the
-        prior box, geometric for positive bounds).
-    bounds : the prior box the basis must cover (default: the setup's, and each effect's
-        default box for effect parameters the setup does not name).
-    accuracy : ``"fast"``, ``"default"`` or ``"fine"`` (see the module docstring).
-    per_modulus_loss : one loss factor per modulus (``beta11``, ...) instead of ``beta``.
-    basis : ``"wide"`` or ``"local"`` (default: wide without ``theta0``, local with it).
-    """
-    if frequencies_hz is None:
-        frequencies_hz = setup.excitation.frequencies_hz
-    freqs = np.asarray(frequencies_hz, float)
-    if freqs.ndim != 1 or freqs.size == 0 or not np.all(np.isfinite(freqs)) or np.any(freqs < 0):
-        raise VibidError("frequencies_hz must be a non-empty list of finite frequencies >= 0 Hz")
-    if not isinstance(model, PlateModel):
-        model = plate_model(model or setup.identification.model, per_modulus_loss, effects)
-    box = model.default_bounds(dict(setup.identification.bounds if bounds is None else bounds))
-    geometry = Geometry.from_setup(setup)
-    model = model.for_geometry(geometry)
-    if theta0 is None:
-        missing = [n for n in model.names if n not in box]
-        if missing:
-            raise VibidError(f"no bounds for {', '.join(missing)}: give theta0 or the bounds")
-        th0 = _box_centre(box, model.names)
-        kind = basis or "wide"
-    else:
-        try:
-            th0 = theta_from_dict(model, theta0)
-        except KeyError as exc:
-            raise VibidError(str(exc.args[0])) from None
-        kind = basis or "local"
-    D = np.asarray(model.moduli(th0), float)
-    softest = float(min(D[0], D[3]))  # D11, D22: the shorter bending wavelength
-    disc = discretisation(geometry, accuracy, f_max_hz=float(freqs.max()), rigidity_n_m=softest)
-    return ForwardModel(geometry, freqs, model, box, disc, th0, kind)
-
-
-def natural_frequencies(setup, params: dict, n: int = 6, *, accuracy: str = "default", effects=()):
-    """Natural frequencies and decay factors of the setup's plate (with its sensor).
-
-    Parameters
-    ----------
-    setup : :class:`vibid.setup_model.Setup`.
-    params : dict name -> value; the model follows from the names (``D, nu, beta`` is
-        isotropic, ``D11, D12, D22, D66, beta`` orthotropic, ...; ``beta11`` ... for one loss
-        per modulus; any effect's parameters add that effect, e.g.
-        ``k_theta_N_per_rad``).
-    n : how many modes.
-
-    Returns
-    -------
-    (frequency_hz (n,), decay_1_per_s (n,)): ``√Λ = 2π f + i γ`` (paper eq. 4.1.13).
-    """
-    geometry = Geometry.from_setup(setup)
-    model = plate_model_for(params, effects).for_geometry(geometry)
-    theta = theta_from_dict(model, params)
-    mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))
-    return frequencies_and_decays(model_eigenvalues(mats, model, theta, n))
-
-
-def natural_mode_heights(setup, params: dict, n: int = 6, *, accuracy: str = "default"):
-    """``(frequency_hz (n,), height (n,))`` of the setup's plate at ``params`` (as
-    :func:`natural_frequencies`): each real mode's peak in |H| times the loss factor
-    (:func:`vibid.identify.model.modal.mode_heights`), near zero for a mode the sensor does
-    not see."""
-    geometry = Geometry.from_setup(setup)
-    model = plate_model_for(params).for_geometry(geometry)
-    theta = theta_from_dict(model, params)
-    mats = model_matrices(geometry, discretisation(geometry, accuracy), tuple(model.effects))
-    return mode_heights(mats, model, theta, n)

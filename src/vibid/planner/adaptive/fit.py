@@ -140,7 +140,7 @@ def _local(setup, afc, start_result):
     """``start_result``'s model (its effects included) refitted locally from its estimate,
     or None where it cannot be."""
     from vibid.identify.fit import Measurement, ModelChoice, SearchOptions, identify
-    from vibid.identify.model.forward import build_forward_model
+    from vibid.identify.model.plate import build_forward_model
 
     plate = start_result.plate_model
     if plate is None:
@@ -164,13 +164,14 @@ def _local(setup, afc, start_result):
 
 def _unexpected(setup, result, closed) -> tuple[tuple[float, float], ...]:
     """Resonances the residual shows where the fitted model has none: (f_hz, Q)."""
-    from vibid.identify.loop.rounds import diagnosis_of
+    from vibid.identify.loop.rounds import diagnosis_of, modes_of
+    from vibid.identify.model.plate import Plate
 
     diagnosis = None
     if closed is not None and closed.stages:
         diagnosis = closed.stages[-1].diagnosis
     if diagnosis is None:
-        diagnosis = diagnosis_of(setup, result)
+        diagnosis = diagnosis_of(modes_of(Plate(setup), result), result)
     if diagnosis is None:
         return ()
     return tuple(
