@@ -264,11 +264,13 @@ def test_replay_publishes_artifacts_keyed_by_specimen(replayed_cli):
 
 # -- the stages as plain functions ------------------------------------------------------------
 def test_stage_tasks_write_figures_whose_axes_carry_units(stages_b):
+    from vibid.identify.assess.curve import model_curve
     from vibid.report import draw_figures, plots
 
     data, identified, report, paths = stages_b
     check_report_format(report)
-    figs = draw_figures(data, identified, report)
+    curve = model_curve(data.setup, identified.result)
+    figs = draw_figures(data, identified, report, curve=curve)
     assert set(figs) == {"afc.png", "residuals.png", "convergence.png"}
     for name, fig in figs.items():
         labels = plots.axis_labels(fig)
@@ -279,7 +281,7 @@ def test_stage_tasks_write_figures_whose_axes_carry_units(stages_b):
 
 def test_the_model_is_drawn_on_a_fine_grid_through_its_resonances(stages_b):
     from vibid.identify import natural_frequencies
-    from vibid.report.figures import fine_model
+    from vibid.identify.assess.curve import model_curve as fine_model
 
     data, identified, _, _ = stages_b
     result = identified.result
@@ -307,7 +309,7 @@ def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stage
     resonance peaks at their height, not straight lines between the steps), computed once
     by set_identified; drawing it computes nothing more."""
     from vibid.flows.live import LiveAfc
-    from vibid.report.figures import fine_model
+    from vibid.identify.assess.curve import model_curve as fine_model
 
     data, identified, _, _ = stages_b
     result = identified.result
@@ -327,12 +329,12 @@ def test_the_live_afc_draws_the_identified_model_on_the_report_s_fine_grid(stage
         > 20 * np.abs(result.H[u][np.abs(result.frequency_hz[u] - natural[0]) < 30]).max()
     )
     # drawing it computes nothing more (no wall clock: the suite runs under load)
-    import vibid.report.figures as figures
+    import vibid.identify.assess.curve as curve
 
     def no_model(*a, **k):
         raise AssertionError("render_png computed the model again")
 
-    monkeypatch.setattr(figures, "fine_model", no_model)
+    monkeypatch.setattr(curve, "model_curve", no_model)
     assert live.render_png().startswith(b"\x89PNG")
 
 

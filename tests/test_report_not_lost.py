@@ -162,8 +162,7 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
     )
 
     from vibid.identify import fit
-    from vibid.identify.assess import budget, reference
-    from vibid.report import figures
+    from vibid.identify.assess import budget, curve, reference
 
     real = fit.identify
 
@@ -181,7 +180,7 @@ def test_a_stage_that_fails_is_one_line_and_the_rest_is_written(tmp_path, monkey
 
     monkeypatch.setattr(budget, "engineering_budget", no_bounds)
     monkeypatch.setattr(reference, "calibrate_free_length", broken)
-    monkeypatch.setattr(figures, "fine_model", broken)
+    monkeypatch.setattr(curve, "model_curve", broken)
     out, folder = tmp_path / "r.json", tmp_path / "report"
     rc = main(
         [

@@ -19,6 +19,7 @@ import numpy as np
 
 from vibid.errors import VibidError
 from vibid.identify.engine.threads import jax_turn
+from vibid.not_done import NOT_DONE, attempt
 
 # One compiled JAX program at a time per process: two identifications running in two
 # threads of one process (a thread-pool task runner, an in-process Dask cluster)
@@ -298,16 +299,26 @@ def write_outputs(
     report = build_session_report(data, identified, assessment)
     paths: dict[str, str] = {}
     if report_dir is not None:  # first: what its figures could not do is in both files
+        from vibid.identify.assess.curve import model_curve
         from vibid.report import write_lab_report
 
-        with jax_turn():  # the figures evaluate the model
-            paths |= write_lab_report(
-                report_dir,
-                data,
-                identified,
-                report,
-                session_path=None if session_path is None else os.fspath(session_path),
+        with jax_turn():  # the AFC figure's model on a fine grid (JAX)
+            curve = attempt(
+                "figures",
+                report.setdefault(NOT_DONE, []),
+                model_curve,
+                data.setup,
+                identified.result,
+                about="afc.png",
             )
+        paths |= write_lab_report(
+            report_dir,
+            data,
+            identified,
+            report,
+            session_path=None if session_path is None else os.fspath(session_path),
+            curve=curve,
+        )
     if json_path is not None:
         write_report(report, json_path)
         paths["json"] = os.fspath(json_path)

@@ -169,16 +169,16 @@ class LiveAfc:
 
     def set_identified(self, result, setup=None, *, label: str = "identified model") -> None:
         """The identification's model (an ``IdentificationResult``) on the fine grid of the
-        report's AFC figure (:func:`vibid.report.figures.fine_model`: its resonances drawn
+        report's AFC figure (:func:`vibid.identify.assess.curve.model_curve`: its resonances drawn
         at their height) over the measured band; computed here, once, not at each step.
         Without ``setup`` (the session's :class:`~vibid.setup_model.Setup`), on the used
         points alone."""
         try:
             magnitude_only = bool(getattr(result, "magnitude", False))
             if setup is not None:
-                from vibid.report.figures import fine_model
+                from vibid.identify.assess.curve import model_curve
 
-                f, H, _ = fine_model(setup, result)
+                f, H, _ = model_curve(setup, result)
             else:
                 used = np.asarray(result.used, bool)
                 f, H = np.asarray(result.frequency_hz)[used], np.asarray(result.model_afc)[used]

@@ -4,8 +4,9 @@ report.md and the Prefect UI all follow.
 A new figure is one function ``draw(source) -> matplotlib Figure | None`` (None: nothing to
 draw this time) and one :class:`ReportFigure` entry in :data:`FIGURES`. The drawing from
 plain arrays is :mod:`vibid.report.plots`; this module says what each figure shows of an
-identification, and draws the identified model on a fine frequency grid
-(:func:`fine_model`), so a resonance is a peak, not a one-point spike.
+identification; the identified model is drawn on the fine frequency grid the assess stage
+computed (:mod:`vibid.identify.assess.curve`), so a resonance is a peak, not a one-point
+spike.
 """
 
 from __future__ import annotations
@@ -18,26 +19,19 @@ import numpy as np
 
 from vibid.report.values import quantities, stage_label
 
-#: Points of the fine grid the model is drawn on, spread evenly over the measured band;
-#: each natural frequency in the band gets FINE_PER_MODE more within a few half-power
-#: bandwidths of it, so its peak is drawn at its height.
-FINE_POINTS = 2000
-FINE_PER_MODE = 161
-#: Half-widths around a mode densely sampled, in half-power bandwidths.
-FINE_HALF_WIDTH_BANDWIDTHS = 12.0
-#: Modes asked of the model to find those in the band.
-N_MODES = 12
-
 
 @dataclass(frozen=True)
 class Source:
     """What a report figure is drawn from: the session's AFC and declared setup
     (:class:`vibid.pipeline.SessionAfc`), the identification
-    (:class:`vibid.pipeline.Identified`) and its JSON report."""
+    (:class:`vibid.pipeline.Identified`), its JSON report and the model's AFC on a fine
+    grid (:class:`vibid.identify.assess.curve.ModelCurve`; None where it was not
+    computed: then no AFC figure)."""
 
     data: Any
     identified: Any
     report: dict
+    curve: Any = None
 
 
 @dataclass(frozen=True)
@@ -52,27 +46,6 @@ class ReportFigure:
     draw: Callable[[Source], Any]
     #: what report.md says when ``draw`` drew nothing ("" for nothing)
     absent: str = ""
-
-
-def fine_model(setup, result, *, n_points: int = FINE_POINTS):
-    """``(frequency_hz, H, natural_hz)``: the final model's AFC on a fine grid over the
-    measured band (:data:`FINE_POINTS` evenly spread, plus :data:`FINE_PER_MODE` around
-    each natural frequency in the band) and those natural frequencies (Hz), from the
-    reduced model rebuilt around the estimate (accurate to about 1e-6 of max |H|)."""
-    from vibid.identify import build_forward_model, natural_frequencies
-
-    f_used = np.asarray(result.frequency_hz, float)[np.asarray(result.used, bool)]
-    lo, hi = float(f_used.min()), float(f_used.max())
-    fn, decay = natural_frequencies(setup, result.parameters, N_MODES)
-    fn, decay = np.asarray(fn, float), np.asarray(decay, float)
-    inband = (fn >= lo) & (fn <= hi)
-    grids = [np.linspace(lo, hi, n_points)]
-    for f0, g in zip(fn[inband], decay[inband]):
-        half = FINE_HALF_WIDTH_BANDWIDTHS * max(g / np.pi, 1e-6 * f0)
-        grids.append(np.clip(np.linspace(f0 - half, f0 + half, FINE_PER_MODE), lo, hi))
-    grid = np.unique(np.concatenate(grids))
-    model = build_forward_model(setup, grid, model=result.plate_model, theta0=result.parameters)
-    return grid, np.asarray(model.afc(np.asarray(result.values, float))), fn[inband]
 
 
 def values_text(report: dict) -> str:
@@ -147,7 +120,9 @@ def draw_afc(source: Source):
     data, report = source.data, source.report
     measured = data.afc
     used = np.asarray(measured.used, bool)
-    grid, Hm, natural = fine_model(data.setup, source.identified.result)
+    if source.curve is None:
+        return None
+    grid, Hm, natural = source.curve
     name = data.setup.specimen.name or "specimen"
     return afc_figure(
         np.asarray(measured.frequency_hz)[used],
@@ -216,13 +191,16 @@ FIGURES: tuple[ReportFigure, ...] = (
 )
 
 
-def draw_figures(data, identified, report: dict, not_done: list | None = None) -> dict[str, Any]:
-    """Every figure of :data:`FIGURES` that has something to draw, by file name. With
-    ``not_done`` (the report's, :mod:`vibid.not_done`), a figure that cannot be
-    drawn is left out with one line there, and the others are drawn."""
+def draw_figures(
+    data, identified, report: dict, not_done: list | None = None, *, curve=None
+) -> dict[str, Any]:
+    """Every figure of :data:`FIGURES` that has something to draw, by file name (``curve``:
+    :attr:`Source.curve`). With ``not_done`` (the report's, :mod:`vibid.not_done`), a
+    figure that cannot be drawn is left out with one line there, and the others are
+    drawn."""
     from vibid.not_done import attempt
 
-    source = Source(data, identified, report)
+    source = Source(data, identified, report, curve)
     if not_done is None:
         drawn = {fig.file: fig.draw(source) for fig in FIGURES}
     else:

@@ -25,16 +25,26 @@ def write_lab_report(
     report: dict,
     *,
     session_path: str | None = None,
+    curve=None,
 ) -> dict[str, str]:
     """Write ``report.md``, ``report.json`` and the PNG figures into ``report_dir``
-    (created); return their paths by file name. Figures that cannot be drawn, or a
+    (created); return their paths by file name (``curve``: the model's AFC on a fine grid,
+    :func:`vibid.identify.assess.curve.model_curve`; without it, no AFC figure). Figures that cannot be drawn, or a
     report.md that cannot be made, are left out in one line of ``report``'s ``not_done``
     (which it appends to, before report.json is written: :mod:`vibid.not_done`)."""
     os.makedirs(report_dir, exist_ok=True)
     paths = {}
     not_done = report.setdefault(NOT_DONE, [])
     figs = attempt(
-        "figures", not_done, draw_figures, data, identified, report, not_done, default={}
+        "figures",
+        not_done,
+        draw_figures,
+        data,
+        identified,
+        report,
+        not_done,
+        curve=curve,
+        default={},
     )
     for name, fig in figs.items():
         paths[name] = save_png(fig, os.path.join(report_dir, name))

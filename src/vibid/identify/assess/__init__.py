@@ -8,6 +8,8 @@
 * :mod:`~vibid.identify.assess.plausibility`: physically possible, and like its material?
 * :mod:`~vibid.identify.assess.reference`: a reference specimen calibrates the clamp;
 * :mod:`~vibid.identify.assess.linearity`: is a measured resonance a linear structure's?
+* :mod:`~vibid.identify.assess.curve`: the identified model's AFC on a fine grid, which the
+  report's AFC figure and the live view draw.
 """
 
 from vibid.identify.assess.stage import Assessment, FreeLengthShare, assess, reference_block
