@@ -18,9 +18,7 @@ from vibid.errors import VibidError
 from vibid.flows.tasks import (
     afc_file_task,
     afc_task,
-    forwarded_logs,
     identify_task,
-    progress_logger,
     publish_artifacts,
     report_task,
     run_logger,
@@ -29,7 +27,6 @@ from vibid.flows.tasks import (
 from vibid.pipeline import (
     RESTARTS,
     SEED,
-    identify_afc,
     require_converged,
     session_afc,
     write_outputs,
@@ -126,21 +123,18 @@ def replay_session(
 ) -> dict:
     """The replay's stages as one plain function (no Prefect run needed): returns the
     report; a run that did not converge says so in it (``identification.converged``)."""
-    logger = run_logger()
+    run_logger().info("replaying %s", session_path)
     data = session_afc(session_path)
-    with forwarded_logs(logger):
-        identified = identify_afc(
-            data,
-            loop=loop,
-            candidates=candidates,
-            method=method,
-            local=local,
-            restarts=restarts,
-            seed=seed,
-            progress=progress_logger(logger),
-            magnitude_only=magnitude_only,
-        )
-    logger.info("%s:\n%s", session_path, identified.summary)
+    identified = identify_task.fn(  # the identify task's own stage, run here in the task
+        data,
+        loop=loop,
+        candidates=candidates,
+        method=method,
+        local=local,
+        restarts=restarts,
+        seed=seed,
+        magnitude_only=magnitude_only,
+    )
     report, _ = write_outputs(
         data, identified, json_path=json_path, report_dir=report_dir, session_path=session_path
     )
