@@ -22,8 +22,11 @@ import numpy as np  # noqa: E402
 from vibid.identify import build_forward_model  # noqa: E402
 from vibid.identify.engine.runtime import configure  # noqa: E402
 from vibid.identify.model.assembly import Geometry, assemble_plate  # noqa: E402
-from vibid.identify.model.forward import ACCURACY, discretisation  # noqa: E402
-from vibid.identify.model.mesh import Discretisation  # noqa: E402
+from vibid.identify.model.mesh import (  # noqa: E402
+    ACCURACY,
+    Discretisation,  # noqa: E402
+    discretisation,
+)
 from vibid.identify.model.modal import complex_eigenvalues, frequencies_and_decays  # noqa: E402
 from vibid.setup_model import example_setup  # noqa: E402
 

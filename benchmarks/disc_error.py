@@ -55,12 +55,12 @@ def _frequencies(geometry, param, theta, disc, n=6):
 
 
 def convergence(geometry, param, theta) -> dict:
-    from vibid.identify.model.forward import (
+    from vibid.identify.model.mesh import (
+        Discretisation,
         coarser_discretisation,
         discretisation,
         finer_discretisation,
     )
-    from vibid.identify.model.mesh import Discretisation
 
     d0 = discretisation(geometry)
     family = [coarser_discretisation(d0), d0]
@@ -90,7 +90,7 @@ def convergence(geometry, param, theta) -> dict:
 
 def cost(setup, F, theta) -> dict:
     from vibid.identify import build_forward_model
-    from vibid.identify.model.forward import coarser_discretisation, finer_discretisation
+    from vibid.identify.model.mesh import coarser_discretisation, finer_discretisation
 
     fm = build_forward_model(setup, F, theta0=TRUTH)
     fm.afc(theta)
@@ -153,7 +153,7 @@ def fits(F, H, sd, setup, label) -> list:
 def plate() -> dict:
     from plate_helpers import plate_setup
     from vibid.identify import build_forward_model
-    from vibid.identify.model.forward import finer_discretisation
+    from vibid.identify.model.mesh import finer_discretisation
 
     setup = plate_setup(0.15, 0.10, 0.001, mass_kg=0.001, radius_m=0.002)
     F = np.linspace(10.0, 600.0, 80)
@@ -196,9 +196,9 @@ def main() -> int:
     args = parser.parse_args()
     from loop_data import strip_on
     from vibid.identify.model.assembly import Geometry, model_matrices
-    from vibid.identify.model.forward import discretisation, plate_model
     from vibid.identify.model.full import model_afc_full
-    from vibid.identify.model.mesh import Discretisation
+    from vibid.identify.model.mesh import Discretisation, discretisation
+    from vibid.identify.model.plate import plate_model
 
     theta = np.array([TRUTH[n] for n in ("D", "nu", "beta")])
     setup0 = strip_on(next(iter(GRIDS.values())))

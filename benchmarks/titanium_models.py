@@ -77,8 +77,7 @@ def main() -> None:
 
     from titanium_subset import titanium_subset
     from vibid.identify.fit.noise import autocorrelation_time
-    from vibid.identify.model.forward import plate_model
-    from vibid.identify.model.plate import build_forward_model
+    from vibid.identify.model.plate import build_forward_model, plate_model
 
     setup, f_all, f, H, s = titanium_subset(args.data)
     h = setup.specimen.thickness_m

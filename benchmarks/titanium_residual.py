@@ -35,8 +35,7 @@ EDGES_HZ = (40, 150, 185, 205, 260, 600, 720, 950, 1010, 1200, 1265, 1300, 1500)
 
 def stage_afc(setup, f, parameters: dict) -> np.ndarray:
     from vibid.identify.effects import effects_for
-    from vibid.identify.model.forward import plate_model
-    from vibid.identify.model.plate import build_forward_model
+    from vibid.identify.model.plate import build_forward_model, plate_model
 
     model = plate_model("isotropic", effects=effects_for(parameters))
     fm = build_forward_model(setup, f, model=model, theta0=parameters)

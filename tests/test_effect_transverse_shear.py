@@ -67,7 +67,8 @@ def test_the_shear_field_shares_no_model_with_a_stretched_mesh_or_a_moved_sensor
     from vibid.errors import VibidError
     from vibid.identify.loop.candidates import all_candidates
     from vibid.identify.model.assembly import Geometry, model_matrices
-    from vibid.identify.model.forward import discretisation, plate_model
+    from vibid.identify.model.mesh import discretisation
+    from vibid.identify.model.plate import plate_model
 
     setup = plate_setup(L, B, H, density=RHO, mass_kg=1e-3, radius_m=0.002)
     g = Geometry.from_setup(setup)

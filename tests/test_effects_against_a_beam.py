@@ -19,7 +19,7 @@ import pytest
 import beam_reference as beam
 from plate_helpers import plate_setup
 from vibid.identify import build_forward_model, natural_frequencies
-from vibid.identify.model.forward import plate_model_for
+from vibid.identify.model.plate import plate_model_for
 
 L, W, H_M, RHO, E = 0.1, 0.01, 0.0005, 7800.0, 200e9
 D = E * H_M**3 / 12.0

@@ -56,8 +56,7 @@ def titanium_problem(magnitude: bool = False):
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.problem import LeastSquaresProblem
     from vibid.identify.fit.space import ParameterSpace
-    from vibid.identify.model.forward import plate_model
-    from vibid.identify.model.plate import build_forward_model
+    from vibid.identify.model.plate import build_forward_model, plate_model
 
     with gzip.open(DATA / "titanium_afc.csv.gz", "rt") as fh:
         f, re, im, std = np.loadtxt(fh, delimiter=",", skiprows=1, unpack=True)

@@ -14,8 +14,9 @@ from plate_helpers import strip_setup
 from vibid.hardware_mocks.simulated_session import true_afc
 from vibid.identify.loop import close_loop
 from vibid.identify.model.assembly import Geometry, model_matrices
-from vibid.identify.model.forward import discretisation, plate_model_for
 from vibid.identify.model.full import afc_full
+from vibid.identify.model.mesh import discretisation
+from vibid.identify.model.plate import plate_model_for
 from vibid.identify.model.terms import theta_from_dict
 
 _setup = strip_on
@@ -238,6 +239,7 @@ def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(mo
     from vibid.identify.fit.data import fit_data
     from vibid.identify.fit.result import Status
     from vibid.identify.loop.candidates import EffectCandidate
+    from vibid.identify.model.plate import Plate
 
     H, sd = data({"tau_s": 2e-5}, 7)  # test_identify_loop's undeclared delay
     real = loop_module.identify
@@ -256,7 +258,7 @@ def test_a_refit_that_did_not_converge_is_searched_globally_whatever_its_chi2(mo
     setup = _setup()
     declared = declared_fit({"tau_s": 2e-5}, 7)
     loop_module.refit(
-        setup,
+        Plate(setup),
         fit_data(F, H, sd),
         declared,
         EffectCandidate("channel_delay"),

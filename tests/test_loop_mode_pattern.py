@@ -19,8 +19,7 @@ from vibid.identify.loop import close_loop
 from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
 from vibid.identify.loop.rounds import plate_modes_in_band
 from vibid.identify.loop.verdicts import Verdict
-from vibid.identify.model.forward import plate_model
-from vibid.identify.model.plate import Plate
+from vibid.identify.model.plate import Plate, plate_model
 
 
 def _beam_modes_hz(setup) -> list[float]:

@@ -158,7 +158,7 @@ class Outside:
 
 
 def test_identity_only_for_what_vibids_code_determines():
-    from vibid.identify.model.forward import plate_model
+    from vibid.identify.model.plate import plate_model
     from vibid.identify.model.reduced import ReducedKernel
 
     kernel = ReducedKernel(plate_model("isotropic"))

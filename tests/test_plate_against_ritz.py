@@ -11,8 +11,7 @@ import pytest
 
 import beam_sessions as bs
 import ritz_plate as rs
-from vibid.identify.model.forward import plate_model
-from vibid.identify.model.plate import build_forward_model, natural_frequencies
+from vibid.identify.model.plate import build_forward_model, natural_frequencies, plate_model
 
 TRUTH = {"D": 17.97, "nu": 0.0, "beta": 0.003}
 

@@ -23,9 +23,8 @@ import pytest
 
 from plate_helpers import PAPER_THETA, strip_model, strip_setup
 from vibid.identify.model.assembly import Geometry, assemble_plate
-from vibid.identify.model.forward import coarser_discretisation, finer_discretisation
 from vibid.identify.model.full import afc_full
-from vibid.identify.model.mesh import Discretisation
+from vibid.identify.model.mesh import Discretisation, coarser_discretisation, finer_discretisation
 from vibid.identify.model.modal import complex_eigenvalues, frequencies_and_decays
 
 GEOM = Geometry.from_setup(strip_setup())

@@ -36,7 +36,7 @@ def test_two_threads_evaluating_one_elements_basis_get_each_their_own_matrices()
     alone. A short switch interval makes the threads interleave often."""
     from plate_helpers import strip_setup
     from vibid.identify.model.assembly import Geometry
-    from vibid.identify.model.forward import discretisation
+    from vibid.identify.model.mesh import discretisation
 
     g = Geometry.from_setup(strip_setup())
     mesh = plate_mesh(g.length_m, g.width_m, discretisation(g, "default"))

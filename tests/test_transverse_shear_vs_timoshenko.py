@@ -10,8 +10,7 @@ import numpy as np
 
 import timoshenko_reference as tim
 from plate_helpers import plate_setup
-from vibid.identify.model.forward import plate_model
-from vibid.identify.model.plate import build_forward_model, natural_frequencies
+from vibid.identify.model.plate import build_forward_model, natural_frequencies, plate_model
 
 L, W, H, RHO, E, KAPPA, BETA = 0.100, 0.020, 0.003, 4550.0, 110e9, 5 / 6, 0.003
 D = E * H**3 / 12  # nu = 0

@@ -163,7 +163,7 @@ def adaptive_options(args, setup):
     """The adaptive campaign's options from the command line, or from the session file an
     adaptive campaign is resumed from (None for a campaign of the setup's steps). One-line
     errors for options that do not go together."""
-    from vibid.identify.model.forward import plate_model
+    from vibid.identify.model.plate import plate_model
     from vibid.planner.adaptive import AdaptiveOptions
     from vibid.planner.prior import parse_targets
 

@@ -81,8 +81,7 @@ def run(args) -> int:
     setup = load_setup(args.source)
     check_values(params, "--params", specimen_scale(setup))
     from vibid.identify import configure
-    from vibid.identify.model.forward import plate_model_for
-    from vibid.identify.model.plate import natural_frequencies
+    from vibid.identify.model.plate import natural_frequencies, plate_model_for
 
     plate_model_for(params)  # every name known and the model complete, one line otherwise
     configure()

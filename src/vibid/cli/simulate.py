@@ -90,7 +90,7 @@ def run(args) -> int:
     from vibid.cli.paths import check_output_file
     from vibid.hardware_mocks.simulated_session import StandConditions, simulate_session
     from vibid.identify import configure
-    from vibid.identify.model.forward import plate_model_for
+    from vibid.identify.model.plate import plate_model_for
     from vibid.parameters import specimen_scale
 
     if not (math.isfinite(args.noise) and args.noise >= 0):

@@ -157,7 +157,7 @@ def adaptive_campaign(
     """The live AFC and the :class:`~vibid.planner.adaptive.AdaptiveCampaign` of an adaptive
     campaign: each batch's fit is drawn over the points and its decision logged."""
     from vibid.flows.live import LiveAfc
-    from vibid.identify.model.forward import plate_model
+    from vibid.identify.model.plate import plate_model
     from vibid.pipeline import parse_candidates
     from vibid.planner.adaptive import AdaptiveCampaign, AdaptiveOptions
 

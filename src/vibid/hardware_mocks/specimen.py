@@ -18,9 +18,10 @@ from functools import cached_property
 import numpy as np
 
 from vibid.identify.model.assembly import Geometry, model_matrices
-from vibid.identify.model.forward import discretisation, plate_model_for
 from vibid.identify.model.full import model_afc_full
+from vibid.identify.model.mesh import discretisation
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
+from vibid.identify.model.plate import plate_model_for
 from vibid.identify.model.terms import theta_from_dict
 from vibid.setup_model import Setup
 

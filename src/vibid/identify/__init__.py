@@ -41,7 +41,7 @@ _EXPORTS = {
     "ForwardModel": "vibid.identify.model.forward",
     "build_forward_model": "vibid.identify.model.plate",
     "natural_frequencies": "vibid.identify.model.plate",
-    "plate_model": "vibid.identify.model.forward",
+    "plate_model": "vibid.identify.model.plate",
     "PlateModel": "vibid.identify.model.terms",
     "identify": "vibid.identify.fit.strategy",
     "IdentificationResult": "vibid.identify.fit.result",

@@ -83,7 +83,7 @@ class _Problem:
     def of(cls, setup, priors: dict, band_hz, noise: float, magnitude: bool) -> _Problem:
         """The problem of ``setup``; ``band_hz`` default the span of its sweep, an error
         unless 0 < low < high < Nyquist."""
-        from vibid.identify.model.forward import plate_model
+        from vibid.identify.model.plate import plate_model
 
         model = plate_model(setup.identification.model)
         box = model.default_bounds(dict(setup.identification.bounds))

@@ -20,11 +20,11 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
-from vibid.identify.fit.compress import compressed, confirmed
+from vibid.identify.fit.compress import Compression, compressed, confirmed_run
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.result import LocalResult
 from vibid.identify.fit.space import ParameterSpace
@@ -46,51 +46,6 @@ _METHODS: dict[str, Callable[..., LocalResult]] = {
         problem, u0, max_evaluations=2 * max_iter
     ),
 }
-#: Rebuilds of the compressed problem around an end point the full data do not confirm
-#: (then the run is finished on the full problem).
-REBUILDS = 2
-
-
-@dataclass(frozen=True)
-class Compression:
-    """A long AFC's ``full`` problem and the ``short`` one a run ended on: the next run of
-    the same data and weights starts on its nodes (on a real strip's AFC, building them
-    again for every start of a refit was a fifth of the closed loop's time)."""
-
-    full: LeastSquaresProblem
-    short: LeastSquaresProblem
-
-    def on(self, problem: LeastSquaresProblem) -> LeastSquaresProblem | None:
-        """The short problem on ``problem``'s model; None unless ``problem`` has the same
-        data and weights as :attr:`full`."""
-        if problem.data is not self.full.data or not np.array_equal(problem.sigma, self.full.sigma):
-            return None
-        if problem.model is self.full.model:
-            return self.short
-        return self.short.with_model(problem.model.on_frequencies(self.short.model.frequencies_hz))
-
-
-def confirmed_run(
-    method,
-    problem: LeastSquaresProblem,
-    short: LeastSquaresProblem,
-    u0,
-    max_iter: int = 200,
-    tol: float = 0.0,
-) -> tuple[LocalResult, LeastSquaresProblem]:
-    """``method`` on the compressed ``short`` from ``u0``, its end point confirmed on the
-    full ``problem`` (else the compression rebuilt there and the run resumed, at most
-    :data:`REBUILDS` times, then finished on ``problem``); the loss is the full chi2.
-    Returns the result and the short problem it ended on (``problem`` when finished on it).
-    ``tol``: :func:`run_local`'s."""
-    r = method(short, u0, max_iter, tol)
-    for _ in range(REBUILDS + 1):
-        if not np.all(np.isfinite(r.u)) or confirmed(problem, short, r.u, tol):
-            return replace(r, loss=problem.chi2(r.u)), short
-        log.debug("the full data do not confirm the compressed fit: compressed again there")
-        short = compressed(problem, r.u)
-        r = method(short, r.u, max_iter, tol)
-    return method(problem, r.u, max_iter, tol), problem
 
 
 def run_local(

@@ -225,6 +225,13 @@ class ParameterSpace:
             [float(t.dfrom_u(float(ui))) for t, ui in zip(self.transforms, np.asarray(u))]
         )
 
+    def du_dtheta(self, theta) -> np.ndarray:
+        """The derivative of each coordinate by its parameter at ``theta``: the inverse of
+        :meth:`dtheta_du` (0 where a coordinate lies at infinity, a null on a log box's
+        edge)."""
+        with np.errstate(all="ignore"):
+            return 1.0 / self.dtheta_du(self.to_u(np.asarray(theta, float)))
+
     def inside_domain(self, theta) -> bool:
         return all(t.inside_domain(float(v)) for t, v in zip(self.transforms, theta))
 
@@ -249,3 +256,14 @@ def from_u_coefficients(c: dict, u):
     log_value = jnp.exp(jnp.where(c["log"], z, 0.0))
     logit_value = c["a"] + (c["b"] - c["a"]) * jax.nn.sigmoid(z)
     return jnp.where(c["log"], log_value, jnp.where(c["logit"], logit_value, z))
+
+
+def box_covers(outer: dict, inner: dict, names) -> bool:
+    """Whether the box ``outer`` contains ``inner`` for every parameter in ``names``."""
+
+    def inside(n):
+        (a, b), (c, d) = outer[n], inner[n]
+        tol = 1e-12 * max(abs(a), abs(b), abs(c), abs(d))
+        return a <= c + tol and d <= b + tol
+
+    return all(n in outer and n in inner and inside(n) for n in names)

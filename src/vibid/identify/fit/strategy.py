@@ -64,7 +64,7 @@ from vibid.identify.fit.result import (
     IdentificationResult,
     LocalResult,
 )
-from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.fit.space import ParameterSpace, box_covers
 from vibid.identify.fit.summary import summarise
 from vibid.identify.model.model_error import ModelErrorSplit, split_model_error
 
@@ -671,9 +671,7 @@ def _check_basis_covers(forward_model, box: dict, names) -> None:
     if not isinstance(forward_model, PlateForwardModel) or forward_model.kind != "wide":
         return
     built = forward_model.bounds
-    from vibid.identify.model.forward import covers
-
-    if not covers(built, box, names):
+    if not box_covers(built, box, names):
         raise VibidError(
             "the forward model's reduced basis was built for the prior box "
             f"{ {n: tuple(built[n]) for n in names if n in built} }, which does not cover the "

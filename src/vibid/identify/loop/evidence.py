@@ -103,13 +103,6 @@ def prior_space(result, box: dict) -> ParameterSpace:
     )
 
 
-def du_dtheta(space: ParameterSpace, theta: np.ndarray) -> np.ndarray:
-    """The derivative of each coordinate by its parameter: the inverse of the space's own
-    ``dtheta_du`` (0 where a coordinate lies at infinity, a null on a log box's edge)."""
-    with np.errstate(all="ignore"):
-        return 1.0 / space.dtheta_du(space.to_u(np.asarray(theta, float)))
-
-
 def log_evidence(result, box: dict, noise: Noise, chi2: float | None = None) -> Evidence:
     """``result``'s log evidence under ``noise`` (module doc); ``chi2``: its chi2 under the
     round's weights where they differ from its own."""
@@ -118,7 +111,7 @@ def log_evidence(result, box: dict, noise: Noise, chi2: float | None = None) -> 
     C = np.asarray(result.covariance, float)
     s = noise.scale(chi2)
     space = prior_space(result, box)
-    g = du_dtheta(space, theta)
+    g = space.du_dtheta(theta)
     free = np.isfinite(g) & np.isfinite(np.diag(C)) & (np.diag(C) > 0)
     Cu = (g[free, None] * C[np.ix_(free, free)] * g[None, free]) * s * noise.tau
     occam = _occam(Cu)

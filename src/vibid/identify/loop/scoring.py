@@ -15,7 +15,6 @@ import numpy as np
 
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
-from vibid.identify.loop.evidence import du_dtheta
 
 
 def extended_problem(plate, data, res, cand, box, diagnosis, like=None):
@@ -87,7 +86,7 @@ def new_information(all_names, theta, J_new, Q_small, new, prior: dict, kinds: d
     space = ParameterSpace.from_bounds(
         names, {n: prior[n] for n in names}, {n: kinds.get(n) for n in names}
     )
-    g = du_dtheta(space, theta[new])
+    g = space.du_dtheta(theta[new])
     Jn = J_new / np.where(np.isfinite(g) & (g != 0), g, np.inf)  # d r / d u
     R = Jn - Q_small @ (Q_small.T @ Jn)
     return R.T @ R

@@ -29,7 +29,7 @@ around the clamped corners (:mod:`vibid.identify.model.mesh`). "default" converg
 natural frequencies of the paper's strip to better than 1e-6 (measured against a much finer
 mesh, ``benchmarks/plate.md``); "fast" to a few 1e-6; "fine" to 1e-7. A specimen larger
 than the strip gets cells sized by its bending wavelength at the top of the band instead
-(:func:`discretisation`), at a similar accuracy of the modes in the band.
+(:func:`vibid.identify.model.mesh.discretisation`), at a similar accuracy of the modes in the band.
 
 Reduced model (:mod:`vibid.identify.model.reduced`), two kinds of basis:
 
@@ -73,8 +73,12 @@ from vibid.errors import VibidError
 from vibid.identify.model.assembly import Geometry, PlateMatrices, model_matrices
 from vibid.identify.model.full import make_full_afc_jax, model_afc_full
 from vibid.identify.model.machinery import handed, timed
-from vibid.identify.model.materials import Material, infer_material
-from vibid.identify.model.mesh import Discretisation
+from vibid.identify.model.mesh import (
+    Discretisation,
+    cell_ratio,
+    coarser_discretisation,
+    finer_discretisation,
+)
 from vibid.identify.model.modal import frequencies_and_decays, model_eigenvalues
 from vibid.identify.model.model_error import Extrapolation, richardson
 from vibid.identify.model.reduced import (
@@ -89,16 +93,6 @@ from vibid.identify.model.terms import PlateModel
 
 log = logging.getLogger(__name__)
 
-#: Accuracy presets: (cell size, m; corner refinement levels; cells per bending wavelength
-#: at the top of the band; cells across the specimen's shorter side). The cell size is the
-#: finest a specimen needs: the paper's strip (20 mm wide) gets it whatever the band. A
-#: larger specimen, whose bending waves in the band span many such cells, gets cells sized
-#: by the wavelength instead (see :func:`discretisation`).
-ACCURACY = {
-    "fast": (0.005, 4, 8.0, 4),
-    "default": (0.0033334, 4, 12.0, 6),
-    "fine": (0.0016667, 6, 24.0, 12),
-}
 #: Up to this many parameters that change the mode shapes or scale (isotropic: D, nu) the
 #: wide basis is kept to rounding (about 1e-7 of max |H| over the whole box: a local fit
 #: on it without refresh is exact); with more (orthotropic, monoclinic, effects) it would
@@ -112,62 +106,6 @@ WIDE_TOL_MANY = 1e-6
 REFRESH_TOL = 1e-6
 #: How much softer than theta0 a local basis stays complete (stiffness ratio).
 LOCAL_SCALE_RATIO = 4.0
-
-
-def bending_wavelength_m(rigidity_n_m: float, mass_per_area_kg_m2: float, f_hz: float) -> float:
-    """Free bending wavelength ``2 pi (D / (rho h))^(1/4) / sqrt(omega)`` of a thin plate, m."""
-    omega = 2 * np.pi * max(f_hz, 1e-9)
-    return float(2 * np.pi * (rigidity_n_m / mass_per_area_kg_m2) ** 0.25 / np.sqrt(omega))
-
-
-def discretisation(
-    geometry: Geometry,
-    accuracy: str = "default",
-    *,
-    f_max_hz: float | None = None,
-    rigidity_n_m: float | None = None,
-) -> Discretisation:
-    """The Argyris discretisation of an accuracy preset for a specimen.
-
-    Without a band (``f_max_hz``, and the softest bending rigidity ``rigidity_n_m`` the
-    model is built around), the preset's cell size. With one, the cell is the larger of the
-    preset's cell and ``min(wavelength(f_max) / cells_per_wavelength, shorter side /
-    cells_across)``: a 150 x 100 mm plate up to 600 Hz then needs 16 x 11 cells instead of
-    45 x 30, at the same accuracy of its modes in the band (about 1e-6), while the 20 mm
-    strip keeps the preset's cells in every band (its width decides).
-    """
-    if accuracy not in ACCURACY:
-        raise VibidError(f"unknown accuracy {accuracy!r}, expected one of {', '.join(ACCURACY)}")
-    size, levels, per_wavelength, across = ACCURACY[accuracy]
-    if f_max_hz is not None and rigidity_n_m is not None and f_max_hz > 0 and rigidity_n_m > 0:
-        lam = bending_wavelength_m(rigidity_n_m, geometry.mass_per_area_kg_m2, f_max_hz)
-        short = min(geometry.length_m, geometry.width_m)
-        size = max(size, min(lam / per_wavelength, short / across))
-    nx = max(2, math.ceil(geometry.length_m / size - 1e-6))
-    ny = max(2, math.ceil(geometry.width_m / size - 1e-6))
-    return Discretisation("argyris", nx, ny, levels)
-
-
-def finer_discretisation(d: Discretisation) -> Discretisation:
-    """The next finer level used to estimate a discretisation's error."""
-    return Discretisation(d.element, (3 * d.nx + 1) // 2, (3 * d.ny + 1) // 2, d.corner_levels + 1)
-
-
-def coarser_discretisation(d: Discretisation) -> Discretisation:
-    """The next coarser level of :func:`finer_discretisation`'s family (cells 3/2 as large,
-    one corner level fewer), the third mesh of the error's extrapolation; its finer level
-    is ``d`` itself where the counts allow (the strip's 30 x 6 cells: 20 x 4)."""
-    return Discretisation(
-        d.element,
-        max(2, round(2 * d.nx / 3)),
-        max(2, round(2 * d.ny / 3)),
-        max(0, d.corner_levels - 1),
-    )
-
-
-def cell_ratio(d: Discretisation, of: Discretisation) -> float:
-    """The size of ``d``'s cells over ``of``'s (the geometric mean over both directions)."""
-    return math.sqrt(of.nx / d.nx * of.ny / d.ny)
 
 
 @dataclass(frozen=True)
@@ -193,17 +131,6 @@ def _f64(x):
     import jax.numpy as jnp
 
     return jnp.asarray(x, jnp.float64) if isinstance(x, jax.Array) else np.asarray(x, float)
-
-
-def covers(outer: dict, inner: dict, names) -> bool:
-    """Whether the box ``outer`` contains ``inner`` for every parameter in ``names``."""
-
-    def inside(n):
-        (a, b), (c, d) = outer[n], inner[n]
-        tol = 1e-12 * max(abs(a), abs(b), abs(c), abs(d))
-        return a <= c + tol and d <= b + tol
-
-    return all(n in outer and n in inner and inside(n) for n in names)
 
 
 @dataclass(frozen=True, eq=False)
@@ -490,64 +417,3 @@ def _discretisation_error(model: ForwardModel, theta_bytes: bytes) -> Discretisa
 @functools.lru_cache(maxsize=4)
 def _full_afc_jax(mats, param: PlateModel, frequencies_bytes: bytes):
     return make_full_afc_jax(mats, param, np.frombuffer(frequencies_bytes, float))
-
-
-def plate_model(model: str, per_modulus_loss: bool = False, effects=()) -> PlateModel:
-    """The PlateModel of a material model name and effects (terms or report names)."""
-    from vibid.identify.effects import EFFECTS
-
-    try:
-        material = Material(model, per_modulus_loss)
-    except ValueError as exc:
-        raise VibidError(str(exc)) from None
-    terms = []
-    for e in effects:
-        if isinstance(e, str):
-            if e not in EFFECTS:
-                raise VibidError(f"unknown effect {e!r}, expected one of {', '.join(EFFECTS)}")
-            e = EFFECTS[e]
-        terms.append(e.for_material(material))
-    return PlateModel(material, tuple(terms))
-
-
-def plate_model_for(names, effects=()) -> PlateModel:
-    """The PlateModel whose parameters are exactly ``names`` (material and effects), with
-    the effects named in ``effects`` too (those without parameters of their own, such as
-    ``transverse_shear`` on an isotropic plate, are added this way only). An effect that
-    may occur more than once (a stand resonance) gets one instance per suffix ``_k`` among
-    ``names`` (report format)."""
-    from vibid.identify.effects import EFFECTS, effects_for
-    from vibid.parameters import split_instance
-
-    try:
-        material = infer_material(names)
-    except KeyError as exc:
-        raise VibidError(str(exc.args[0])) from None
-    unknown = sorted(set(effects) - set(EFFECTS))
-    if unknown:
-        raise VibidError(
-            f"unknown effect {', '.join(unknown)}, expected one of {', '.join(EFFECTS)}"
-        )
-    found = {t.name for t in effects_for(names)} | set(effects)
-    terms = []
-    for t in EFFECTS.values():
-        if t.instance is None:
-            if t.name in found:
-                terms.append(t.for_material(material))
-            continue
-        own = {split_instance(q.name)[0] for q in t.parameters}
-        ks = sorted({k for base, k in map(split_instance, names) if base in own and k})
-        if t.name in found and not ks:
-            ks = [1]
-        terms += [replace(t, instance=k) for k in ks]
-    model = PlateModel(material, tuple(terms))
-    unknown = sorted(set(names) - set(model.names))
-    if unknown:
-        raise VibidError(
-            f"{', '.join(unknown)}: not a parameter of model {material.model!r} nor of any effect"
-        )
-    for t in model.effects:
-        needs = getattr(t, "requires", None)
-        if needs and needs not in model.effect_names:
-            raise VibidError(f"{t.name} goes with {needs}: give its parameters too")
-    return model

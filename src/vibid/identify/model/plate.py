@@ -12,19 +12,23 @@ the sensor, the specimen's size), instead of each caller rebuilding that from th
     modes.seen, modes.q, modes.in_band(f_lo, f_hi)
 
 :func:`build_forward_model`, :func:`natural_frequencies` and :func:`natural_mode_heights`
-ask a plate built for the one question.
+ask a plate built for the one question; :func:`plate_model` and :func:`plate_model_for` say
+which :class:`~vibid.identify.model.terms.PlateModel` a material name or a set of parameter
+names means.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from vibid.errors import VibidError
 from vibid.identify.model.assembly import Geometry, model_matrices
-from vibid.identify.model.forward import ForwardModel, discretisation, plate_model, plate_model_for
+from vibid.identify.model.forward import ForwardModel
+from vibid.identify.model.materials import Material, infer_material
+from vibid.identify.model.mesh import discretisation
 from vibid.identify.model.modal import (
     frequencies_and_decays,
     mode_heights,
@@ -171,6 +175,67 @@ class Plate:
         f_hz, decay = frequencies_and_decays(model_eigenvalues(mats, model, theta, n))
         _, height = mode_heights(mats, model, theta, n)
         return Modes(np.asarray(f_hz, float), np.asarray(decay, float), np.asarray(height))
+
+
+def plate_model(model: str, per_modulus_loss: bool = False, effects=()) -> PlateModel:
+    """The PlateModel of a material model name and effects (terms or report names)."""
+    from vibid.identify.effects import EFFECTS
+
+    try:
+        material = Material(model, per_modulus_loss)
+    except ValueError as exc:
+        raise VibidError(str(exc)) from None
+    terms = []
+    for e in effects:
+        if isinstance(e, str):
+            if e not in EFFECTS:
+                raise VibidError(f"unknown effect {e!r}, expected one of {', '.join(EFFECTS)}")
+            e = EFFECTS[e]
+        terms.append(e.for_material(material))
+    return PlateModel(material, tuple(terms))
+
+
+def plate_model_for(names, effects=()) -> PlateModel:
+    """The PlateModel whose parameters are exactly ``names`` (material and effects), with
+    the effects named in ``effects`` too (those without parameters of their own, such as
+    ``transverse_shear`` on an isotropic plate, are added this way only). An effect that
+    may occur more than once (a stand resonance) gets one instance per suffix ``_k`` among
+    ``names`` (report format)."""
+    from vibid.identify.effects import EFFECTS, effects_for
+    from vibid.parameters import split_instance
+
+    try:
+        material = infer_material(names)
+    except KeyError as exc:
+        raise VibidError(str(exc.args[0])) from None
+    unknown = sorted(set(effects) - set(EFFECTS))
+    if unknown:
+        raise VibidError(
+            f"unknown effect {', '.join(unknown)}, expected one of {', '.join(EFFECTS)}"
+        )
+    found = {t.name for t in effects_for(names)} | set(effects)
+    terms = []
+    for t in EFFECTS.values():
+        if t.instance is None:
+            if t.name in found:
+                terms.append(t.for_material(material))
+            continue
+        own = {split_instance(q.name)[0] for q in t.parameters}
+        ks = sorted({k for base, k in map(split_instance, names) if base in own and k})
+        if t.name in found and not ks:
+            ks = [1]
+        terms += [replace(t, instance=k) for k in ks]
+    model = PlateModel(material, tuple(terms))
+    unknown = sorted(set(names) - set(model.names))
+    if unknown:
+        raise VibidError(
+            f"{', '.join(unknown)}: not a parameter of model {material.model!r} nor of any effect"
+        )
+    for t in model.effects:
+        needs = getattr(t, "requires", None)
+        if needs and needs not in model.effect_names:
+            raise VibidError(f"{t.name} goes with {needs}: give its parameters too")
+    return model
 
 
 def _box_centre(bounds: dict, names) -> np.ndarray:
