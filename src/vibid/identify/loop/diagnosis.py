@@ -509,6 +509,57 @@ def diagnose(
         return Diagnosis(message=f"diagnosis failed: {type(exc).__name__}: {exc}")
 
 
+def _usable_ratio(frequency_hz, H_measured, H_model, std):
+    """``(f, R, H_model, std)`` sorted by frequency, at the points where the ratio
+    ``R = measured / model`` is finite and the frequency positive."""
+    f = np.asarray(frequency_hz, float).ravel()
+    sd = np.broadcast_to(np.asarray(np.nan if std is None else std, float), f.shape)
+    order = np.argsort(f, kind="stable")
+    f, sd = f[order], sd[order]
+    H0 = np.asarray(H_model, complex).ravel()[order]
+    R = np.asarray(H_measured, complex).ravel()[order] / H0
+    ok = np.isfinite(f) & (f > 0) & np.isfinite(R)
+    return f[ok], R[ok], H0[ok], sd[ok]
+
+
+def _pole_features(
+    poles, f, R, H0, term, significance, plate_modes_hz, plate_q, hidden_hz, left_out_hz
+) -> tuple[list, list]:
+    """``(features, trend)``: a :class:`Feature` for each fitted pole that is not part of
+    the trend (:func:`_classify` against the plate's modes and the model's antiresonances,
+    left out where the fit does not see it, :func:`unseen`), and the indices of the terms
+    that make the trend (the constant and the slope, 0 and 1, and the trend's poles)."""
+    modes_hz = np.atleast_1d(np.asarray(plate_modes_hz, float)).ravel()
+    modes_q = np.broadcast_to(
+        np.asarray(np.nan if plate_q is None else plate_q, float), modes_hz.shape
+    )
+    a = np.abs(H0)
+    i = np.flatnonzero((a[1:-1] < a[:-2]) & (a[1:-1] < a[2:])) + 1
+    dips = np.stack([f[i - 1], f[i], f[i + 1]], axis=1)  # the model's antiresonances
+    hidden_hz = np.atleast_1d(np.asarray(hidden_hz, float))
+    features, trend = [], [0, 1]
+    for k, p in enumerate(poles, start=2):
+        kind, note, hidden = "trend", "", _NAN
+        if p.imag != 0:
+            kind, note, hidden = _classify(p, f[0], f[-1], modes_hz, modes_q, dips, hidden_hz)
+        if kind == "trend":
+            trend.append(k)
+            continue
+        f_p, q_p = float(abs(p) / (2 * math.pi)), float(abs(p) / (2 * abs(p.real)))
+        if unseen(f_p, q_p, left_out_hz):
+            continue
+        size = float(np.max(np.abs(term[k])))
+        is_causal = causal(f, R, f_p) if kind == "extra_pole" else None
+        if is_causal is False:
+            note += (
+                "; its phase moves against the phase a causal resonance of its "
+                "magnitude would have: no resonance of the stand or the plate makes "
+                "it (a bias of the H estimate where the base's signal is weak?)"
+            )
+        features.append(Feature(kind, f_p, q_p, size, significance({k}), note, hidden, is_causal))
+    return features, trend
+
+
 def _diagnose(
     frequency_hz,
     H_measured,
@@ -522,14 +573,7 @@ def _diagnose(
     min_size,
     left_out_hz=(),
 ) -> Diagnosis:
-    f = np.asarray(frequency_hz, float).ravel()
-    sd = np.broadcast_to(np.asarray(np.nan if std is None else std, float), f.shape)
-    order = np.argsort(f, kind="stable")
-    f, sd = f[order], sd[order]
-    H0 = np.asarray(H_model, complex).ravel()[order]
-    R = np.asarray(H_measured, complex).ravel()[order] / H0
-    ok = np.isfinite(f) & (f > 0) & np.isfinite(R)
-    f, R, H0, sd = f[ok], R[ok], H0[ok], sd[ok]
+    f, R, H0, sd = _usable_ratio(frequency_hz, H_measured, H_model, std)
     if len(f) < 10:
         return Diagnosis(n_points=len(f), message=f"too few usable points ({len(f)}) to diagnose")
     sd_R = sd / np.abs(H0)
@@ -550,37 +594,9 @@ def _diagnose(
         rise = (_chi2(groups, R, w, [i not in drop for i in range(len(groups))]) - chi2) / birge
         return math.sqrt(max(rise - sum(groups[i].shape[1] for i in drop), 0.0))
 
-    modes_hz = np.atleast_1d(np.asarray(plate_modes_hz, float)).ravel()
-    modes_q = np.broadcast_to(
-        np.asarray(np.nan if plate_q is None else plate_q, float), modes_hz.shape
+    features, trend = _pole_features(
+        poles, f, R, H0, term, significance, plate_modes_hz, plate_q, hidden_hz, left_out_hz
     )
-    a = np.abs(H0)
-    i = np.flatnonzero((a[1:-1] < a[:-2]) & (a[1:-1] < a[2:])) + 1
-    dips = np.stack([f[i - 1], f[i], f[i + 1]], axis=1)  # the model's antiresonances
-    features, trend = [], [0, 1]
-    for k, p in enumerate(poles, start=2):
-        kind, note, hidden = "trend", "", _NAN
-        if p.imag != 0:
-            kind, note, hidden = _classify(
-                p, f[0], f[-1], modes_hz, modes_q, dips, np.atleast_1d(np.asarray(hidden_hz, float))
-            )
-        if kind == "trend":
-            trend.append(k)
-        else:
-            f_p, q_p = float(abs(p) / (2 * math.pi)), float(abs(p) / (2 * abs(p.real)))
-            if unseen(f_p, q_p, left_out_hz):
-                continue
-            size = float(np.max(np.abs(term[k])))
-            is_causal = causal(f, R, f_p) if kind == "extra_pole" else None
-            if is_causal is False:
-                note += (
-                    "; its phase moves against the phase a causal resonance of its "
-                    "magnitude would have: no resonance of the stand or the plate makes "
-                    "it (a bias of the H estimate where the base's signal is weak?)"
-                )
-            features.append(
-                Feature(kind, f_p, q_p, size, significance({k}), note, hidden, is_causal)
-            )
     T = sum(term[k] for k in trend)
     sizes, slope, linear = _trend_measures(f_dense, T)
     size = float(np.max(np.abs(T - 1)))

@@ -298,53 +298,12 @@ def build_basis(
     cols = []
     n_modes, f_reached = 0, 0.0
     for j, th in enumerate(points):
-        s, m = _coefficients(model, th)
-        K = mats.stiffness_matrix(dict(zip(names, s))).tocsc()
-        M = mats.inertia_matrix(dict(zip(inertia_names, m))).tocsc()
-        f = mats.inertia_load(dict(zip(inertia_names, m)))
-        loads = [f] + (
-            [mats.inertia_load(dict(zip(inertia_names, m)), rotation=True)]
-            if model.rotates_base
-            else []
+        found, n, f_last = _point_columns(
+            mats, model, th, moving, f_top, f_max_hz, min_modes, max_modes, krylov, first=j == 0
         )
-        lu = spd_lu(K)
-        # every point its own modes up to f_top: a face where one modulus is soft has more
-        Phi, freqs = _modes(K, M, lu, min_modes, max_modes, f_top)
-        if j == 0 and freqs[-1] < f_max_hz:
-            # modes inside the band would be missing: the model is wrong there, and a fit
-            # on a basis this wide only crawls (a point at 126 kHz: 190 unknowns, a run
-            # that never ended)
-            raise VibidError(
-                f"the plate model's {Phi.shape[1]} lowest modes reach only "
-                f"{freqs[-1]:.0f} Hz, below the AFC's highest frequency {f_max_hz:.0f} Hz: "
-                f"a band this wide holds more than {max_modes} modes; fit a narrower band"
-            )
-        if freqs[-1] < f_top:
-            log.warning(
-                "reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted%s",
-                Phi.shape[1],
-                freqs[-1],
-                f_top,
-                "" if j == 0 else " at a face",
-            )
+        cols += found
         if j == 0:
-            n_modes, f_reached = Phi.shape[1], float(freqs[-1])
-        statics = []
-        for rhs in loads + [mats.probes[k] for k in probe_names]:
-            v = lu.solve(rhs)
-            for _ in range(krylov):
-                statics.append(v)
-                v = lu.solve(M @ v)
-        S = np.column_stack(statics)
-        cols += [Phi, S]
-        Js, Jm = _coefficient_jacobians(model, th)
-        for i in moving:
-            if np.any(Js[:, i] != 0):
-                Kd = mats.stiffness_matrix(dict(zip(names, Js[:, i])))
-                cols.append(lu.solve(np.column_stack([Kd @ Phi, Kd @ S[:, :1]])))
-            if np.any(Jm[:, i] != 0):
-                Md = mats.inertia_matrix(dict(zip(inertia_names, Jm[:, i])))
-                cols.append(lu.solve(np.column_stack([Md @ Phi, Md @ S[:, :1]])))
+            n_modes, f_reached = n, f_last
     V = np.column_stack(cols)
     n_candidates = V.shape[1]
     s0, m0 = _coefficients(model, theta0)
@@ -381,6 +340,62 @@ def build_basis(
         n_candidates,
     )
     return basis
+
+
+def _point_columns(
+    mats, model, th, moving, f_top, f_max_hz, min_modes, max_modes, krylov, *, first: bool
+) -> tuple[list, int, float]:
+    """One snapshot point's candidate columns of :func:`build_basis` (its modes up to
+    ``f_top``, the static and Krylov corrections of each load and probe, the sensitivities
+    of the modes to the ``moving`` parameters), the number of its modes and the highest one
+    (Hz). At the ``first`` point (``theta0``) modes that stop below the band are an error."""
+    names, inertia_names = list(mats.stiffness), list(mats.inertia)
+    s, m = _coefficients(model, th)
+    K = mats.stiffness_matrix(dict(zip(names, s))).tocsc()
+    M = mats.inertia_matrix(dict(zip(inertia_names, m))).tocsc()
+    f = mats.inertia_load(dict(zip(inertia_names, m)))
+    loads = [f] + (
+        [mats.inertia_load(dict(zip(inertia_names, m)), rotation=True)]
+        if model.rotates_base
+        else []
+    )
+    lu = spd_lu(K)
+    # every point its own modes up to f_top: a face where one modulus is soft has more
+    Phi, freqs = _modes(K, M, lu, min_modes, max_modes, f_top)
+    if first and freqs[-1] < f_max_hz:
+        # modes inside the band would be missing: the model is wrong there, and a fit
+        # on a basis this wide only crawls (a point at 126 kHz: 190 unknowns, a run
+        # that never ended)
+        raise VibidError(
+            f"the plate model's {Phi.shape[1]} lowest modes reach only "
+            f"{freqs[-1]:.0f} Hz, below the AFC's highest frequency {f_max_hz:.0f} Hz: "
+            f"a band this wide holds more than {max_modes} modes; fit a narrower band"
+        )
+    if freqs[-1] < f_top:
+        log.warning(
+            "reduced basis: %d modes reach only %.0f Hz of the %.0f Hz wanted%s",
+            Phi.shape[1],
+            freqs[-1],
+            f_top,
+            "" if first else " at a face",
+        )
+    statics = []
+    for rhs in loads + [mats.probes[k] for k in model.probe_names]:
+        v = lu.solve(rhs)
+        for _ in range(krylov):
+            statics.append(v)
+            v = lu.solve(M @ v)
+    S = np.column_stack(statics)
+    cols = [Phi, S]
+    Js, Jm = _coefficient_jacobians(model, th)
+    for i in moving:
+        if np.any(Js[:, i] != 0):
+            Kd = mats.stiffness_matrix(dict(zip(names, Js[:, i])))
+            cols.append(lu.solve(np.column_stack([Kd @ Phi, Kd @ S[:, :1]])))
+        if np.any(Jm[:, i] != 0):
+            Md = mats.inertia_matrix(dict(zip(inertia_names, Jm[:, i])))
+            cols.append(lu.solve(np.column_stack([Md @ Phi, Md @ S[:, :1]])))
+    return cols, Phi.shape[1], float(freqs[-1])
 
 
 #: How many reduced bases are kept (each a few MB on the paper's strip).
