@@ -108,33 +108,15 @@ def replay_flow(
     return report
 
 
-def replay_session(
-    session_path,
-    *,
-    json_path=None,
-    report_dir=None,
-    loop: bool = True,
-    candidates=None,
-    method: str = "global",
-    local: str = "newton",
-    restarts: int = RESTARTS,
-    seed: int = SEED,
-    magnitude_only: bool = False,
-) -> dict:
+def replay_session(session_path, *, json_path=None, report_dir=None, **options) -> dict:
     """The replay's stages as one plain function (no Prefect run needed): returns the
-    report; a run that did not converge says so in it (``identification.converged``)."""
+    report; a run that did not converge says so in it (``identification.converged``).
+    ``options``: the identification's, as :func:`~vibid.flows.tasks.identify_task` takes
+    them (``loop``, ``candidates``, ``method``, ``local``, ``restarts``, ``seed``,
+    ``magnitude_only``)."""
     run_logger().info("replaying %s", session_path)
     data = session_afc(session_path)
-    identified = identify_task.fn(  # the identify task's own stage, run here in the task
-        data,
-        loop=loop,
-        candidates=candidates,
-        method=method,
-        local=local,
-        restarts=restarts,
-        seed=seed,
-        magnitude_only=magnitude_only,
-    )
+    identified = identify_task.fn(data, **options)  # the identify task's own stage, here
     report, _ = write_outputs(
         data, identified, json_path=json_path, report_dir=report_dir, session_path=session_path
     )
