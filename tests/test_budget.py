@@ -308,7 +308,7 @@ def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_mod
     """A residual whose autocorrelation time is tau makes tau points one: the same two
     models, tau = 5 and a chi2 gap five times wider, weigh 3 : 1 again. A model that leaves
     a parameter outside its prior box is no defensible model: it has no weight."""
-    from vibid.identify.loop import rounds
+    from vibid.identify.loop import evidence
 
     def fit(D, chi2_red, name):
         return SimpleNamespace(
@@ -337,11 +337,11 @@ def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_mod
     assert model_spread(loop, "isotropic", h)["E_Pa"] == pytest.approx(
         math.sqrt(w * (1 - w)) * abs(E[0] - E[1]), rel=1e-9
     )
-    monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["nu"] if r.name == "other" else [])
+    monkeypatch.setattr(evidence, "outside_prior", lambda r, box: ["nu"] if r.name == "other" else [])
     assert model_spread(loop, "isotropic", h, tau=5.0, box={})["E_Pa"] == 0.0
     # where the final model is outside the box too, the box tells none from another: the
     # spread is over every model compared (not zero: the final's alone)
-    monkeypatch.setattr(rounds, "outside_prior", lambda r, box: ["nu"])
+    monkeypatch.setattr(evidence, "outside_prior", lambda r, box: ["nu"])
     assert model_spread(loop, "isotropic", h, tau=5.0, box={})["E_Pa"] == pytest.approx(
         math.sqrt(3) / 4 * abs(E[0] - E[1]), rel=1e-9
     )

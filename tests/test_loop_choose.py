@@ -1,5 +1,5 @@
 """The loop's one criterion (:mod:`vibid.identify.loop.evidence`) and its choice
-(``rounds.compare``), checked against independent references: the Laplace evidence of a
+(``choose.compare``), checked against independent references: the Laplace evidence of a
 linear-Gaussian model against the evidence integrated numerically over its prior box; the
 choice's model prior as a Bayes factor; the order of a round's refits on stand-in
 candidates."""
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from vibid.identify.loop import rounds
+from vibid.identify.loop import choose, fitting
 from vibid.identify.loop.diagnosis import Feature
 from vibid.identify.loop.evidence import Noise, log_evidence, probabilities
 from vibid.identify.loop.policy import Policy
@@ -121,7 +121,7 @@ def test_the_most_probable_fitted_explanation_is_chosen_and_listed_first():
         for n, z in (("a", 0.0), ("b", 0.0), ("c", 50.0))
     ]
     judged = {"a": _refit(1e3, 10.0), "b": _refit(2e3, 12.0), "c": Judgement(Verdict.NOT_REFITTED)}
-    out, chosen, shares = rounds.compare(scores, judged, 0.0, Policy())
+    out, chosen, shares = choose.compare(scores, judged, 0.0, Policy())
     assert chosen == "b"  # c's estimate is higher, but only a fit is a model
     assert [a["added"] for a in shares] == ["b", "a", None]  # the fits and stopping
     assert sum(a["probability"] for a in shares) == pytest.approx(1.0)
@@ -131,7 +131,7 @@ def test_the_most_probable_fitted_explanation_is_chosen_and_listed_first():
     verdicts = {s.name: s.verdict for s in out}
     assert verdicts == {"a": Verdict.LESS_PROBABLE, "b": Verdict.CHOSEN, "c": Verdict.NOT_REFITTED}
     # against a round where stopping is more probable than every fit
-    out, chosen, shares = rounds.compare(scores, {"a": _refit(1.0, -3.0)}, 0.0, Policy())
+    out, chosen, shares = choose.compare(scores, {"a": _refit(1.0, -3.0)}, 0.0, Policy())
     assert chosen is None and shares[0]["added"] is None
 
 
@@ -178,7 +178,7 @@ def test_a_resonance_placed_at_a_pole_is_refitted_within_its_span():
     assert cand.held(current, None) == {} and MaterialCandidate().held(current, diagnosis) == {}
 
 
-# -- the order of the refits (``rounds.fit_and_weigh``) ---------------------------------------
+# -- the order of the refits (``fitting.fit_and_weigh``) ---------------------------------------
 def _round(monkeypatch, gains, fits_noise=()):
     """Refit a round of stand-in candidates (``gains``: name -> the chi2 its refit removes;
     the material ``anisotropy`` has the highest approximate evidence of all) and return
@@ -196,11 +196,11 @@ def _round(monkeypatch, gains, fits_noise=()):
     def weigh(cand, fit, res, state, noise):
         return Judgement(Verdict.COMPARED, (), fit, evidence=fit.gain)
 
-    monkeypatch.setattr(rounds.refits, "refit", refit)
-    monkeypatch.setattr(rounds, "weigh", weigh)
-    monkeypatch.setattr(rounds, "outside_prior", lambda res, box: [])
+    monkeypatch.setattr(fitting.refits, "refit", refit)
+    monkeypatch.setattr(fitting, "weigh", weigh)
+    monkeypatch.setattr(fitting, "outside_prior", lambda res, box: [])
     monkeypatch.setattr(
-        rounds.Stage,
+        fitting.Stage,
         "of",
         classmethod(lambda cls, added, result: SimpleNamespace(fits_noise=result in fits_noise)),
     )
@@ -227,7 +227,7 @@ def _round(monkeypatch, gains, fits_noise=()):
         left_out_hz=(),
         policy=Policy(),
     )
-    judged = rounds.fit_and_weigh(inputs, state, cands, scores, {}, Noise(2 * DOF))
+    judged = fitting.fit_and_weigh(inputs, state, cands, scores, {}, Noise(2 * DOF))
     return calls, judged
 
 

@@ -17,7 +17,7 @@ import pytest
 from loop_data import RESTARTS, TRUTH, F, data, strip_on
 from vibid.identify.loop import close_loop
 from vibid.identify.loop.candidates import EffectCandidate, MaterialCandidate
-from vibid.identify.loop.rounds import plate_modes_in_band
+from vibid.identify.loop.fitting import plate_modes_in_band
 from vibid.identify.loop.verdicts import Verdict
 from vibid.identify.model.plate import Plate, plate_model
 

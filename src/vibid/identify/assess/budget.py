@@ -289,7 +289,7 @@ def model_spread(
     alone would make the choice of model cost nothing: commit 8453de7)."""
     if loop is None or not loop.unexplained_residual:
         return {}
-    from vibid.identify.loop.rounds import outside_prior
+    from vibid.identify.loop.evidence import outside_prior
 
     final = loop.final
     if box is not None and outside_prior(final, box):

@@ -3,7 +3,7 @@
 Starting from the declared model's fit, each round over a frozen state
 (:mod:`~vibid.identify.loop.rounds`) does four things:
 
-1. **Propose** (:func:`~vibid.identify.loop.rounds.propose`): every candidate of the
+1. **Propose** (:func:`~vibid.identify.loop.propose.propose`): every candidate of the
    library (:mod:`~vibid.identify.loop.candidates`: an effect or a new material, behind
    one protocol) that applies to the current model, a structural fact (the effect it
    refines is there, it may share the model, an instance is left). The diagnosis

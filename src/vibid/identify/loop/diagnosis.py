@@ -52,8 +52,17 @@ import math
 import threading
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from vibid.identify.engine.threads import numpy_only
+
+if TYPE_CHECKING:
+    from vibid.identify.fit.result import IdentificationResult
+    from vibid.identify.model.plate import Modes
+
+log = logging.getLogger(__name__)
 
 _VF_POINTS = 1500  # vector fitting sees at most this many points (its time grows with N)
 _POLISHED = 3  # how many of the best candidates get their poles polished
@@ -624,3 +633,48 @@ def _diagnose(
         len(f),
         "; ".join(dict.fromkeys(errors)) if errors and not len(poles) else "",
     )
+
+
+@numpy_only
+def diagnosis_of(modes: Modes | None, r: IdentificationResult, left_out_hz=()):
+    """The diagnosis of a fit's residual (:mod:`vibid.identify.loop.diagnosis`) given its
+    plate's ``modes``, or None; ``left_out_hz``: bands the fit leaves out, where no pole is
+    a feature (:class:`~vibid.identify.loop.state.Inputs`; not every unused stretch: an adaptive campaign's planner
+    wants the pole its residual shows between two steps, to measure there)."""
+    if modes is None:
+        return None
+    try:
+        modes_hz, q, hidden_hz = model_resonances(modes, r)
+        u = np.asarray(r.used)
+        return diagnose(
+            r.frequency_hz[u],
+            r.H[u],
+            r.model_afc[u],
+            None if r.H_std is None else np.asarray(r.H_std)[u],
+            plate_modes_hz=modes_hz,
+            plate_q=q,
+            hidden_hz=hidden_hz,
+            left_out_hz=left_out_hz,
+        )
+    except Exception as exc:  # noqa: BLE001 - the diagnosis informs, it never stops a fit
+        log.warning("loop: the residual could not be diagnosed: %s", exc)
+        return None
+
+
+def model_resonances(modes: Modes, result):
+    """``(frequency_hz, Q, hidden_hz)`` of the fitted model's resonances: the plate's
+    ``modes`` its sensor sees and its stand resonances; and the plate's modes its sensor
+    does not see (:attr:`Modes.seen`)."""
+    params = result.parameters
+    shown = modes.seen
+    hidden_hz = modes.frequency_hz[~shown]
+    f_hz, q = modes.frequency_hz[shown], modes.q[shown]
+    stand = [
+        (params[t.names[0]], params[t.names[1]])  # (f_hz_k, q_k)
+        for t in result.plate_model.effects
+        if t.rotates_base
+    ]
+    if stand:
+        f_hz = np.concatenate([f_hz, [s[0] for s in stand]])
+        q = np.concatenate([q, [s[1] for s in stand]])
+    return np.asarray(f_hz, float), np.asarray(q, float), hidden_hz

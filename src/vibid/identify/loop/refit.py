@@ -47,6 +47,7 @@ from vibid.identify.fit.strategy import (
     SearchOptions,
     gives_modes,
     identify,
+    peaks_already_matched,
 )
 from vibid.identify.loop.held import Held, held_inside
 from vibid.identify.loop.policy import DEFAULT, Policy
@@ -348,8 +349,9 @@ def _search(plate, data, cand, problem, start, ext_box, local) -> Searched | Non
             peaks_only is not None
             and best is not None
             and best.result is found
-            and _on_the_peaks(at, found)
-        ):
+            and peaks_already_matched(at, found.values, by_grid=True)
+        ):  # its modes on the measured peaks to the grid's resolution: chi2's search
+            # would find this basin again (identify's own rule)
             log.info(
                 "loop: %s's modes lie on the measured peaks: no search on chi2 (its "
                 "misfit is not a wrong basin)",
@@ -357,12 +359,3 @@ def _search(plate, data, cand, problem, start, ext_box, local) -> Searched | Non
             )
             return replace(best, settled=True)
     return best
-
-
-def _on_the_peaks(at, result) -> bool:
-    """Whether ``result``'s modes lie on the measured resonance peaks to the grid's
-    resolution (``at``: the problem on its model refreshed around them): chi2's search
-    would find this basin again (:func:`identify`'s own rule)."""
-    from vibid.identify.fit.strategy import peaks_already_matched
-
-    return peaks_already_matched(at, result.values, by_grid=True)

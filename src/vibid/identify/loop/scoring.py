@@ -11,10 +11,22 @@ scored along the secant from the current model to the extended one (one dof).
 
 from __future__ import annotations
 
-import numpy as np
+import math
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from vibid.identify.engine.profile import timed
+from vibid.identify.engine.threads import in_order
 from vibid.identify.fit.problem import LeastSquaresProblem
 from vibid.identify.fit.space import ParameterSpace
+from vibid.identify.loop.evidence import Noise, approximate, with_prior
+from vibid.identify.loop.verdicts import Score, Stage, Verdict
+
+if TYPE_CHECKING:
+    from vibid.identify.loop.state import Inputs, State
 
 
 def extended_problem(plate, data, res, cand, box, diagnosis, like=None):
@@ -112,3 +124,81 @@ def collinearity(Q_old, J_new) -> float:
         np.linalg.norm(Q_old.T @ v) / np.linalg.norm(v) for v in J_new.T if np.linalg.norm(v) > 0
     ]
     return float(min(cos)) if cos else float("nan")
+
+
+def score_all(inputs: Inputs, state: State, proposals, noise: Noise, log_z_now: float):
+    """Every proposal's score test at the current fit and its approximate evidence
+    (:func:`~vibid.identify.loop.evidence.approximate`), one per candidate: of a
+    resonance's places, the best. Returns ``(scores, extended, candidates)``: the scores,
+    name -> the extended problem its refit starts from, name -> the candidate (at its
+    place)."""
+    current = state.current
+    groups: dict = {}
+    for c in proposals:  # a candidate's places in turn, on one forward model
+        groups.setdefault(c.name, []).append(c)
+
+    def at_its_places(group):
+        out, like = [], None
+        for c in group:
+            s, e = scored(inputs, current, c, state, noise, log_z_now, like)
+            like = like or e
+            out.append((c, s, e))
+        return out
+
+    scores, extended, cands = [], {}, {}
+    for tried in in_order(at_its_places, list(groups.values())):
+        cand, s, e = max(tried, key=lambda t: np.nan_to_num(t[1].log_evidence, nan=-np.inf))
+        if len(tried) > 1:
+            s = replace(
+                s,
+                detail=s.detail
+                + (
+                    (
+                        "places",
+                        ", ".join(
+                            f"{c.at.f_hz:.4g} Hz ({t.score:.3g})"
+                            for c, t, _ in tried
+                            if np.isfinite(t.score)
+                        ),
+                    ),
+                ),
+            )
+        scores.append(s)
+        cands[cand.name] = cand
+        if e is not None:
+            extended[cand.name] = e
+    return scores, extended, cands
+
+
+@timed("loop scoring")
+def scored(
+    inputs: Inputs, current: Stage, cand, state: State, noise: Noise, log_z_now: float, like=None
+) -> tuple[Score, tuple | None]:
+    """``cand``'s score test at the current fit and its approximate evidence (a failure is
+    its verdict, not fatal), and the problem of the model extended by it
+    (:func:`~vibid.identify.loop.scoring.extended_problem`; None where it failed), which
+    its refit starts from: built once, not again for the refit."""
+    args = (inputs.plate, inputs.data, current.result, cand, state.box, current.diagnosis, like)
+    extended = None
+    at = {} if cand.at is None else {"at_hz": cand.at.f_hz}
+    try:
+        extended = extended_problem(*args)
+        lm, dof, cos, info = score(
+            extended, current.result, cand, with_prior(state.prior, cand, current.result.parameters)
+        )
+    except Exception as exc:  # noqa: BLE001
+        return Score(
+            cand.name,
+            math.nan,
+            0,
+            math.nan,
+            math.nan,
+            verdict=Verdict.NOT_SCORED,
+            detail=(("error", str(exc)),),
+            **at,
+        ), extended
+    p = float(chi2_dist.sf(lm, dof))
+    log_z = approximate(log_z_now, noise, float(current.result.chi2), lm, info)
+    return Score(
+        cand.name, lm, dof, p, cos, detail=(("p", p),), log_evidence=log_z, estimated=True, **at
+    ), extended

@@ -21,7 +21,7 @@ class Verdict(enum.Enum):
 
     CHOSEN = "chosen"
     LESS_PROBABLE = "less_probable"
-    #: refitted and weighed (:func:`~vibid.identify.loop.rounds.compare` then decides)
+    #: refitted and weighed (:func:`~vibid.identify.loop.choose.compare` then decides)
     COMPARED = "compared"
     NOT_SCORED = "not_scored"
     TOO_FEW_POINTS = "too_few_points"

@@ -164,7 +164,8 @@ def _local(setup, afc, start_result):
 
 def _unexpected(setup, result, closed) -> tuple[tuple[float, float], ...]:
     """Resonances the residual shows where the fitted model has none: (f_hz, Q)."""
-    from vibid.identify.loop.rounds import diagnosis_of, modes_of
+    from vibid.identify.loop.diagnosis import diagnosis_of
+    from vibid.identify.loop.examine import modes_of
     from vibid.identify.model.plate import Plate
 
     diagnosis = None
