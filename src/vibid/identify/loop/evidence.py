@@ -43,12 +43,9 @@ from scipy.special import log_ndtr
 
 from vibid.identify.fit.noise import misfit_scale
 from vibid.identify.fit.space import ParameterSpace
-from vibid.identify.loop.verdicts import Judgement, Verdict
 
 if TYPE_CHECKING:
     from vibid.identify.fit.result import IdentificationResult
-    from vibid.identify.loop.refit import Refit
-    from vibid.identify.loop.state import State
 
 CRITERION = "log_evidence"
 MEANING = (
@@ -191,26 +188,6 @@ def with_prior(prior: dict, cand, values: dict) -> dict:
     """The physical prior box ``prior`` of the current model's parameters with ``cand``'s
     new ones (the evidence's prior of the model extended by it)."""
     return prior | cand.prior_bounds(prior, values)
-
-
-def weigh(cand, fit: Refit, res, state: State, noise: Noise) -> Judgement:
-    """A refit's evidence under the round's noise model, at its chi2 under the current
-    fit's weights (the same for every explanation the round compares); a refit that did
-    not converge is no estimate, and has none."""
-    r = fit.result
-    detail = (("searched", fit.searched),)
-    if cand.at is not None:
-        detail += (("at_hz", cand.at.f_hz),)
-    if fit.held is not None:  # parameters the refit held inside their box
-        detail += (("held", fit.held.sentence),)
-    if not r.converged:
-        return Judgement(Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit)
-    placed = cand.resonances_hz(r.parameters, res.parameters)
-    if placed:
-        detail += (("f_hz", placed[0]),)
-    prior = with_prior(state.prior, cand, res.parameters)  # the extended model's box
-    ev = log_evidence(r, prior, noise, chi2=float(res.chi2 - fit.gain))
-    return Judgement(Verdict.COMPARED, detail + ev.parts, fit, evidence=ev.log_z)
 
 
 def outside_prior(result: IdentificationResult, box: dict) -> list[str]:

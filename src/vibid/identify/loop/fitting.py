@@ -1,5 +1,5 @@
 """A round's refits: the guards, which candidates are refitted and in what order, each refit
-weighed by its evidence (:func:`~vibid.identify.loop.evidence.weigh`)."""
+weighed by its evidence (:func:`weigh`)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from vibid.identify.engine.threads import in_order
 from vibid.identify.loop import refit as refits
-from vibid.identify.loop.evidence import Noise, outside_prior, weigh
+from vibid.identify.loop.evidence import Noise, log_evidence, outside_prior, with_prior
 from vibid.identify.loop.verdicts import Judgement, Score, Stage, Verdict
 
 if TYPE_CHECKING:
@@ -49,20 +49,7 @@ def fit_and_weigh(
             "loop: %s outside the prior box: every candidate is refitted",
             _values(res, outside, state.prior),
         )
-    open_ = sorted(
-        (s for s in scores if s.name not in judged and np.isfinite(s.log_evidence)),
-        key=lambda s: -s.log_evidence,
-    )
-    own_free = [
-        s
-        for s in open_
-        if not set(cands[s.name].extend(res.plate_model).names) - set(res.parameter_names)
-    ]
-    ranked = open_ if outside else open_[: policy.refits_per_round]
-    ranked = ranked + [s for s in own_free if s not in ranked]
-    for s in open_:
-        if s not in ranked:
-            judged[s.name] = Judgement(Verdict.NOT_REFITTED)
+    ranked = to_refit(scores, judged, cands, res, bool(outside), policy)
     excess = max(res.chi2 - res.dof, 0.0)
 
     def attempt(s: Score, search: bool) -> Judgement:
@@ -115,6 +102,28 @@ def fit_and_weigh(
     return judged
 
 
+def to_refit(scores, judged: dict, cands: dict, res, outside: bool, policy) -> list[Score]:
+    """The scores refitted this round, highest approximate evidence first (the rule in
+    :func:`fit_and_weigh`'s doc: the policy's few, every one without a parameter of its
+    own, every one where the current estimate is ``outside`` its prior box); each other
+    score not ``judged`` yet is marked not refitted in ``judged``."""
+    open_ = sorted(
+        (s for s in scores if s.name not in judged and np.isfinite(s.log_evidence)),
+        key=lambda s: -s.log_evidence,
+    )
+    own_free = [
+        s
+        for s in open_
+        if not set(cands[s.name].extend(res.plate_model).names) - set(res.parameter_names)
+    ]
+    ranked = open_ if outside else open_[: policy.refits_per_round]
+    ranked = ranked + [s for s in own_free if s not in ranked]
+    for s in open_:
+        if s not in ranked:
+            judged[s.name] = Judgement(Verdict.NOT_REFITTED)
+    return ranked
+
+
 def guarded(inputs: Inputs, current: Stage, cands: dict, scores) -> dict:
     """name -> the :class:`Judgement` of a candidate a physical fact rules out this round
     (module doc of :func:`fit_and_weigh`)."""
@@ -140,6 +149,26 @@ def guarded(inputs: Inputs, current: Stage, cands: dict, scores) -> dict:
                     Verdict.NO_MODE_PATTERN, (("modes", modes), ("needed", needed))
                 )
     return judged
+
+
+def weigh(cand, fit: refits.Refit, res, state: State, noise: Noise) -> Judgement:
+    """A refit's evidence under the round's noise model, at its chi2 under the current
+    fit's weights (the same for every explanation the round compares); a refit that did
+    not converge is no estimate, and has none."""
+    r = fit.result
+    detail = (("searched", fit.searched),)
+    if cand.at is not None:
+        detail += (("at_hz", cand.at.f_hz),)
+    if fit.held is not None:  # parameters the refit held inside their box
+        detail += (("held", fit.held.sentence),)
+    if not r.converged:
+        return Judgement(Verdict.NOT_CONVERGED, detail + (("message", r.message),), fit)
+    placed = cand.resonances_hz(r.parameters, res.parameters)
+    if placed:
+        detail += (("f_hz", placed[0]),)
+    prior = with_prior(state.prior, cand, res.parameters)  # the extended model's box
+    ev = log_evidence(r, prior, noise, chi2=float(res.chi2 - fit.gain))
+    return Judgement(Verdict.COMPARED, detail + ev.parts, fit, evidence=ev.log_z)
 
 
 def plate_modes_in_band(modes: Modes | None, result) -> int:
