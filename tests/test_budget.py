@@ -337,7 +337,9 @@ def test_the_model_part_counts_correlated_residuals_once_and_only_defensible_mod
     assert model_spread(loop, "isotropic", h)["E_Pa"] == pytest.approx(
         math.sqrt(w * (1 - w)) * abs(E[0] - E[1]), rel=1e-9
     )
-    monkeypatch.setattr(evidence, "outside_prior", lambda r, box: ["nu"] if r.name == "other" else [])
+    monkeypatch.setattr(
+        evidence, "outside_prior", lambda r, box: ["nu"] if r.name == "other" else []
+    )
     assert model_spread(loop, "isotropic", h, tau=5.0, box={})["E_Pa"] == 0.0
     # where the final model is outside the box too, the box tells none from another: the
     # spread is over every model compared (not zero: the final's alone)
