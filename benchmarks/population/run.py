@@ -130,6 +130,8 @@ def main(argv=None):
     ap.add_argument("--timeout", type=float, default=900.0)
     ap.add_argument("--rescore", action="store_true", help="score the cache, run nothing")
     args = ap.parse_args(argv)
+    from benchmarks.population.oracle import cached_oracle  # (oracle imports this module)
+
     split, names = select(args.half, args.cases)
     rows = []
     for i, name in enumerate(names):
@@ -149,7 +151,7 @@ def main(argv=None):
         truth = json.loads((C.CASES_DIR / name / "truth.json").read_text())
         rp = RESULTS / name / "report.json"
         report = json.loads(rp.read_text()) if meta["status"] == "ok" and rp.exists() else None
-        rows.append(S.score_case(truth, report, meta))
+        rows.append(S.score_case(truth, report, meta, cached_oracle(name)))
     halves = {
         h: [r for r in rows if r["case"] in set(split[h])] for h in ("calibration", "measured")
     }

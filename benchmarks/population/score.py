@@ -37,6 +37,13 @@ EQUIVALENCES = [
     ),
 ]
 
+#: How much better, in BIC (chi2 + p ln 2N), the oracle fit (:mod:`oracle`: vibid's model
+#: with the truth's effects, fitted from the truth) must be than the loop's final model for
+#: a wrong case to count as the loop's search missing a better explanation: "strong" on
+#: Kass & Raftery's (1995) scale; within it the data do not tell the truth from the loop's
+#: answer, and past it the other way the loop's answer fits better than the truth does.
+STRONG_BIC = 6.0
+
 #: nu's tolerance for an out-of-library case: 5 % of the truth's nu
 NU_REL = 0.05
 D_REL = 0.01
@@ -77,7 +84,25 @@ def coverage(truth, report) -> dict:
     return out
 
 
-def score_case(truth, report, meta) -> dict:
+def miss_kind(truth, report, oracle) -> str | None:
+    """Why a wrong case is wrong (:data:`STRONG_BIC`): ``"search"`` (the oracle fits
+    strongly better: the library held a better explanation the loop did not reach),
+    ``"data"`` (neither strongly better) or ``"loop fits better"``; None without an oracle
+    fit or a final stage."""
+    stages = report.get("loop", {}).get("stages", [])
+    if not oracle or not stages or not math.isfinite(oracle.get("chi2_reduced", math.nan)):
+        return None
+    n = 2 * truth["n_points"]
+    p_loop = len(report.get("parameters", {}))
+    p_oracle = len(oracle["parameters"])
+    bic_loop = stages[-1]["chi2_reduced"] * (n - p_loop) + p_loop * math.log(n)
+    bic_oracle = oracle["chi2_reduced"] * (n - p_oracle) + p_oracle * math.log(n)
+    if bic_loop - bic_oracle > STRONG_BIC:
+        return "search"
+    return "loop fits better" if bic_oracle - bic_loop > STRONG_BIC else "data"
+
+
+def score_case(truth, report, meta, oracle=None) -> dict:
     row = {
         "case": truth["name"],
         "kind": truth["kind"],
@@ -119,6 +144,8 @@ def score_case(truth, report, meta) -> dict:
         missed=missed,
         false=false,
         unexplained_residual=loop.get("unexplained_residual"),
+        oracle_chi2_reduced=(oracle or {}).get("chi2_reduced"),
+        miss_kind=miss_kind(truth, report, oracle) if (missed or false) else None,
         chi2_reduced=[s.get("chi2_reduced") for s in loop.get("stages", [])],
         coverage=coverage(truth, report),
         values={k: _param(report, k)[0] for k in truth["material"]},
@@ -194,6 +221,9 @@ def summarise(rows) -> dict:
         "seconds_max": max(secs) if secs else None,
         "criterion": sorted({r["criterion"] for r in done if r.get("criterion")}),
         "cases_with_alternatives": sum("alternatives" in r for r in done),
+        "wrong_cases_by_kind": dict(
+            Counter(r.get("miss_kind") or "no oracle" for r in lib if r["missed"] or r["false"])
+        ),
     }
 
 
@@ -201,6 +231,13 @@ def _fmt(x, pct=True):
     if x is None:
         return "-"
     return f"{100 * x:.0f} %" if pct else f"{x:.0f}"
+
+
+def _oracle_cell(r) -> str:
+    x = r.get("oracle_chi2_reduced")
+    if x is None or not math.isfinite(x):
+        return "-"
+    return f"{x:.3g}" + (f" ({r['miss_kind']})" if r.get("miss_kind") else "")
 
 
 def markdown(summary, rows) -> str:
@@ -250,11 +287,18 @@ def markdown(summary, rows) -> str:
         lambda s: f"{_fmt(s['seconds_median'], False)} / {_fmt(s['seconds_max'], False)}",
     )
     line("criterion", lambda s: ", ".join(s["criterion"]) or "-")
+    line(
+        "wrong library cases: search / data / loop fits better",
+        lambda s: " / ".join(
+            str(s["wrong_cases_by_kind"].get(k, 0)) for k in ("search", "data", "loop fits better")
+        ),
+    )
     out = "\n".join(lines)
     per = [
         "",
-        "| case | status | s | required | added | missed | false | honest |",
-        "|---|---|---|---|---|---|---|---|",
+        "| case | status | s | required | added | missed | false | honest | oracle chi2_red "
+        "(why wrong) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         per.append(
@@ -263,6 +307,7 @@ def markdown(summary, rows) -> str:
             f"{'-' if r['added'] is None else (','.join(r['added']) or 'none')} | "
             f"{','.join(r['missed']) or '-'} | "
             f"{'-' if r['false'] is None else (','.join(r['false']) or '-')} | "
-            f"{'-' if r['honest'] is None else r['honest']} |"
+            f"{'-' if r['honest'] is None else r['honest']} | "
+            f"{_oracle_cell(r)} |"
         )
     return out + "\n" + "\n".join(per)
