@@ -79,9 +79,17 @@ def _verdict_words(kind: str, d: dict) -> str:
         "refit_failed": f"refit failed: {d.get('error', '')}",
         "not_converged": f"the refit did not converge ({d.get('message', '')})",
         "withdrawn": (
-            f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
-            f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
-            f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"
+            (
+                "withdrawn at the end: refitted without it from the loop's final estimate "
+                f"({d.get('z', math.nan):.2g} std from its null there), the model without it "
+                f"is the more probable (log odds {d.get('odds', math.nan):.3g})"
+            )
+            if d.get("final")
+            else (
+                f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
+                f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
+                f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"
+            )
         ),
     }[kind]
 

@@ -28,8 +28,8 @@ from vibid.identify.loop.policy import DEFAULT, Policy
 from vibid.identify.loop.propose import propose
 from vibid.identify.loop.scoring import score_all
 from vibid.identify.loop.state import STOP, Inputs, State
-from vibid.identify.loop.verdicts import LoopResult, Stage
-from vibid.identify.loop.withdraw import withdraw
+from vibid.identify.loop.verdicts import LoopResult, Stage, Verdict
+from vibid.identify.loop.withdraw import at_the_end, withdraw
 from vibid.identify.model.plate import Plate
 
 
@@ -99,7 +99,7 @@ def close_loop(
         state, added = play_round(inputs, state, proposals)
         if not added:
             break
-    return finish(state, time.perf_counter() - t0)
+    return finish(at_the_end(inputs, state), time.perf_counter() - t0)
 
 
 def _pool(candidates, policy: Policy) -> tuple:
@@ -156,6 +156,8 @@ def finish(state: State, seconds: float) -> LoopResult:
     """The loop's result: a final residual above the noise scales the covariance by the
     misfit; a kept effect nearly collinear with the declared parameters is a warning."""
     stages = list(state.stages)
+    last = state.rounds[-1] if state.rounds else ()
+    withdrawn = {s.name for s in last if s.verdict is Verdict.WITHDRAWN}  # at the end
     unexplained = not stages[-1].fits_noise
     if unexplained:
         stages[-1] = replace(stages[-1], result=scaled_by_misfit(stages[-1].result))
@@ -164,8 +166,8 @@ def finish(state: State, seconds: float) -> LoopResult:
         f"{s.collinearity:.5f}): the data separate them only through the "
         f"{100 * math.sqrt(max(1 - s.collinearity**2, 0)):.2g} % of its sensitivity the "
         "others cannot mimic; its std and theirs include that"
-        for s in (state.rounds[-1] if state.rounds else ())
-        if s.kept and s.collinearity > 0.9
+        for s in last
+        if s.kept and s.collinearity > 0.9 and s.name not in withdrawn
     ]
     return LoopResult(
         tuple(stages), state.rounds, unexplained, tuple(warnings), seconds, state.alternatives
