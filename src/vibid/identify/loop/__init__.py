@@ -28,7 +28,9 @@ Starting from the declared model's fit, each round over a frozen state
 
 The loop ends when the fit explains the data to the level of their noise (the one judge,
 :func:`vibid.identify.fit.noise.explains`, which the report asks too), when stopping is
-the most probable explanation, or after ``max_rounds``. Each stage keeps the
+the most probable explanation, or after ``max_rounds``; then its last addition, which no
+round tested from a later fit, is tested as the others were, from the final estimate
+(:func:`~vibid.identify.loop.withdraw.at_the_end`). Each stage keeps the
 explanations it compared with their probabilities (the report's
 ``loop.stages[].alternatives``). A residual that remains is reported
 (``unexplained_residual``) and the final covariance is scaled by its reduced chi2 (the
