@@ -67,10 +67,10 @@ def test_the_last_addition_that_explains_nothing_is_withdrawn_at_the_end():
     assert gain.chi2 <= delay.chi2  # the gain lowers chi2 a little, as any parameter does
 
     inputs = Inputs(Plate(setup), fit_data(f, H, std), all_candidates(), "newton")
-    names = {c.name: c for c in all_candidates()}
+    candidates = {c.name: c for c in inputs.pool}
     box = dict(setup.identification.bounds)
-    prior = with_prior(box, names["channel_delay"], declared.parameters)
-    prior = with_prior(prior, names["sensor_gain"], delay.parameters)
+    prior = with_prior(box, candidates["channel_delay"], declared.parameters)
+    prior = with_prior(prior, candidates["sensor_gain"], delay.parameters)
     stages = tuple(
         diagnosed(inputs, Stage.of(added, r))
         for added, r in ((None, declared), ("channel_delay", delay), ("sensor_gain", gain))

@@ -6,12 +6,13 @@ For each case, the model the truth says is right (its material model, its librar
 an effect outside the library is left out: vibid has no term for it) is fitted locally from
 the truth's own values (the setup's prior box, each effect's catalogue box widened to hold
 the truth), with vibid's identification (trust-region Newton, the model's own error in the
-weights). Its reduced chi2 beside the loop's final one separates two kinds of miss:
+weights). Its reduced chi2 beside the loop's final one separates two kinds of miss
+(:func:`benchmarks.population.score.miss_kind`, by BIC):
 
-* the oracle fits clearly better (chi2_red lower than the loop's): a better explanation was
-  within the library and the loop did not reach it (a refit that stopped in another basin,
-  a candidate not tried);
-* the oracle fits no better: the data do not prefer the truth over what the loop chose
+* ``search``: the oracle fits strongly better: a better explanation was within the library
+  and the loop did not reach it (a refit that stopped in another basin, a candidate not
+  tried);
+* ``data``: it does not: the data do not prefer the truth over what the loop chose
   (effects the band cannot tell apart at this noise, or vibid's model lacking the physics).
 
 The fit starts at the truth, so it answers "is there a better minimum at the truth", not
@@ -60,15 +61,15 @@ def oracle_fit(name) -> dict:
     effects = tuple(truth["effects"])
     model = plate_model_for(tuple(flat), effects)
     box = dict(setup.identification.bounds)
-    for n, v in flat.items():
+    for n, v in flat.items():  # every box widened to hold the truth
         q = known_effect_parameter(n)
         if q is not None and q.bounds is not None:
             lo, hi = q.bounds
-            box[n] = (min(lo, v), max(hi, v))
-    for q in model.material.parameters:  # the declared box may not hold the truth's material
-        v = flat[q.name]  # (an orthotropic truth declared isotropic: no box of its own)
-        lo, hi = box.get(q.name, sorted((v / 3, 3 * v)))
-        box[q.name] = (min(lo, v), max(hi, v))
+        elif n in box:
+            lo, hi = box[n]
+        else:  # an orthotropic truth declared isotropic: its moduli have no box of their own
+            lo, hi = sorted((v / 3, 3 * v))
+        box[n] = (min(lo, v), max(hi, v))
     box = model.default_bounds(box)
     t0 = time.monotonic()
     fm = Plate(setup).forward_model(f, model=model, theta0=flat, bounds=box)

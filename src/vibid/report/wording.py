@@ -56,6 +56,20 @@ def _not_refitted(d: dict) -> str:
     )
 
 
+def _withdrawn(d: dict) -> str:
+    """A withdrawal's sentence: by a later addition (``by``), or by the loop's test of its
+    last addition from the final estimate (``final``)."""
+    if d.get("final"):
+        how, then = "withdrawn at the end: refitted without it from the loop's final estimate", ","
+    else:
+        by = d.get("by", "the new effect")
+        how, then = f"withdrawn: added in an earlier round, once {by} is in the model", ""
+    return (
+        f"{how} ({d.get('z', math.nan):.2g} std from its null there){then} the model without "
+        f"it is the more probable (log odds {d.get('odds', math.nan):.3g})"
+    )
+
+
 def _verdict_words(kind: str, d: dict) -> str:
     """The sentence of the verdict ``kind`` (its value) quoting the numbers ``d``."""
     p = d.get("probability", math.nan)
@@ -78,19 +92,7 @@ def _verdict_words(kind: str, d: dict) -> str:
         ),
         "refit_failed": f"refit failed: {d.get('error', '')}",
         "not_converged": f"the refit did not converge ({d.get('message', '')})",
-        "withdrawn": (
-            (
-                "withdrawn at the end: refitted without it from the loop's final estimate "
-                f"({d.get('z', math.nan):.2g} std from its null there), the model without it "
-                f"is the more probable (log odds {d.get('odds', math.nan):.3g})"
-            )
-            if d.get("final")
-            else (
-                f"withdrawn: added in an earlier round, once {d.get('by', 'the new effect')} "
-                f"is in the model ({d.get('z', math.nan):.2g} std from its null there) the "
-                f"model without it is the more probable (log odds {d.get('odds', math.nan):.3g})"
-            )
-        ),
+        "withdrawn": _withdrawn(d),
     }[kind]
 
 
