@@ -8,8 +8,9 @@ family converging.
   of 40 x 8 and 80 x 16 (slow) converges it to a few 1e-6 only. The first torsion mode
   (790 Hz) converges at about h^1.5 there, and the global basis loses digits as the cells
   shrink (its monomials' conditioning grows as (x / h)^5: 2.6e-8 off vibid's basis on
-  40 x 8 cells, 1.9e-6 on 80 x 16), so the extrapolation puts that mode 4.4e-6 above a
-  bound the exact one lies under (a conforming mesh's frequency; benchmarks/disc_error.py).
+  40 x 8 cells, 1.9e-6 on 80 x 16), so the extrapolation puts that mode 2.6e-6 to 4.4e-6
+  (the rounding differs with the CPU's BLAS kernels) above a bound the exact one lies
+  under (a conforming mesh's frequency; benchmarks/disc_error.py).
   Fitted, its AFC moves nu by -1.2e-5 and D by -1.2e-4: no reference for data that precise;
 * the Morley element (a different, non-conforming, quadratic space) on uniform meshes,
   extrapolated the same way;
@@ -111,7 +112,9 @@ def test_against_extrapolated_scikit_fem_argyris_fine(default_frequencies):
     """scikit-fem's Argyris on 40 x 8 and 80 x 16 (12 000 dof): its own convergence is
     about h² (the torsion mode's nearer h^1.5) and its extrapolation meets the default
     discretisation within 5e-6; its torsion mode lies above the fine mesh's, a bound the
-    exact one lies under, by more than 3e-6 (measured 4.4e-6): no reference at 1e-6."""
+    exact one lies under, by more than 1e-6: no reference at 1e-6. Measured 2.6e-6 and 4.4e-6
+    on two CPUs: part of it is the global basis's rounding, which the BLAS kernels set, so the
+    bar is the claim (1e-6), not a measurement."""
     coarse = _frequencies(Discretisation("argyris-global", 40, 8))
     fine = _frequencies(Discretisation("argyris-global", 80, 16))
     rate = np.log2((coarse - default_frequencies) / (fine - default_frequencies))
@@ -119,7 +122,7 @@ def test_against_extrapolated_scikit_fem_argyris_fine(default_frequencies):
     extrapolated = (4 * fine - coarse) / 3
     np.testing.assert_allclose(default_frequencies, extrapolated, rtol=5e-6)
     bound = _frequencies(Discretisation("argyris", 60, 12, 6))
-    assert extrapolated[2] / bound[2] - 1 > 3e-6
+    assert extrapolated[2] / bound[2] - 1 > 1e-6
 
 
 def test_default_discretisation_converged(default_frequencies):
