@@ -20,8 +20,8 @@ integral is a Kronecker product of 1-D Gauss-Legendre integrals (exact for polyn
 * inertia: ``T = 1/2 int rho h (w_t^2 + h^2/12 |grad w_t|^2)`` (rotary inertia), w absolute;
 * the response sensor: a disc of mass m and radius a centred at (x_s, y_s), its mass
   ``m / (pi a^2)`` per area spread over the disc and through the thickness (the same rotary
-  term), read at its centre; an added mass on it (glue, cable; over the disc) and the rotary inertia
-  of a tall sensor ``J = m ((h/2 + e)^2 - (h/2)^2)`` about both in-plane axes through the
+  term), read at its centre; an added mass at it (the report format's ``added_mass``: a
+  point mass at the disc's centre, ``m psi psi^T``) and the rotary inertia of a tall sensor ``J = m ((h/2 + e)^2 - (h/2)^2)`` about both in-plane axes through the
   mid-plane (its centre of mass e above the surface, beyond the disc the setup declares),
   spread over the disc as the disc's own rotary term is (a point couple on a Kirchhoff
   plate meets no finite stiffness: its Ritz series would not converge);
@@ -220,10 +220,9 @@ def system(plate: Plate, order, clamp, dL=0.0, dy=0.0, added_mass=0.0, height=0.
     M = M + rho_a * (Mf + h**2 / 12 * Mg)
     load1, loadx = load1 + rho_a * d1, loadx + rho_a * (dx + h**2 / 12 * dgx)
     f = b.fields(np.array([xs]), np.array([ys]))[0][:, 0]
-    if added_mass:  # moves with the sensor: over its disc (glue under it, its cable)
-        ra = added_mass / area
-        M = M + ra * (Mf + h**2 / 12 * Mg)
-        load1, loadx = load1 + ra * d1, loadx + ra * (dx + h**2 / 12 * dgx)
+    if added_mass:  # the report format's added_mass: a point mass at the sensor's centre
+        M = M + added_mass * np.outer(f, f)
+        load1, loadx = load1 + added_mass * f, loadx + added_mass * xs * f
     if height:
         # spread over the disc: a point couple on a plate has no finite stiffness
         J = plate.mass * ((h / 2 + height) ** 2 - (h / 2) ** 2) / area

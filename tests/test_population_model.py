@@ -92,13 +92,14 @@ def test_base_rotation_is_the_exact_beams():
 def test_point_mass_and_rotary_inertia_are_the_beams_body():
     f = np.linspace(20.0, 2000.0, 40)
     m, e = 5e-4, 4e-3
-    # an added mass moves with the sensor's disc: the beam's body of that mass, to within
-    # a tenth of what the mass does (the disc bends with the strip under it)
+    # an added mass is a point mass at the sensor's centre (the report format's
+    # added_mass): the beam's body of that mass and no rotary inertia, to within 1/200 of
+    # what the mass does (measured 5e-4: a point on a plate against a section of a beam)
     small = pm.Plate(L, W, H_M, RHO, 0.09, W / 2, 1e-12, 1e-3)
     H = pm.afc(f, small, NU0, {"mass_kg": m}, order=(24, 5))
-    Hb = beam.afc(2 * math.pi * f, **_beam_kw(m=m, J=m * H_M**2 / 12))
+    Hb = beam.afc(2 * math.pi * f, **_beam_kw(m=m, J=0.0))
     Hb0 = beam.afc(2 * math.pi * f, **_beam_kw())
-    assert np.max(np.abs(H - Hb) / np.abs(Hb)) < 0.1 * np.max(np.abs(Hb0 - Hb) / np.abs(Hb))
+    assert np.max(np.abs(H - Hb) / np.abs(Hb)) < 5e-3 * np.max(np.abs(Hb0 - Hb) / np.abs(Hb))
     # a tall sensor: its rotary inertia m ((h/2 + e)^2 - (h/2)^2), spread over the disc,
     # against the beam's rigid body with that J (the disc bends with the strip under it:
     # a model-form difference, 10 times smaller than what the height itself does)
